@@ -1,0 +1,58 @@
+"""The ``gaitcap`` command group."""
+
+from __future__ import annotations
+
+import logging
+
+import click
+
+from gaitcap import __version__
+
+
+class _ClickHandler(logging.Handler):
+    """Log records to stderr through Click, so CliRunner captures them."""
+
+    def emit(self, record: logging.LogRecord) -> None:
+        prefix = "" if record.levelno == logging.INFO else f"{record.levelname.lower()}: "
+        click.echo(prefix + record.getMessage(), err=True)
+
+
+def _setup_logging(verbose: int, quiet: bool) -> None:
+    level = logging.WARNING if quiet else (logging.DEBUG if verbose else logging.INFO)
+    logger = logging.getLogger("gaitcap")
+    logger.handlers[:] = [_ClickHandler()]
+    logger.setLevel(level)
+    logger.propagate = False
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, "--version", prog_name="gaitcap")
+@click.option("-v", "--verbose", count=True, help="More detail (repeat for debug output).")
+@click.option("-q", "--quiet", is_flag=True, help="Only warnings and errors.")
+@click.pass_context
+def cli(ctx: click.Context, verbose: int, quiet: bool) -> None:
+    """Markerless 3D gait analysis from two or more calibrated cameras.
+
+    \b
+    Example:
+        gaitcap demo
+        gaitcap synth walk.c3d -o sessions/walk01
+    """
+    ctx.ensure_object(dict)
+    ctx.obj["quiet"] = quiet
+    _setup_logging(verbose, quiet)
+
+
+def _register() -> None:
+    # one line per command module; each module defines ``command``
+    import importlib
+
+    for name in COMMAND_MODULES:
+        cli.add_command(importlib.import_module(f"gaitcap.cli.{name}").command)
+
+
+# the command modules, in the order of the pipeline
+COMMAND_MODULES: list[str] = []
+
+
+_register()

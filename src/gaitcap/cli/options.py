@@ -1,0 +1,37 @@
+"""Options and helpers shared by several commands."""
+
+from __future__ import annotations
+
+import functools
+import logging
+from collections.abc import Callable
+from typing import Any, TypeVar
+
+import click
+
+from gaitcap.errors import GaitcapError
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+log = logging.getLogger("gaitcap")
+
+
+def handle_errors(func: F) -> F:
+    """Turn gaitcap's typed errors into one clear message and exit code 1 (Click uses 2 for usage)."""
+
+    @functools.wraps(func)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return func(*args, **kwargs)
+        except GaitcapError as e:
+            raise click.ClickException(str(e)) from e
+
+    return wrapper  # type: ignore[return-value]
+
+
+def force_option(func: F) -> F:
+    return click.option("--force", is_flag=True, help="Overwrite existing outputs.")(func)
+
+
+def seed_option(func: F) -> F:
+    return click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")(func)

@@ -1,0 +1,111 @@
+"""Typed configuration: one schema per YAML file, defaults in one place, unknown keys rejected.
+
+Schemas are pydantic models with ``extra="forbid"``. :func:`load_yaml_model` reads a YAML file
+into a schema and turns validation failures into :class:`~gaitcap.errors.ConfigError` messages
+that name the file and the dotted key, and suggest the closest valid key for a typo.
+"""
+
+from __future__ import annotations
+
+import difflib
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any, TypeVar
+
+import yaml
+from pydantic import BaseModel, ConfigDict, ValidationError
+
+from gaitcap.errors import ConfigError
+
+M = TypeVar("M", bound=BaseModel)
+
+CONFIG_DIR = Path(__file__).resolve().parent / "configs"
+
+
+class Strict(BaseModel):
+    """Base of every config schema: unknown keys are errors, values are validated on assignment."""
+
+    model_config = ConfigDict(extra="forbid", validate_assignment=True, frozen=False)
+
+
+def read_yaml(path: str | Path) -> Any:
+    """Read a YAML file, raising :class:`ConfigError` naming the file on any failure."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError as e:
+        raise ConfigError(f"{path}: file not found") from e
+    except OSError as e:
+        raise ConfigError(f"{path}: cannot read ({e.strerror})") from e
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as e:
+        raise ConfigError(f"{path}: not valid YAML: {e}") from e
+
+
+def _allowed_keys(model: type[BaseModel], loc: tuple[Any, ...]) -> list[str]:
+    """Field names of the sub-model that ``loc`` points into (for "did you mean" suggestions).
+
+    Parts of ``loc`` that are list indices or free dictionary keys (``segments.thigh_l``) do not
+    change the model; parts that are field names descend into that field's model.
+    """
+    current: Any = model
+    for part in loc[:-1]:
+        fields = getattr(current, "model_fields", None) or {}
+        if isinstance(part, str) and part in fields:
+            current = _inner_model_of_annotation(fields[part].annotation)
+    fields = getattr(current, "model_fields", None)
+    return list(fields) if fields else []
+
+
+def _inner_model_of_annotation(annotation: Any) -> Any:
+    """Find a BaseModel class inside an annotation such as ``dict[str, X]`` or ``list[X] | None``."""
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return annotation
+    for arg in getattr(annotation, "__args__", ()) or ():
+        found = _inner_model_of_annotation(arg)
+        if found is not None:
+            return found
+    return None
+
+
+def format_validation_error(err: ValidationError, source: str, model: type[BaseModel]) -> str:
+    """Render a pydantic error as ``source: key.path: message`` lines with suggestions."""
+    lines = []
+    for item in err.errors():
+        loc = tuple(item.get("loc", ()))
+        key = ".".join(str(p) for p in loc) or "(top level)"
+        msg = item.get("msg", "invalid value")
+        if item.get("type") == "extra_forbidden" and loc:
+            allowed = _allowed_keys(model, loc)
+            close = difflib.get_close_matches(str(loc[-1]), allowed, n=1)
+            msg = "unknown key" + (f" (did you mean '{close[0]}'?)" if close else "")
+            if allowed and not close:
+                msg += f"; valid keys: {', '.join(sorted(allowed))}"
+        lines.append(f"{source}: {key}: {msg}")
+    return "\n".join(lines)
+
+
+def model_from_mapping(model: type[M], data: Any, source: str) -> M:
+    """Validate ``data`` (a mapping) against ``model``; errors name ``source`` and the key."""
+    if data is None:
+        data = {}
+    if not isinstance(data, Mapping):
+        raise ConfigError(f"{source}: expected a mapping of keys at the top level, got {type(data).__name__}")
+    try:
+        return model.model_validate(dict(data))
+    except ValidationError as e:
+        raise ConfigError(format_validation_error(e, source, model)) from e
+
+
+def load_yaml_model(model: type[M], path: str | Path) -> M:
+    """Read ``path`` and validate it against ``model``."""
+    return model_from_mapping(model, read_yaml(path), str(path))
+
+
+def default_config_path(name: str) -> Path:
+    """Path of a configuration file shipped with gaitcap (``configs/<name>``)."""
+    path = CONFIG_DIR / name
+    if not path.exists():
+        raise ConfigError(f"{path}: default configuration not found (broken installation?)")
+    return path

@@ -1,0 +1,1 @@
+"""Readers and writers only: no maths lives here."""
