@@ -121,7 +121,7 @@ def test_capsules_contain_their_points(model, rng):
 
 
 def test_scales_change_lengths(model):
-    scaled = model.with_scales({"thigh_l": (1.0, 1.0, 1.2)})
+    scaled = model.with_proportions({"thigh_l": (1.0, 1.0, 1.2)})
     q = scaled.neutral_pose()
     p = scaled.forward(q[None])[0]
     thigh = np.linalg.norm(p[scaled.point_index("hip_l")] - p[scaled.point_index("knee_l")])

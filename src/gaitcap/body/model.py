@@ -79,6 +79,7 @@ class BodyModel:
         spec: BodySpec,
         height_m: float | None = None,
         scales: Mapping[str, Sequence[float]] | None = None,
+        shifts: Mapping[str, Sequence[float]] | None = None,
     ) -> None:
         self.spec = spec
         self.height_m = float(height_m if height_m is not None else spec.height_m)
@@ -92,6 +93,14 @@ class BodyModel:
         for n, s in self.scales.items():
             if s.shape != (3,) or not np.all(np.isfinite(s)) or np.any(s <= 0):
                 raise ConfigError(f"scales.{n}: must be three positive numbers")
+        shifts = dict(shifts or {})
+        unknown = set(shifts) - set(spec.segments)
+        if unknown:
+            raise ConfigError(f"shifts: unknown segments {', '.join(sorted(unknown))}")
+        self.shifts = {n: np.asarray(shifts.get(n, (0.0, 0.0, 0.0)), dtype=np.float64) for n in spec.segments}
+        for n, s in self.shifts.items():
+            if s.shape != (3,) or not np.all(np.isfinite(s)):
+                raise ConfigError(f"shifts.{n}: must be three finite numbers")
         self._build()
 
     # ------------------------------------------------------------------ build
@@ -108,6 +117,7 @@ class BodyModel:
         for i, (name, seg) in enumerate(self.spec.segments.items()):
             parent = -1 if seg.parent is None else index[seg.parent]
             parent_scale = self.scales[seg.parent] if seg.parent is not None else np.ones(3)
+            parent_shift = self.shifts[seg.parent] if seg.parent is not None else np.zeros(3)
             start = len(dof_names)
             axes, signs, trans = [], [], []
             for d in seg.dofs:
@@ -127,7 +137,7 @@ class BodyModel:
                     index=i,
                     parent=parent,
                     joint=seg.joint,
-                    origin=np.asarray(seg.origin) * H * parent_scale,
+                    origin=np.asarray(seg.origin) * H * parent_scale + parent_shift,
                     dof_start=start,
                     dof_stop=len(dof_names),
                     axes=tuple(axes),
@@ -153,7 +163,7 @@ class BodyModel:
             for pname, local in self.spec.segments[seg.name].points.items():
                 point_names.append(pname)
                 point_seg.append(seg.index)
-                point_local.append(np.asarray(local) * H * self.scales[seg.name])
+                point_local.append(np.asarray(local) * H * self.scales[seg.name] + self.shifts[seg.name])
         from gaitcap.trajectory import POINT_NAMES
 
         order = [point_names.index(n) for n in POINT_NAMES if n in point_names]
@@ -164,12 +174,13 @@ class BodyModel:
         # capsules
         cap_seg, cap_a, cap_b, cap_r = [], [], [], []
         for seg in self.segments:
-            sc = self.scales[seg.name]
+            sc, sh = self.scales[seg.name], self.shifts[seg.name]
             for shape in self.spec.segments[seg.name].shapes:
+                a, b = np.asarray(shape.a), np.asarray(shape.b)
                 cap_seg.append(seg.index)
-                cap_a.append(np.asarray(shape.a) * H * sc)
-                cap_b.append(np.asarray(shape.b) * H * sc)
-                cap_r.append(np.asarray(shape.radii) * H)
+                cap_a.append(a * H * sc + sh)
+                cap_b.append(b * H * sc + sh)
+                cap_r.append(np.asarray(shape.radii) * H * _across_scale(b - a, sc))
         self.capsule_segment = np.asarray(cap_seg, dtype=int)
         self.capsule_a = np.asarray(cap_a).reshape(-1, 3)
         self.capsule_b = np.asarray(cap_b).reshape(-1, 3)
@@ -205,12 +216,19 @@ class BodyModel:
     def children(self, index: int) -> list[int]:
         return [s.index for s in self.segments if s.parent == index]
 
-    def with_scales(self, scales: Mapping[str, Sequence[float]]) -> BodyModel:
-        """The same model with other per-segment scales (see the constructor)."""
-        return BodyModel(self.spec, self.height_m, scales)
+    def with_proportions(
+        self, scales: Mapping[str, Sequence[float]] | None = None, shifts: Mapping[str, Sequence[float]] | None = None
+    ) -> BodyModel:
+        """The same model with other per-segment scales and shifts (see the constructor)."""
+        return BodyModel(self.spec, self.height_m, scales, shifts)
 
     def with_height(self, height_m: float) -> BodyModel:
-        return BodyModel(self.spec, height_m, {k: tuple(v) for k, v in self.scales.items()})
+        return BodyModel(self.spec, height_m, self.proportions()[0], self.proportions()[1])
+
+    def proportions(self) -> tuple[dict[str, tuple[float, ...]], dict[str, tuple[float, ...]]]:
+        """(scales, shifts) as plain dictionaries, for saving."""
+        return ({k: tuple(map(float, v)) for k, v in self.scales.items()},
+                {k: tuple(map(float, v)) for k, v in self.shifts.items()})
 
     # ---------------------------------------------------------------- limits
     def clip(self, q: np.ndarray) -> np.ndarray:
@@ -301,6 +319,14 @@ class BodyModel:
         return q
 
 
+def _across_scale(axis: np.ndarray, scale: np.ndarray) -> float:
+    """Scale of a capsule's thickness: the segment's scale factors weighted across the capsule axis."""
+    n = np.linalg.norm(axis)
+    u = axis / n if n > 0 else np.zeros(3)
+    w = 1.0 - u * u
+    return float(np.sum(w * scale) / np.sum(w))
+
+
 def load_body_spec(path: str | Path | None = None) -> BodySpec:
     """Load and validate a body model file (the shipped ``configs/body.yaml`` by default)."""
     return load_yaml_model(BodySpec, path or default_config_path("body.yaml"))
@@ -310,6 +336,7 @@ def load_body_model(
     path: str | Path | None = None,
     height_m: float | None = None,
     scales: Mapping[str, Sequence[float]] | None = None,
+    shifts: Mapping[str, Sequence[float]] | None = None,
 ) -> BodyModel:
     """Load ``body.yaml`` and scale it to a subject."""
-    return BodyModel(load_body_spec(path), height_m=height_m, scales=scales)
+    return BodyModel(load_body_spec(path), height_m=height_m, scales=scales, shifts=shifts)

@@ -11,6 +11,7 @@ import cv2
 import numpy as np
 
 from gaitcap.errors import OutputError
+from gaitcap.io.atomic import default_file_mode
 
 #: codec name -> (fourcc, file extension)
 CODECS: dict[str, tuple[str, str]] = {"mp4v": ("mp4v", ".mp4"), "ffv1": ("FFV1", ".mkv"), "mjpg": ("MJPG", ".avi")}
@@ -55,6 +56,7 @@ class AtomicVideoWriter:
     ) -> None:
         self._writer.release()
         if exc_type is None:
+            os.chmod(self._tmp, default_file_mode())
             os.replace(self._tmp, self.path)
         else:
             self._tmp.unlink(missing_ok=True)
