@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 
 from gaitcap.calibration.boards import Board, Detection, detect_board, is_blurred
-from gaitcap.errors import InputError
+from gaitcap.errors import CalibrationError, InputError
 
 log = logging.getLogger(__name__)
 
@@ -39,6 +39,16 @@ class ViewSet:
     detections: list[Detection] = field(default_factory=list)
     rejected: dict[str, str] = field(default_factory=dict)
     frames: list[Detection | None] = field(default_factory=list)
+
+    def require(self, n: int, what: str) -> None:
+        """Raise :class:`CalibrationError` naming every rejected view when fewer than ``n`` are usable."""
+        if len(self.detections) >= n:
+            return
+        why = "; ".join(f"{src}: {reason}" for src, reason in list(self.rejected.items())[:10])
+        more = f" (and {len(self.rejected) - 10} more)" if len(self.rejected) > 10 else ""
+        raise CalibrationError(
+            f"{what}: only {len(self.detections)} usable view(s), at least {n} needed. Rejected: {why}{more}"
+        )
 
 
 def expand_inputs(paths: Sequence[str | Path]) -> list[Path]:
