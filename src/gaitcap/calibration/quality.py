@@ -74,13 +74,13 @@ def check_rig(
             rep.lines.append(f"  {a.name} - {b.name}: {d:.3f}")
             if d < 0.01:
                 rep.problems.append(f"cameras {a.name!r} and {b.name!r} are at the same place (extrinsics missing?)")
-    if "error" in meta:
+    if "error" in meta and float(meta["error"]) >= 0:
         overall = float(meta["error"])
         rep.lines.append(f"reprojection error (overall RMS): {overall:.3f} px")
         if overall > max_error_px and not per_cam:
             rep.problems.append(f"reprojection error {overall:.2f} px > {max_error_px:g} px")
     else:
-        rep.notes.append("no reprojection error recorded in [metadata]")
+        rep.notes.append("no reprojection error recorded in [metadata] (imported or unknown)")
     if "check_3d_mm" in meta and float(meta["check_3d_mm"]) >= 0:
         rep.lines.append(f"3D check: {float(meta['check_3d_mm']):.2f} mm RMS")
     return rep

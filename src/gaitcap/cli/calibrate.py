@@ -268,7 +268,7 @@ def import_qualisys_cmd(qca, output, force):
         gaitcap calibrate import-qualisys Calib.qca.txt -o sessions/demo/calibration.toml
     """
     rig = read_qualisys(qca)
-    write_cameras(output, rig, {"source": str(qca.name)}, force)
+    write_cameras(output, rig, {"source": str(qca.name), "error": -1.0}, force)  # -1: not measured here
     click.echo(f"{len(rig)} cameras ({', '.join(rig.names)}) -> {output}")
 
 
@@ -285,7 +285,7 @@ def import_opencv_cmd(files, output, force):
         gaitcap calibrate import-opencv left_intrinsics.yml right_intrinsics.yml -o calibration.toml
     """
     rig = CameraRig(tuple(read_opencv_camera(f) for f in files))
-    write_cameras(output, rig, {}, force)
+    write_cameras(output, rig, {"error": -1.0}, force)  # -1: not measured here
     click.echo(f"{len(rig)} camera(s) -> {output}")
 
 
