@@ -228,3 +228,12 @@ def test_missing_markers_are_named(tmp_path):
     msg = str(err.value)
     assert "opensim_gait2354: missing V.Sacral, L.Heel" in msg
     assert "plugin_gait: missing LASI" in msg
+
+
+def test_gaitcap_points_file_reads_back_as_joint_centres(tmp_path, pig):
+    # the tracker writes joints.trc with gaitcap point names; read_motion returns them as they are
+    path = write_trc(tmp_path / "joints.trc", pig.subset(reversed(pig.names)))
+    back = read_motion(path)
+    assert back.names == pig.names
+    np.testing.assert_allclose(back.points, pig.points, atol=1e-6)
+    assert back.t0_s == pytest.approx(pig.t0_s)
