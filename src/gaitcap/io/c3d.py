@@ -105,7 +105,7 @@ def _events(c3d: Any, source: Path) -> tuple[GaitEvent, ...]:
     if not labels or times is None:
         return ()
     times = np.asarray(times, dtype=np.float64).reshape(2, -1)
-    seconds = 60.0 * times[0] + times[1]  # row 0 minutes, row 1 seconds
+    seconds = 60.0 * times[0] + times[1]  # row 0 minutes, row 1 seconds; float32 in the file
     out = []
     for label, context, t in zip(labels, contexts, seconds, strict=False):
         kind = _EVENT_KINDS.get(label.lower().replace("_", " "))
@@ -113,7 +113,7 @@ def _events(c3d: Any, source: Path) -> tuple[GaitEvent, ...]:
         if kind is None or side is None:
             log.debug("%s: event %s/%s at %.3f s ignored", source, context, label, t)
             continue
-        out.append(GaitEvent(float(t), side, kind, source="c3d"))  # type: ignore[arg-type]
+        out.append(GaitEvent(round(float(t), 6), side, kind, source="c3d"))  # type: ignore[arg-type]
     return tuple(sorted(out))
 
 

@@ -32,6 +32,11 @@ class MotTable:
             raise InputError(f"{self.source}: no column {name!r} (columns: {', '.join(self.columns)})") from None
 
     @property
+    def in_degrees(self) -> bool:
+        """Whether angle columns are in degrees (header ``inDegrees``; OpenSim's default is yes)."""
+        return self.header.get("inDegrees", "yes").strip().lower() == "yes"
+
+    @property
     def time(self) -> np.ndarray:
         """The time column, shape (N,)."""
         return self.column("time")

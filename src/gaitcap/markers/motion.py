@@ -2,7 +2,9 @@
 
 - :func:`read_markers`: raw markers (C3D or TRC), metres, gaitcap frame (z up).
 - :func:`read_motion`: joint centres named with :data:`gaitcap.trajectory.POINT_NAMES`, the
-  mapping chosen from the markers present, events from the C3D file or from force plates.
+  mapping chosen from the markers present, events from the C3D file or from force plates. A
+  file whose points already carry gaitcap names (``joints.trc`` written by the tracker through
+  :func:`gaitcap.io.trc.write_trc`) is returned as it is, in :data:`POINT_NAMES` order.
 
 Up axis, in order of precedence: the ``up_axis`` argument; the file's own statement (C3D
 POINT:Y_SCREEN); the mapping's ``up_axis``; for TRC files without one, ``"y"`` (the OpenSim
@@ -22,7 +24,7 @@ from gaitcap.markers.axes import UP_AXES, to_z_up
 from gaitcap.markers.events import events_from_grf
 from gaitcap.markers.jointcentres import apply_mapping
 from gaitcap.markers.mapping import Mapping, load_mapping, shipped_mapping_names
-from gaitcap.trajectory import Trajectory
+from gaitcap.trajectory import POINT_NAMES, Trajectory
 
 log = logging.getLogger("gaitcap.markers.motion")
 
@@ -142,6 +144,9 @@ def read_motion(
     """
     path = Path(path)
     raw = read_raw_markers(path)
+    if mapping is None and raw.names and set(raw.names) <= set(POINT_NAMES):
+        markers = _rotated(raw, _resolve_up_axis(raw, None, up_axis))
+        return markers.subset(n for n in POINT_NAMES if markers.has(n))
     chosen = _mapping_of(mapping, raw)
     up = _resolve_up_axis(raw, chosen, up_axis)
     markers = _rotated(raw, up)
