@@ -1,0 +1,63 @@
+from __future__ import annotations
+
+import re
+
+import pytest
+from click.testing import CliRunner
+
+from gaitcap import __version__
+from gaitcap.cli.main import COMMAND_MODULES, cli
+
+
+@pytest.fixture
+def runner() -> CliRunner:
+    return CliRunner()
+
+
+def test_version(runner):
+    result = runner.invoke(cli, ["--version"])
+    assert result.exit_code == 0
+    assert __version__ in result.output
+
+
+def test_every_command_help_has_an_example(runner):
+    names = sorted(cli.commands)
+    assert set(names) == set(COMMAND_MODULES)
+    for name in names:
+        result = runner.invoke(cli, [name, "--help"])
+        assert result.exit_code == 0, name
+        assert "Example" in result.output, name
+        sub = getattr(cli.commands[name], "commands", {})
+        for subname in sub:
+            r = runner.invoke(cli, [name, subname, "--help"])
+            assert r.exit_code == 0 and "Example" in r.output, f"{name} {subname}"
+
+
+def test_synth_bad_size_is_a_usage_error(runner, tmp_path):
+    result = runner.invoke(cli, ["synth", "-o", str(tmp_path / "s"), "--size", "big"])
+    assert result.exit_code == 2
+    assert "expected WIDTHxHEIGHT" in result.output
+
+
+def test_synth_missing_motion_file_names_it(runner, tmp_path):
+    result = runner.invoke(cli, ["synth", str(tmp_path / "nope.c3d"), "-o", str(tmp_path / "s")])
+    assert result.exit_code == 1
+    assert re.search(r"nope\.c3d: file not found", result.output)
+
+
+def test_synth_refuses_existing_output(runner, tmp_path):
+    out = tmp_path / "s"
+    out.mkdir()
+    (out / "keep.txt").write_text("mine")
+    result = runner.invoke(cli, ["-q", "synth", "-o", str(out)])
+    assert result.exit_code == 1
+    assert "already exists (use --force" in result.output
+    assert (out / "keep.txt").read_text() == "mine"
+
+
+def test_demo_runs_end_to_end(runner, tmp_path):
+    result = runner.invoke(cli, ["demo", "-o", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    assert f"session: {tmp_path / 'session'}" in result.output
+    assert (tmp_path / "session" / "truth.h5").is_file()
+    assert "100.0 %" in result.output

@@ -1,0 +1,133 @@
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import yaml
+
+from gaitcap.data import embedded_walk
+from gaitcap.errors import InputError, OutputError
+from gaitcap.io.calibration_toml import read_calibration
+from gaitcap.session import Session
+from gaitcap.synth.checks import bone_length_variation, truth_inside_masks
+from gaitcap.synth.session import SynthOptions, synthesize
+from gaitcap.synth.truth import read_truth
+from gaitcap.trajectory import LOWER_LIMB, POINT_NAMES
+
+FIXTURES = Path(__file__).resolve().parent / "fixtures" / "walking"
+
+
+@pytest.fixture(scope="module")
+def vicon_session(tmp_path_factory):
+    out = tmp_path_factory.mktemp("synth") / "vicon"
+    return synthesize(embedded_walk(), out, SynthOptions(), progress=False)
+
+
+@pytest.fixture(scope="module")
+def opensim_session(tmp_path_factory):
+    out = tmp_path_factory.mktemp("synth") / "opensim"
+    opts = SynthOptions(cameras=3, size=(320, 240), clothing="dark", codec="ffv1")
+    return synthesize(FIXTURES / "subject01_walk1.trc", out, opts, progress=False)
+
+
+def _frames(path: Path) -> list[np.ndarray]:
+    cap = cv2.VideoCapture(str(path))
+    frames = []
+    while True:
+        ok, frame = cap.read()
+        if not ok:
+            break
+        frames.append(frame)
+    cap.release()
+    return frames
+
+
+def test_session_layout(vicon_session):
+    root = vicon_session.session
+    session = Session.open(root)
+    assert session.camera_names == ["cam1", "cam2"]
+    assert set(session.backgrounds) == {"cam1", "cam2"}
+    assert session.info.subject.height_m == pytest.approx(1.639)
+    for cam in session.rig:
+        assert cam.size == (640, 480)
+        frames = _frames(session.videos[cam.name])
+        assert len(frames) == vicon_session.n_frames == 56  # 2.21 s of 100 Hz data at 25 fps
+        assert frames[0].shape == (480, 640, 3)
+        plate = cv2.imread(str(session.backgrounds[cam.name]))
+        assert plate.shape == (480, 640, 3)
+    info = yaml.safe_load((root / "session.yaml").read_text())
+    assert "synthetic" in info["notes"]
+    assert not list(root.parent.glob("*.partial"))
+
+
+def test_truth_file_contents(vicon_session):
+    truth = read_truth(vicon_session.session / "truth.h5")
+    traj = truth.trajectory
+    assert traj.names == POINT_NAMES
+    assert traj.rate_hz == 25.0 and traj.t0_s == 0.0
+    assert truth.poses.shape == (56, 31)
+    assert truth.cameras == ("cam1", "cam2")
+    assert truth.mask("cam1", 10).shape == (480, 640)
+    # the recording's events, moved onto video time (the C3D starts at 1.52 s)
+    strikes = [e.time_s for e in traj.events if e.side == "right" and e.event == "foot_strike"]
+    np.testing.assert_allclose(strikes, [1.6605 - 1.52, 2.74 - 1.52], atol=1e-6)
+    with pytest.raises(InputError, match="no masks for camera 'cam9'"):
+        truth.mask("cam9", 0)
+
+
+def test_truth_points_fall_inside_the_rendered_silhouettes(vicon_session, opensim_session):
+    for result in (vicon_session, opensim_session):
+        inside = truth_inside_masks(result.session)
+        assert len(inside) == len(result.cameras)
+        assert min(inside.values()) >= 0.99, inside
+
+
+def test_bone_lengths_are_constant(vicon_session, opensim_session):
+    for result in (vicon_session, opensim_session):
+        variation = bone_length_variation(result.session)
+        assert len(variation) == 15
+        assert max(variation.values()) < 0.02
+
+
+def test_body_fit_follows_the_real_joint_centres(vicon_session, opensim_session):
+    for result, bound in ((vicon_session, 0.006), (opensim_session, 0.012)):
+        lower = [result.fit.residual_m[n] for n in LOWER_LIMB]
+        assert max(lower) < bound, result.fit.residual_m
+
+
+def test_masks_agree_with_the_video(vicon_session):
+    """Where the truth mask says body, the frame differs from the empty background."""
+    root = vicon_session.session
+    truth = read_truth(root / "truth.h5")
+    frames = _frames(root / "videos" / "cam1.mp4")
+    plate = cv2.imread(str(root / "background" / "cam1.png")).astype(float)
+    diff = np.abs(frames[30].astype(float) - plate).sum(axis=2)
+    mask = truth.mask("cam1", 30).astype(bool)
+    assert mask.sum() > 2000
+    assert np.median(diff[mask]) > 5 * np.median(diff[~mask])
+
+
+def test_opensim_walk_in_place_has_force_plate_events(opensim_session):
+    truth = read_truth(opensim_session.session / "truth.h5")
+    sources = {e.source for e in truth.trajectory.events}
+    assert sources == {"grf"}
+    assert len(truth.trajectory.events) == 8
+    rig = read_calibration(opensim_session.session / "calibration.toml")
+    assert rig.names == ["cam1", "cam2", "cam3"] and rig[0].size == (320, 240)
+    assert (opensim_session.session / "videos" / "cam3.mkv").is_file()
+
+
+def test_existing_output_is_refused_without_force(vicon_session, tmp_path):
+    with pytest.raises(OutputError, match="already exists"):
+        synthesize(embedded_walk(), vicon_session.session, SynthOptions(), progress=False)
+
+
+def test_bad_motion_file_leaves_nothing_behind(tmp_path):
+    bad = tmp_path / "walk.trc"
+    bad.write_text("not a trc file\n")
+    with pytest.raises(InputError):
+        synthesize(bad, tmp_path / "out", SynthOptions(), progress=False)
+    assert not (tmp_path / "out").exists()
+    assert not list(tmp_path.glob("*.partial"))
