@@ -1,0 +1,1 @@
+"""Pose tracking: the silhouette likelihood (declares) and the particle filters (infer)."""
