@@ -1,7 +1,7 @@
 """A kinematic walker with exactly known gait events and parameters (test helper).
 
 Feet are rigid heel-toe segments: fixed on the floor in stance, moving forward at constant
-horizontal speed in swing (raised by a half sine). The pelvis moves at constant speed. Hence
+horizontal speed in swing (raised by a squared half sine, so it lands with zero vertical speed). The pelvis moves at constant speed. Hence
 heel - pelvis along the walking direction peaks exactly at foot strike and toe - pelvis has its
 minimum exactly at foot off (the Zeni et al. 2008 extrema), and every parameter has a closed form.
 """
@@ -58,7 +58,7 @@ class Walker:
         swing = ph >= self.stance
         u = np.where(swing, (ph - self.stance) / (1 - self.stance), 0.0)  # 0..1 through swing
         x = np.where(swing, x_strike + u * L, x_strike)
-        z = np.where(swing, self.lift * np.sin(np.pi * u), 0.0)
+        z = np.where(swing, self.lift * np.sin(np.pi * u) ** 2, 0.0)  # lands and lifts off gently
         return x, z
 
     def trajectory(self) -> Trajectory:

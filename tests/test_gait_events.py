@@ -15,7 +15,9 @@ from gaitcap.gait.options import GaitOptions
 from gaitcap.gait.parameters import STATUS_NOT_ENOUGH_STEPS, compute_parameters
 from gaitcap.trajectory import GaitEvent, Trajectory
 
-EXACT = GaitOptions(lowpass_hz=0.0)  # the walker's extrema are exact: no filter bias
+# the walker's Zeni extrema are exact: no filter bias, no refinement (its feet land flat and stop
+# dead, so the heel's "lowest point" is a plateau that starts at the strike)
+EXACT = GaitOptions(lowpass_hz=0.0, refine=False)
 
 
 def _match(found: list[GaitEvent], truth: list[GaitEvent]) -> list[float]:
@@ -39,10 +41,13 @@ def test_events_match_the_truth_overground_and_in_place(walker: Walker) -> None:
     assert direction.in_place == walker.in_place
 
 
-def test_default_low_pass_keeps_events_within_one_frame() -> None:
+def test_default_options_keep_events_within_a_few_frames() -> None:
+    # the walker's feet land flat and stop dead: the refinement's "heel lowest point" is the start
+    # of a plateau, which the low-pass smears late; real heels (tests/test_gait_real.py) do better
     w = Walker()
     events, _ = detect_events(w.trajectory())
-    assert max(_match(events, w.truth_events())) <= 1.0 / w.rate_hz
+    assert len(events) == len(w.truth_events())
+    assert max(_match(events, w.truth_events())) <= 4.0 / w.rate_hz
 
 
 @pytest.mark.parametrize("walker", [Walker(), Walker(in_place=True, heading_deg=200.0), Walker(rate_hz=25.0, duration=5.0)])

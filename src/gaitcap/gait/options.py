@@ -20,6 +20,10 @@ class GaitOptions(Strict):
         min_event_interval_s: two events of the same kind and side are at least this far apart.
         treadmill_speed_ratio: the trial is treated as walking in place (treadmill, progression
             removed) when the pelvis net speed is below this fraction of the swing-foot speed.
+        refine: refine the Zeni anchors locally (heel lowest point for foot strikes, toe peak
+            forward acceleration for foot offs, see :mod:`gaitcap.gait.events`).
+        strike_window_s: the foot-strike refinement looks this far after the anchor.
+        off_window_s: the foot-off refinement looks this far after (and half as far before) it.
     """
 
     lowpass_hz: float = Field(6.0, ge=0.0)
@@ -27,3 +31,6 @@ class GaitOptions(Strict):
     min_prominence: float = Field(0.25, gt=0.0, lt=1.0)
     min_event_interval_s: float = Field(0.35, gt=0.0)
     treadmill_speed_ratio: float = Field(0.15, gt=0.0, lt=1.0)
+    refine: bool = True
+    strike_window_s: float = Field(0.12, gt=0.0)
+    off_window_s: float = Field(0.1, gt=0.0)

@@ -225,7 +225,8 @@ def compute_parameters(traj: Trajectory, events: Sequence[GaitEvent], direction:
     info["belt_velocity_m_s"] = v_belt
     strides = _strides(traj, direction, all_cycles, v_belt)
     median_stride = float(np.median([s.stride_time_s for s in strides])) if strides else 2.0
-    steps = _steps(traj, direction, events, max_step_s=0.75 * median_stride if strides else 1.5)
+    # without one complete cycle nothing is reported (a lone step is not a gait pattern)
+    steps = _steps(traj, direction, events, max_step_s=0.75 * median_stride) if strides else []
     sides: dict[str, dict[str, float]] = {}
     for side in SIDES:
         st = [s for s in strides if s.side == side]
