@@ -99,8 +99,10 @@ def render_report(analysis: GaitAnalysis, title: str = "Gait report") -> str:
         parts.append("<h2>Joint angles over the gait cycle</h2>" + _img(plots.angle_curves(analysis), "joint angles"))
         parts.append(
             f"<p class='note'>Plug-in-Gait order and signs (see gaitcap.gait.angles). Pelvis frame: "
-            f"{html.escape(analysis.angle_notes.get('pelvis_frame', ''))}. From joint centres only, pelvic tilt is "
-            "not anatomical (no ASIS/PSIS) and hip rotation is reliable only while the knee is flexed.</p>"
+            f"{html.escape(analysis.angle_notes.get('pelvis_frame', ''))}."
+            + ("" if "ASIS" in analysis.angle_notes.get("pelvis_frame", "") else
+               " Without ASIS/PSIS markers pelvic tilt is not anatomical (see the docs).")
+            + " Hip rotation comes from the knee's flexion plane: reliable only while the knee is flexed.</p>"
         )
     parts.append("<h2>Foot trajectories</h2>" + _img(plots.foot_trajectories(analysis), "foot trajectories"))
     parts.append("</body></html>")
