@@ -1,0 +1,49 @@
+"""``gaitcap report``: gait events, parameters, joint angles and an HTML report."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from gaitcap.cli.options import handle_errors
+from gaitcap.config import load_yaml_model
+from gaitcap.gait.options import GaitOptions
+
+#: exit code when the analysis ran but found less than one complete gait cycle
+EXIT_NOT_ENOUGH_STEPS = 3
+
+
+@click.command("report")
+@click.argument("source", type=click.Path(path_type=Path))
+@click.option("-o", "--out", "out_dir", type=click.Path(path_type=Path), default=None,
+              help="Output folder (default: SOURCE/gait, or gait/ beside a file).")
+@click.option("--config", "config", type=click.Path(path_type=Path), default=None,
+              help="YAML file of gait options (see gaitcap.gait.options.GaitOptions).")
+@handle_errors
+def command(source: Path, out_dir: Path | None, config: Path | None) -> None:
+    """Gait events, spatio-temporal parameters, joint angles and report.html from trajectories.
+
+    SOURCE is a tracking output folder holding trajectories.h5, a trajectories.h5 file, or a
+    marker-based .c3d/.trc file (its joint centres are computed from the markers).
+
+    Exit codes: 0 done; 1 error; 2 usage; 3 the analysis ran but found less than one complete gait
+    cycle ("not enough steps": parameters.json has status not_enough_steps and the reason).
+
+    \b
+    Example:
+        gaitcap report OUT
+        gaitcap report walk.c3d -o walk_report
+    """
+    from gaitcap.report.pipeline import run_report
+
+    options = load_yaml_model(GaitOptions, config) if config is not None else None
+    result = run_report(source, out_dir, options)
+    p = result.analysis.parameters
+    click.echo(f"{len(result.analysis.events)} events, {p.overall['n_strides']} complete cycles -> {result.out_dir}")
+    if not p.ok:
+        click.echo(p.reason, err=True)
+        raise SystemExit(EXIT_NOT_ENOUGH_STEPS)
+    o = p.overall
+    click.echo(f"cadence {o['cadence_steps_per_min']:.1f} steps/min, speed {o['speed_m_s']:.2f} m/s, "
+               f"stride {o['stride_length_m']:.3f} m")  # fmt: skip

@@ -1,0 +1,317 @@
+"""Gait events from foot kinematics: the coordinate-based method of Zeni et al. (2008).
+
+Zeni JA, Richards JG, Higginson JS. Two simple methods for determining gait events during treadmill
+and overground walking using kinematic data. Gait & Posture 27(4):710-714, 2008.
+
+With ``d`` the horizontal walking direction (estimated, never assumed) and ``x_P = P . d``:
+
+    foot strike  at the local maxima of  x_heel(t) - x_pelvis(t)
+    foot off     at the local minima of  x_toe(t)  - x_pelvis(t)
+
+Why this method: it needs only heel, toe and pelvis positions (which the tracker gives as joint
+centres, no force plate and no marker-specific threshold), it has no velocity threshold to tune per
+subject or per frame rate, it is the same for overground and walk-in-place / treadmill trials (the
+pelvis-relative coordinate removes the progression), and Zeni et al. report it within about one
+frame at 120 Hz of force-plate events. Its known bias: the heel's forward excursion peaks a little
+before the force-plate contact, so foot strikes tend to come a few milliseconds early.
+
+Refinement (``GaitOptions.refine``, on by default). The Zeni extrema are robust anchors (one per
+step, never confused between steps), but on the Plug-in-Gait walk they come 35-40 ms before the
+force-plate contact (the heel decelerates before it lands). Each anchor is therefore refined
+locally, with a criterion that looks at the ground contact itself:
+
+    foot strike  the heel's lowest point: the first upward zero crossing of the heel's vertical
+                 velocity within ``strike_window_s`` after the anchor (never before the anchor);
+    foot off     the peak forward acceleration of the toe (Hreljac & Marshall, J Biomech 33:783-786,
+                 2000) within ``off_window_s`` around the anchor (-1/2 .. +1 window);
+
+an anchor without such a point in its window is kept unchanged (``source`` tells which).
+
+Robustness:
+- the signals are low-pass filtered (zero lag) and short NaN gaps bridged; long gaps split them;
+- an extremum at the first or last sample of a run (a partial step at the start or end of the
+  trial, or the edge of a gap) is never an event: only interior extrema are taken;
+- an extremum must stand out by a fraction of the signal's robust range (prominence), and events
+  of one kind on one side are at least ``min_event_interval_s`` apart;
+- per side, strikes and offs must alternate; of two consecutive events of the same kind the less
+  prominent one is dropped.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.signal import find_peaks, peak_prominences
+
+from gaitcap.errors import InputError
+from gaitcap.gait.options import GaitOptions
+from gaitcap.gait.signals import fill_short_gaps, finite_runs, lowpass, parabolic_peak, velocity
+from gaitcap.trajectory import SIDES, GaitEvent, Side, Trajectory, side_suffix
+
+log = logging.getLogger("gaitcap.gait.events")
+
+SOURCE = "zeni2008"
+SOURCE_REFINED = "zeni2008+refined"
+
+
+@dataclass(frozen=True)
+class WalkingDirection:
+    """The horizontal walking direction of a trial.
+
+    Attributes:
+        forward: unit vector (3,), horizontal (z = 0), the direction of progression.
+        left: unit vector (3,), horizontal, ``up x forward`` (points to the subject's left).
+        method: ``"pelvis displacement"`` or ``"swing foot velocity"``.
+        pelvis_speed_m_s: net horizontal speed of the pelvis along ``forward``.
+        in_place: True when the pelvis barely progresses (treadmill or progression removed).
+    """
+
+    forward: np.ndarray
+    left: np.ndarray
+    method: str
+    pelvis_speed_m_s: float
+    in_place: bool
+
+
+def _point_or(traj: Trajectory, *names: str) -> np.ndarray:
+    """The first of ``names`` present in the trajectory, shape (T, 3)."""
+    for n in names:
+        if traj.has(n):
+            return traj.point(n)
+    raise InputError(f"trajectory has none of the points {', '.join(names)} needed for gait analysis")
+
+
+def pelvis_track(traj: Trajectory) -> np.ndarray:
+    """Pelvis position, shape (T, 3): the ``pelvis`` point, else the mid-point of the hip centres."""
+    if traj.has("pelvis") and np.isfinite(traj.point("pelvis")).any():
+        return traj.point("pelvis")
+    return 0.5 * (_point_or(traj, "hip_l") + _point_or(traj, "hip_r"))
+
+
+def heel_track(traj: Trajectory, side: Side) -> np.ndarray:
+    """Heel position (T, 3) of one side; the ankle centre if the trajectory has no heel."""
+    s = side_suffix(side)
+    return _point_or(traj, f"heel{s}", f"ankle{s}")
+
+
+def toe_track(traj: Trajectory, side: Side) -> np.ndarray:
+    """Toe position (T, 3) of one side; the heel (then ankle) if the trajectory has no toe."""
+    s = side_suffix(side)
+    return _point_or(traj, f"toe{s}", f"heel{s}", f"ankle{s}")
+
+
+def _unit_horizontal(v: np.ndarray) -> np.ndarray:
+    v = np.array([v[0], v[1], 0.0])
+    n = np.linalg.norm(v)
+    if not np.isfinite(n) or n < 1e-12:
+        raise InputError("cannot estimate the walking direction: no horizontal motion")
+    return v / n
+
+
+def _principal_axis(xy: np.ndarray) -> np.ndarray:
+    """Unit principal axis (2,) of a cloud of 2D points or vectors (N, 2) about its mean."""
+    c = xy - xy.mean(axis=0)
+    _, _, vt = np.linalg.svd(c, full_matrices=False)
+    return vt[0]
+
+
+def estimate_walking_direction(traj: Trajectory, options: GaitOptions | None = None) -> WalkingDirection:
+    """Estimate the horizontal walking direction.
+
+    Primary: the principal axis of the pelvis horizontal positions, oriented by the net
+    displacement. Fallback, when the pelvis barely progresses (net speed below
+    ``treadmill_speed_ratio`` x the swing-foot speed, as on a treadmill or in a walk-in-place
+    recording): the principal axis of the fast (swing) horizontal foot velocities, oriented so that
+    the fastest foot motion is forward (the swing foot always moves forward relative to the lab).
+
+    Raises:
+        InputError: no usable pelvis/foot samples.
+    """
+    opt = options or GaitOptions()
+    rate = traj.rate_hz
+    pel = pelvis_track(traj)[:, :2]
+    ok = np.all(np.isfinite(pel), axis=1)
+    feet = [fill_short_gaps(heel_track(traj, s)[:, :2], int(opt.max_gap_s * rate)) for s in SIDES]
+    vel = np.concatenate([velocity(lowpass(f, rate, opt.lowpass_hz), rate) for f in feet])
+    vel = vel[np.all(np.isfinite(vel), axis=1)]
+    if ok.sum() < 2 or len(vel) < 4:
+        raise InputError("cannot estimate the walking direction: too few valid pelvis and heel samples")
+    speed = np.linalg.norm(vel, axis=1)
+    fast = vel[speed >= np.quantile(speed, 0.8)]
+    swing_speed = float(np.median(np.linalg.norm(fast, axis=1)))
+
+    idx = np.flatnonzero(ok)
+    duration = (idx[-1] - idx[0]) / rate
+    net = pel[idx[-1]] - pel[idx[0]]
+    axis = _principal_axis(pel[ok]) if ok.sum() >= 3 else net
+    if np.dot(axis, net) < 0:
+        axis = -axis
+    pelvis_speed = float(abs(np.dot(axis, net)) / duration) if duration > 0 else 0.0
+    in_place = pelvis_speed < opt.treadmill_speed_ratio * swing_speed
+    if not in_place:
+        fwd, method = _unit_horizontal(axis), "pelvis displacement"
+    else:
+        # uncentred second moment: the fast velocities are all roughly +/- along the walking axis
+        _, _, vt = np.linalg.svd(fast, full_matrices=False)
+        ax = vt[0]
+        # the swing foot is the fastest and moves forward: orient by the sign of the fastest samples
+        top = fast[np.argsort(np.linalg.norm(fast, axis=1))[-max(3, len(fast) // 4) :]]
+        if np.sum(top @ ax) < 0:
+            ax = -ax
+        fwd, method = _unit_horizontal(ax), "swing foot velocity"
+    left = np.cross([0.0, 0.0, 1.0], fwd)
+    log.debug("walking direction %s (%s), pelvis speed %.3f m/s", fwd.round(3), method, pelvis_speed)
+    return WalkingDirection(fwd, left, method, float(np.dot(fwd[:2], net) / duration) if duration else 0.0, in_place)
+
+
+@dataclass(frozen=True)
+class _Extremum:
+    frame: float  # sub-frame index
+    prominence: float
+    side: Side
+    event: str
+
+
+def _extrema(signal: np.ndarray, rate: float, opt: GaitOptions, maxima: bool) -> list[tuple[float, float]]:
+    """Interior extrema of a (T,) signal with NaN gaps: list of (sub-frame index, prominence).
+
+    An extremum must drop by ``min_prominence`` x the robust range on both sides, except next to
+    the start or end of a run (first/last partial step), where the interior side must and the
+    edge side must fall for at least two samples.
+    """
+    y = signal if maxima else -signal
+    ok = np.isfinite(y)
+    if ok.sum() < 3:
+        return []
+    lo, hi = np.nanquantile(y, [0.05, 0.95])
+    min_prom = opt.min_prominence * max(hi - lo, 1e-9)
+    distance = max(1, int(round(opt.min_event_interval_s * rate)))
+    found: list[tuple[float, float]] = []
+    for start, stop in finite_runs(ok):
+        seg = y[start:stop]
+        if len(seg) < 3:
+            continue
+        peaks, _ = find_peaks(seg, distance=distance)
+        if len(peaks) == 0:
+            continue
+        _, left_base, right_base = peak_prominences(seg, peaks)
+        for p, lb, rb in zip(peaks, left_base, right_base, strict=True):
+            drop_l, drop_r = seg[p] - seg[lb], seg[p] - seg[rb]
+            if min(drop_l, drop_r) >= min_prom:
+                prom = min(drop_l, drop_r)
+            elif lb == 0 and p >= 2 and drop_r >= min_prom and seg[p - 2] < seg[p - 1] < seg[p]:
+                prom = drop_r
+            elif rb == len(seg) - 1 and p <= len(seg) - 3 and drop_l >= min_prom and seg[p + 2] < seg[p + 1] < seg[p]:
+                prom = drop_l
+            else:
+                continue
+            found.append((start + parabolic_peak(seg, int(p)), float(prom)))
+    return found
+
+
+def _alternate(extrema: list[_Extremum]) -> list[_Extremum]:
+    """Keep one event per half-cycle: of consecutive same-kind events keep the most prominent."""
+    out: list[_Extremum] = []
+    for e in sorted(extrema, key=lambda e: e.frame):
+        if out and out[-1].event == e.event:
+            if e.prominence > out[-1].prominence:
+                out[-1] = e
+            continue
+        out.append(e)
+    return out
+
+
+def zeni_signals(
+    traj: Trajectory, direction: WalkingDirection, options: GaitOptions | None = None
+) -> dict[str, np.ndarray]:
+    """The pelvis-relative heel and toe coordinates along the walking direction (filtered).
+
+    Returns:
+        ``{"heel_l", "heel_r", "toe_l", "toe_r"}`` -> shape (T,) metres, NaN where missing.
+    """
+    opt = options or GaitOptions()
+    rate = traj.rate_hz
+    gap = int(round(opt.max_gap_s * rate))
+    pel = pelvis_track(traj)
+    out: dict[str, np.ndarray] = {}
+    for side in SIDES:
+        s = side_suffix(side)
+        for name, track in (("heel", heel_track(traj, side)), ("toe", toe_track(traj, side))):
+            rel = (track - pel) @ direction.forward
+            out[f"{name}{s}"] = lowpass(fill_short_gaps(rel, gap), rate, opt.lowpass_hz)
+    return out
+
+
+def _refiners(
+    traj: Trajectory, side: Side, direction: WalkingDirection, opt: GaitOptions
+) -> dict[str, Callable[[float], float | None]]:
+    """Local refinement of the Zeni anchors (see the module docstring), by event kind.
+
+    Each refiner maps an anchor (sub-frame index) to a refined sub-frame index, or None when the
+    local criterion is not found in its window (the anchor is then kept).
+    """
+    rate, s = traj.rate_hz, side_suffix(side)
+    gap = int(round(opt.max_gap_s * rate))
+    heel_vz = velocity(lowpass(fill_short_gaps(heel_track(traj, side), gap), rate, opt.lowpass_hz), rate)[:, 2]
+    toe = lowpass(fill_short_gaps(toe_track(traj, side), gap), rate, opt.lowpass_hz)
+    toe_acc = velocity(velocity(toe, rate), rate) @ direction.forward
+
+    def strike(anchor: float) -> float | None:
+        # the heel's lowest point: first upward zero crossing of its vertical velocity
+        i0, i1 = int(np.floor(anchor)), min(len(heel_vz) - 1, int(np.ceil(anchor + opt.strike_window_s * rate)))
+        for k in range(max(i0, 0), i1):
+            a, b = heel_vz[k], heel_vz[k + 1]
+            if np.isfinite(a) and np.isfinite(b) and a < 0 <= b:
+                return max(anchor, k + a / (a - b))
+        return None
+
+    def off(anchor: float) -> float | None:
+        # the toe's peak forward acceleration (Hreljac & Marshall 2000) near the anchor
+        i0 = max(1, int(np.floor(anchor - 0.5 * opt.off_window_s * rate)))
+        i1 = min(len(toe_acc) - 1, int(np.ceil(anchor + opt.off_window_s * rate)))
+        w = toe_acc[i0:i1]
+        if len(w) < 3 or not np.isfinite(w).all():
+            return None
+        k = int(np.argmax(w))
+        if k == 0 or k == len(w) - 1:
+            return None  # no interior maximum in the window
+        return parabolic_peak(toe_acc, i0 + k)
+
+    return {"foot_strike": strike, "foot_off": off}
+
+
+def detect_events(
+    traj: Trajectory, options: GaitOptions | None = None, direction: WalkingDirection | None = None
+) -> tuple[list[GaitEvent], WalkingDirection]:
+    """Foot strikes and foot offs of both feet (Zeni et al. 2008, see the module docstring).
+
+    Args:
+        traj: joint-centre (or marker) trajectory with pelvis (or hips), heels (or ankles), toes.
+        options: detection settings.
+        direction: walking direction; estimated from ``traj`` if not given.
+
+    Returns:
+        The events sorted by time (times on the trajectory's axis, sub-frame), and the direction.
+    """
+    opt = options or GaitOptions()
+    direction = direction or estimate_walking_direction(traj, opt)
+    sig = zeni_signals(traj, direction, opt)
+    events: list[GaitEvent] = []
+    for side in SIDES:
+        s = side_suffix(side)
+        ext = [_Extremum(f, p, side, "foot_strike") for f, p in _extrema(sig[f"heel{s}"], traj.rate_hz, opt, True)]
+        ext += [_Extremum(f, p, side, "foot_off") for f, p in _extrema(sig[f"toe{s}"], traj.rate_hz, opt, False)]
+        refined = _refiners(traj, side, direction, opt) if opt.refine else None
+        for e in _alternate(ext):
+            frame, source = e.frame, SOURCE
+            if refined is not None:
+                better = refined[e.event](e.frame)
+                if better is not None:
+                    frame, source = better, SOURCE_REFINED
+            events.append(GaitEvent(traj.t0_s + frame / traj.rate_hz, side, e.event, source))  # type: ignore[arg-type]
+    events.sort()
+    log.info("detected %d gait events (%s)", len(events), direction.method)
+    return events, direction

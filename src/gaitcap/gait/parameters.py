@@ -1,0 +1,261 @@
+"""Spatio-temporal gait parameters per stride, per side and overall (mean, SD, count).
+
+Definitions (``d`` the walking direction, ``n`` the horizontal left axis, times from the events):
+
+- stride time: between two consecutive foot strikes of one side (a complete cycle, see
+  :mod:`gaitcap.gait.cycles`); step time of side X: from the contralateral foot strike to the next
+  foot strike of X.
+- stance / swing: ipsilateral foot strike -> foot off, foot off -> next foot strike, in % of the
+  cycle. Double support: (contralateral foot off - foot strike) + (foot off - contralateral foot
+  strike), in %. Single support (ipsilateral): contralateral foot off -> contralateral foot strike.
+- stride length: ground-frame displacement of the heel along ``d`` between the two foot strikes of
+  the cycle. The ground frame moves with the belt: ``x_g(t) = x(t) - v_belt t``. Overground
+  ``v_belt = 0``; for a walk-in-place / treadmill trial ``v_belt`` is the median velocity along
+  ``d`` of the stance foot in mid-stance (20-50 % of stance), the heel-velocity-in-stance method.
+- step length of side X: ``(heel_X - heel_contra) . d`` at the foot strike of X; step width:
+  ``|(heel_X - heel_contra) . n|`` at the same instant.
+- walking speed: stride length / stride time per stride; cadence: 60 / step time per step.
+- symmetry index (Robinson et al. 1987): ``SI = 100 (L - R) / (0.5 (L + R))``, 0 = symmetric.
+
+Each summary value ``k`` comes with ``k_sd`` (sample SD, ddof = 1; NaN for one value) and ``k_n``.
+A trajectory without one complete cycle on either side gives ``status = "not_enough_steps"`` with
+the reason, never zeros.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from gaitcap.gait.cycles import GaitCycle, find_cycles, other_side
+from gaitcap.gait.events import WalkingDirection, heel_track, toe_track
+from gaitcap.gait.signals import fill_short_gaps, velocity
+from gaitcap.trajectory import SIDES, GaitEvent, Side, Trajectory
+
+STATUS_OK = "ok"
+STATUS_NOT_ENOUGH_STEPS = "not_enough_steps"
+
+#: per-side summary keys and their units
+SIDE_KEYS: dict[str, str] = {
+    "stride_length_m": "m",
+    "step_length_m": "m",
+    "step_width_m": "m",
+    "stride_time_s": "s",
+    "step_time_s": "s",
+    "cadence_steps_per_min": "steps/min",
+    "speed_m_s": "m/s",
+    "stance_pct": "%",
+    "swing_pct": "%",
+    "single_support_pct": "%",
+    "double_support_pct": "%",
+}
+#: overall summary keys (both sides pooled)
+OVERALL_KEYS: dict[str, str] = {
+    "cadence_steps_per_min": "steps/min",
+    "speed_m_s": "m/s",
+    "stride_length_m": "m",
+    "step_length_m": "m",
+    "step_width_m": "m",
+    "stride_time_s": "s",
+    "step_time_s": "s",
+    "stance_pct": "%",
+    "swing_pct": "%",
+    "single_support_pct": "%",
+    "double_support_pct": "%",
+}
+SYMMETRY_KEYS = ("step_length_m", "step_time_s", "stride_time_s", "stance_pct", "swing_pct", "single_support_pct")
+
+
+@dataclass(frozen=True)
+class Stride:
+    """Per-stride values of one cycle (NaN where an input was missing)."""
+
+    side: Side
+    cycle: GaitCycle
+    stride_time_s: float
+    stride_length_m: float
+    speed_m_s: float
+    stance_pct: float
+    swing_pct: float
+    single_support_pct: float
+    double_support_pct: float
+
+
+@dataclass(frozen=True)
+class Step:
+    """One step, ending at the foot strike of ``side``."""
+
+    side: Side
+    time_s: float
+    step_time_s: float
+    step_length_m: float
+    step_width_m: float
+
+    @property
+    def cadence_steps_per_min(self) -> float:
+        return 60.0 / self.step_time_s
+
+
+@dataclass
+class GaitParameters:
+    """The result of :func:`compute_parameters`; :meth:`to_dict` is ``parameters.json``."""
+
+    status: str
+    reason: str
+    overall: dict[str, float]
+    sides: dict[str, dict[str, float]]
+    symmetry: dict[str, float]
+    strides: list[Stride] = field(default_factory=list)
+    steps: list[Step] = field(default_factory=list)
+    info: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return self.status == STATUS_OK
+
+    def to_dict(self) -> dict[str, Any]:
+        def clean(d: dict[str, Any]) -> dict[str, Any]:
+            return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in d.items()}
+
+        return {
+            "status": self.status,
+            "reason": self.reason,
+            "overall": clean(self.overall),
+            "left": clean(self.sides["left"]),
+            "right": clean(self.sides["right"]),
+            "symmetry_index_pct": clean(self.symmetry),
+            "info": self.info,
+        }
+
+
+def _summary(values: Sequence[float]) -> tuple[float, float, int]:
+    v = np.asarray([x for x in values if math.isfinite(x)], dtype=np.float64)
+    if len(v) == 0:
+        return math.nan, math.nan, 0
+    return float(v.mean()), float(v.std(ddof=1)) if len(v) > 1 else math.nan, len(v)
+
+
+def _put(out: dict[str, float], key: str, values: Sequence[float]) -> None:
+    mean, sd, n = _summary(values)
+    out[key], out[f"{key}_sd"], out[f"{key}_n"] = mean, sd, n
+
+
+def _at(track: np.ndarray, times: np.ndarray, t: float) -> np.ndarray:
+    """Linear interpolation of a (T, 3) track at time ``t`` (NaN if a neighbour is missing)."""
+    i = int(np.clip(np.searchsorted(times, t) - 1, 0, len(times) - 2))
+    w = (t - times[i]) / (times[i + 1] - times[i])
+    return (1 - w) * track[i] + w * track[i + 1]
+
+
+def belt_velocity(traj: Trajectory, direction: WalkingDirection, cycles: Sequence[GaitCycle]) -> float:
+    """Ground velocity along the walking direction (m/s): 0 overground; for an in-place trial the
+    median mid-stance (20-50 % of stance) velocity of the stance foot (mid heel-toe)."""
+    if not direction.in_place:
+        return 0.0
+    times = traj.times()
+    samples = []
+    for c in cycles:
+        foot = 0.5 * (heel_track(traj, c.side) + toe_track(traj, c.side))
+        v = velocity(fill_short_gaps(foot, 3), traj.rate_hz) @ direction.forward
+        stance = c.foot_off_s - c.start_s
+        sel = (times >= c.start_s + 0.2 * stance) & (times <= c.start_s + 0.5 * stance)
+        samples.extend(v[sel][np.isfinite(v[sel])].tolist())
+    return float(np.median(samples)) if samples else 0.0
+
+
+def _strides(traj: Trajectory, direction: WalkingDirection, cycles: Sequence[GaitCycle], v_belt: float) -> list[Stride]:
+    times = traj.times()
+    out = []
+    for c in cycles:
+        heel = heel_track(traj, c.side)
+        T = c.duration_s
+        disp = (_at(heel, times, c.end_s) - _at(heel, times, c.start_s)) @ direction.forward
+        length = float(disp - v_belt * T)
+        stance = c.pct(c.foot_off_s)
+        ds = c.pct(c.contra_off_s) + (stance - c.pct(c.contra_strike_s))
+        ss = c.pct(c.contra_strike_s) - c.pct(c.contra_off_s)
+        out.append(Stride(c.side, c, T, length, length / T, stance, 100.0 - stance, ss, ds))
+    return out
+
+
+def _steps(traj: Trajectory, direction: WalkingDirection, events: Sequence[GaitEvent], max_step_s: float) -> list[Step]:
+    """Steps: each foot strike preceded (within ``max_step_s``) by a contralateral strike, with no
+    other strike in between."""
+    times = traj.times()
+    strikes = sorted((e for e in events if e.event == "foot_strike"), key=lambda e: e.time_s)
+    out = []
+    for prev, cur in zip(strikes[:-1], strikes[1:], strict=True):
+        if prev.side == cur.side or cur.time_s - prev.time_s > max_step_s:
+            continue
+        rel = _at(heel_track(traj, cur.side), times, cur.time_s) - _at(heel_track(traj, other_side(cur.side)), times, cur.time_s)
+        out.append(
+            Step(cur.side, cur.time_s, cur.time_s - prev.time_s, float(rel @ direction.forward), float(abs(rel @ direction.left)))
+        )
+    return out
+
+
+def _symmetry(left: float, right: float) -> float:
+    den = 0.5 * (left + right)
+    return 100.0 * (left - right) / den if math.isfinite(den) and den != 0 else math.nan
+
+
+def compute_parameters(traj: Trajectory, events: Sequence[GaitEvent], direction: WalkingDirection) -> GaitParameters:
+    """Spatio-temporal parameters from a trajectory and its events (see the module docstring).
+
+    Returns:
+        :class:`GaitParameters`; ``status == "not_enough_steps"`` (with the reason and NaN values)
+        when neither side has one complete gait cycle.
+    """
+    cycles = {s: find_cycles(events, s) for s in SIDES}
+    all_cycles = cycles["left"] + cycles["right"]
+    info: dict[str, Any] = {
+        "n_frames": traj.n_frames,
+        "rate_hz": traj.rate_hz,
+        "n_events": len(events),
+        "walking_direction": [round(float(x), 6) for x in direction.forward],
+        "direction_method": direction.method,
+        "in_place": direction.in_place,
+        "event_method": "Zeni et al. 2008 (heel/toe relative to pelvis along the walking direction)",
+    }
+    v_belt = belt_velocity(traj, direction, all_cycles)
+    info["belt_velocity_m_s"] = v_belt
+    strides = _strides(traj, direction, all_cycles, v_belt)
+    median_stride = float(np.median([s.stride_time_s for s in strides])) if strides else 2.0
+    # without one complete cycle nothing is reported (a lone step is not a gait pattern)
+    steps = _steps(traj, direction, events, max_step_s=0.75 * median_stride) if strides else []
+    sides: dict[str, dict[str, float]] = {}
+    for side in SIDES:
+        st = [s for s in strides if s.side == side]
+        sp = [s for s in steps if s.side == side]
+        d: dict[str, float] = {}
+        for key in SIDE_KEYS:
+            if key in ("step_length_m", "step_time_s", "step_width_m", "cadence_steps_per_min"):
+                _put(d, key, [getattr(s, key) for s in sp])
+            else:
+                _put(d, key, [getattr(s, key) for s in st])
+        d["n_strides"] = len(st)
+        d["n_steps"] = len(sp)
+        sides[side] = d
+    overall: dict[str, float] = {}
+    for key in OVERALL_KEYS:
+        src = steps if key in ("step_length_m", "step_time_s", "step_width_m", "cadence_steps_per_min") else strides
+        _put(overall, key, [getattr(s, key) for s in src])
+    overall["n_strides"] = len(strides)
+    overall["n_steps"] = len(steps)
+    symmetry = {k: _symmetry(sides["left"][k], sides["right"][k]) for k in SYMMETRY_KEYS}
+    if not strides:
+        n_fs = sum(e.event == "foot_strike" for e in events)
+        n_fo = len(events) - n_fs
+        reason = (
+            f"not enough steps: no complete gait cycle (found {n_fs} foot strikes and {n_fo} foot offs in "
+            f"{traj.n_frames / traj.rate_hz:.2f} s; a cycle needs two foot strikes of one foot with its foot off between)"
+        )
+        return GaitParameters(STATUS_NOT_ENOUGH_STEPS, reason, overall, sides, symmetry, [], steps, info)
+    reason = "" if all(cycles[s] for s in SIDES) else (
+        "only the " + next(s for s in SIDES if cycles[s]) + " side has a complete gait cycle"
+    )
+    return GaitParameters(STATUS_OK, reason, overall, sides, symmetry, strides, steps, info)

@@ -1,0 +1,1 @@
+"""The self-contained HTML gait report and its matplotlib figures."""

@@ -1,0 +1,92 @@
+"""``gaitcap report``: read a trajectory, analyse it, write every output under ``OUT/gait/``."""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from gaitcap.errors import InputError
+from gaitcap.gait.analysis import GaitAnalysis, analyse
+from gaitcap.gait.options import GaitOptions
+from gaitcap.io import gait_outputs
+from gaitcap.io.atomic import write_text_atomic
+from gaitcap.io.c3d_export import write_c3d
+from gaitcap.io.trajectories_h5 import read_trajectory
+from gaitcap.report.html import render_report
+from gaitcap.trajectory import Trajectory
+
+log = logging.getLogger("gaitcap.report")
+
+TRAJECTORIES_H5 = "trajectories.h5"
+MOTION_SUFFIXES = (".c3d", ".trc")
+PELVIS_MARKERS = ("LASI", "RASI", "LPSI", "RPSI")
+
+
+@dataclass(frozen=True)
+class ReportResult:
+    analysis: GaitAnalysis
+    out_dir: Path
+    files: tuple[Path, ...]
+
+
+def resolve_input(source: Path) -> Path:
+    """The trajectory file of ``source``: ``source/trajectories.h5`` for a folder, else the file."""
+    if source.is_dir():
+        path = source / TRAJECTORIES_H5
+        if not path.is_file():
+            raise InputError(f"{source}: no {TRAJECTORIES_H5} in this folder (run gaitcap track first, or pass a .c3d/.trc)")
+        return path
+    if not source.exists():
+        raise InputError(f"{source}: no such file or folder")
+    return source
+
+
+def load_trajectory(path: Path) -> Trajectory:
+    """A trajectories.h5 file, or a .c3d/.trc motion file (joint centres through read_motion)."""
+    suffix = path.suffix.lower()
+    if suffix in (".h5", ".hdf5"):
+        return read_trajectory(path)
+    if suffix in MOTION_SUFFIXES:
+        from gaitcap.markers.motion import read_markers, read_motion
+
+        joints = read_motion(path)
+        return with_pelvis_markers(joints, read_markers(path))
+    raise InputError(f"{path}: unknown trajectory file type (expected trajectories.h5, .c3d or .trc)")
+
+
+def with_pelvis_markers(joints: Trajectory, markers: Trajectory) -> Trajectory:
+    """Add the ASIS/PSIS markers (LASI RASI LPSI RPSI) of a marker file to its joint centres, so
+    the pelvis angles use the anatomical pelvis frame (see gaitcap.gait.angles)."""
+    names = PELVIS_MARKERS
+    if not all(markers.has(n) for n in names) or markers.n_frames != joints.n_frames:
+        return joints
+    extra = np.stack([markers.point(n) for n in names], axis=1)
+    return replace(joints, names=joints.names + names, points=np.concatenate([joints.points, extra], axis=1))
+
+
+def run_report(source: Path, out_dir: Path | None = None, options: GaitOptions | None = None) -> ReportResult:
+    """Analyse ``source`` and write ``events.csv``, ``parameters.json``/``.csv``, ``strides.csv``,
+    ``angles.csv``, ``cycles.h5``, ``trajectories.c3d`` and ``report.html`` into ``out_dir``
+    (default: ``<source folder>/gait``)."""
+    path = resolve_input(Path(source))
+    traj = load_trajectory(path)
+    out = Path(out_dir) if out_dir is not None else (Path(source) if Path(source).is_dir() else path.parent) / "gait"
+    a = analyse(traj, options)
+    files = {
+        "events": out / "events.csv", "parameters_json": out / "parameters.json",
+        "parameters_csv": out / "parameters.csv", "strides": out / "strides.csv",
+        "angles": out / "angles.csv", "cycles": out / "cycles.h5",
+        "c3d": out / "trajectories.c3d", "html": out / "report.html",
+    }  # fmt: skip
+    gait_outputs.write_events_csv(files["events"], a.events, traj)
+    gait_outputs.write_parameters(files["parameters_json"], files["parameters_csv"], a.parameters)
+    gait_outputs.write_strides_csv(files["strides"], a.parameters)
+    gait_outputs.write_angles_csv(files["angles"], traj, a.angles)
+    gait_outputs.write_cycles_h5(files["cycles"], a)
+    write_c3d(files["c3d"], traj.with_events(a.events))
+    write_text_atomic(files["html"], render_report(a, title=f"Gait report — {path.name}"))
+    log.info("wrote %d files to %s", len(files), out)
+    return ReportResult(a, out, tuple(files.values()))

@@ -1,0 +1,117 @@
+"""Matplotlib figures of the gait report (Agg backend, PNG bytes; no display, no network).
+
+Colours follow the clinical convention: left red, right green.
+"""
+
+from __future__ import annotations
+
+import io
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from gaitcap.gait.analysis import GaitAnalysis  # noqa: E402
+from gaitcap.gait.angles import ANGLE_NAMES  # noqa: E402
+from gaitcap.gait.events import heel_track, pelvis_track, toe_track  # noqa: E402
+from gaitcap.trajectory import SIDES  # noqa: E402
+
+COLOURS = {"left": "#d62728", "right": "#2ca02c"}
+ANGLE_TITLES = {
+    "pelvis_tilt": "Pelvic tilt (+ anterior)",
+    "pelvis_obliquity": "Pelvic obliquity (+ up)",
+    "pelvis_rotation": "Pelvic rotation (+ forward)",
+    "hip_flexion": "Hip flexion (+) / extension",
+    "hip_adduction": "Hip adduction (+) / abduction",
+    "hip_rotation": "Hip rotation (+ internal)",
+    "knee_flexion": "Knee flexion (+) / extension",
+    "ankle_dorsiflexion": "Ankle dorsiflexion (+) / plantarflexion",
+}
+
+
+def _png(fig: plt.Figure) -> bytes:
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
+    plt.close(fig)
+    return buf.getvalue()
+
+
+def angle_curves(analysis: GaitAnalysis) -> bytes:
+    """Joint angles over 0-100 % of the gait cycle: mean +/- SD per side, foot off marked."""
+    fig, axes = plt.subplots(3, 3, figsize=(12, 9), layout="constrained")
+    x = np.linspace(0, 100, 101)
+    for ax, name in zip(axes.flat, ANGLE_NAMES, strict=False):
+        for side in SIDES:
+            mean, sd, n = analysis.curve_stats(side, name)
+            if n == 0:
+                continue
+            c = COLOURS[side]
+            ax.plot(x, mean, color=c, lw=1.8, label=f"{side} (n={n})")
+            if n > 1:
+                ax.fill_between(x, mean - sd, mean + sd, color=c, alpha=0.2, lw=0)
+            fo = [cy.pct(cy.foot_off_s) for cy in analysis.cycles[side]]
+            ax.axvline(float(np.mean(fo)), color=c, ls="--", lw=1)
+        ax.set_title(ANGLE_TITLES[name], fontsize=10)
+        ax.set_xlim(0, 100)
+        ax.axhline(0, color="0.6", lw=0.6)
+        ax.grid(alpha=0.3)
+    axes.flat[0].legend(fontsize=8)
+    for ax in axes[-1]:
+        ax.set_xlabel("% gait cycle")
+    for ax in axes[:, 0]:
+        ax.set_ylabel("degrees")
+    axes.flat[-1].axis("off")
+    fig.suptitle("Joint angles over the gait cycle (mean ± SD; dashed: foot off)")
+    return _png(fig)
+
+
+def foot_trajectories(analysis: GaitAnalysis) -> bytes:
+    """Heel and toe along the walking direction relative to the pelvis, and heel height, over time."""
+    traj, d = analysis.trajectory, analysis.direction
+    t = traj.times()
+    pel = pelvis_track(traj)
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(12, 6), sharex=True, layout="constrained")
+    for side in SIDES:
+        c = COLOURS[side]
+        heel, toe = heel_track(traj, side), toe_track(traj, side)
+        a1.plot(t, (heel - pel) @ d.forward, color=c, lw=1.5, label=f"heel {side}")
+        a1.plot(t, (toe - pel) @ d.forward, color=c, lw=1, ls=":", label=f"toe {side}")
+        a2.plot(t, heel[:, 2], color=c, lw=1.5, label=f"heel {side}")
+        a2.plot(t, toe[:, 2], color=c, lw=1, ls=":", label=f"toe {side}")
+        for e in analysis.events:
+            if e.side == side:
+                a1.axvline(e.time_s, color=c, lw=0.6, ls="-" if e.event == "foot_strike" else "--")
+    a1.set_ylabel("forward, relative to pelvis (m)")
+    a2.set_ylabel("height (m)")
+    a2.set_xlabel("time (s)")
+    a1.legend(fontsize=8, ncol=4)
+    a1.grid(alpha=0.3)
+    a2.grid(alpha=0.3)
+    a1.set_title("Foot trajectories (lines: detected foot strike solid, foot off dashed)")
+    return _png(fig)
+
+
+def event_timeline(analysis: GaitAnalysis) -> bytes:
+    """Stance phases per side as bars, detected events as ticks, reference events as circles."""
+    traj = analysis.trajectory
+    t = traj.times()
+    fig, ax = plt.subplots(figsize=(12, 2.6))
+    for row, side in enumerate(SIDES):
+        c = COLOURS[side]
+        for cy in analysis.cycles[side]:
+            ax.broken_barh([(cy.start_s, cy.foot_off_s - cy.start_s)], (row - 0.3, 0.6), color=c, alpha=0.35)
+        for e in analysis.events:
+            if e.side == side:
+                ax.plot(e.time_s, row, marker="|" if e.event == "foot_strike" else "x", color=c, ms=16, mew=2)
+        for e in analysis.reference_events:
+            if e.side == side:
+                ax.plot(e.time_s, row + 0.38, marker="o", mfc="none", color="k", ms=6)
+    ax.set_yticks([0, 1], list(SIDES))
+    ax.set_xlim(t[0], t[-1])
+    ax.set_ylim(-0.6, 1.7)
+    ax.set_xlabel("time (s)")
+    ax.set_title("Event timeline (bars: stance of complete cycles; | foot strike, x foot off; o recorded events)")
+    ax.grid(axis="x", alpha=0.3)
+    return _png(fig)

@@ -1,0 +1,159 @@
+"""Event detection and spatio-temporal parameters on a kinematic walker with exact truth."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from gait_walker import Walker
+
+from gaitcap.gait.cycles import N_CYCLE_POINTS, GaitCycle, find_cycles, normalise_cycle
+from gaitcap.gait.events import detect_events, estimate_walking_direction
+from gaitcap.gait.options import GaitOptions
+from gaitcap.gait.parameters import STATUS_NOT_ENOUGH_STEPS, compute_parameters
+from gaitcap.trajectory import GaitEvent, Trajectory
+
+# the walker's Zeni extrema are exact: no filter bias, no refinement (its feet land flat and stop
+# dead, so the heel's "lowest point" is a plateau that starts at the strike)
+EXACT = GaitOptions(lowpass_hz=0.0, refine=False)
+
+
+def _match(found: list[GaitEvent], truth: list[GaitEvent]) -> list[float]:
+    """Error (s) of each truth event to the nearest detection of the same side and kind."""
+    errs = []
+    for t in truth:
+        same = [e.time_s for e in found if (e.side, e.event) == (t.side, t.event)]
+        errs.append(min((abs(x - t.time_s) for x in same), default=math.inf))
+    return errs
+
+
+@pytest.mark.parametrize("walker", [Walker(), Walker(heading_deg=-120.0, origin=(3.0, 4.0)), Walker(in_place=True)])
+def test_events_match_the_truth_overground_and_in_place(walker: Walker) -> None:
+    tr = walker.trajectory()
+    events, direction = detect_events(tr, EXACT)
+    truth = walker.truth_events()
+    assert len(events) == len(truth)
+    assert max(_match(events, truth)) <= 0.5 / walker.rate_hz + 1e-9
+    h = np.radians(walker.heading_deg)
+    assert direction.forward @ [np.cos(h), np.sin(h), 0] == pytest.approx(1.0, abs=1e-3)
+    assert direction.in_place == walker.in_place
+
+
+def test_default_options_keep_events_within_a_few_frames() -> None:
+    # the walker's feet land flat and stop dead: the refinement's "heel lowest point" is the start
+    # of a plateau, which the low-pass smears late; real heels (tests/test_gait_real.py) do better
+    w = Walker()
+    events, _ = detect_events(w.trajectory())
+    assert len(events) == len(w.truth_events())
+    assert max(_match(events, w.truth_events())) <= 4.0 / w.rate_hz
+
+
+@pytest.mark.parametrize("walker", [Walker(), Walker(in_place=True, heading_deg=200.0), Walker(rate_hz=25.0, duration=5.0)])
+def test_parameters_match_the_closed_form_truth(walker: Walker) -> None:
+    tr = walker.trajectory()
+    events, direction = detect_events(tr, EXACT)
+    p = compute_parameters(tr, events, direction)
+    assert p.ok
+    tol_t = 1.0 / walker.rate_hz
+    o = p.overall
+    assert o["cadence_steps_per_min"] == pytest.approx(120.0 / walker.stride_time, rel=0.02)
+    assert o["speed_m_s"] == pytest.approx(walker.speed, rel=0.02)
+    assert o["step_width_m"] == pytest.approx(walker.step_width, abs=1e-3)
+    assert o["double_support_pct"] == pytest.approx(200 * (walker.stance - 0.5), abs=100 * 2 * tol_t / walker.stride_time)
+    for side in ("left", "right"):
+        s = p.sides[side]
+        assert s["n_strides"] >= 2
+        assert s["stride_length_m"] == pytest.approx(walker.stride_length, abs=0.01)
+        # a strike timed within half a frame moves the swinging heel by at most its swing speed x dt/2
+        swing_speed = walker.stride_length / ((1 - walker.stance) * walker.stride_time)
+        assert s["step_length_m"] == pytest.approx(walker.stride_length / 2, abs=0.5 * tol_t * swing_speed)
+        assert s["stride_time_s"] == pytest.approx(walker.stride_time, abs=tol_t)
+        assert s["stance_pct"] == pytest.approx(100 * walker.stance, abs=100 * tol_t / walker.stride_time)
+        assert s["stance_pct"] + s["swing_pct"] == pytest.approx(100.0)
+        assert s["single_support_pct"] == pytest.approx(100 * (1 - walker.stance), abs=100 * tol_t / walker.stride_time)
+    assert abs(p.symmetry["step_time_s"]) < 2.0
+
+
+def test_asymmetric_steps_show_in_the_symmetry_index() -> None:
+    w = Walker(asym=0.06)  # left strike late: right step (L->R) shorter in time than the left step
+    tr = w.trajectory()
+    events, direction = detect_events(tr, EXACT)
+    p = compute_parameters(tr, events, direction)
+    left_step, right_step = (0.5 + w.asym) * w.stride_time, (0.5 - w.asym) * w.stride_time
+    assert p.sides["left"]["step_time_s"] == pytest.approx(left_step, abs=0.01)
+    assert p.sides["right"]["step_time_s"] == pytest.approx(right_step, abs=0.01)
+    expected = 100 * (left_step - right_step) / (0.5 * (left_step + right_step))
+    assert p.symmetry["step_time_s"] == pytest.approx(expected, abs=2.0)
+
+
+def test_nan_frames_are_bridged_or_skipped() -> None:
+    w = Walker(duration=6.0)
+    tr = w.trajectory()
+    pts = tr.points.copy()
+    rng = np.random.default_rng(7)
+    pts[rng.choice(tr.n_frames, 40, replace=False)] = np.nan  # isolated flagged frames
+    pts[300:360] = np.nan  # a long gap of 0.6 s
+    tr2 = Trajectory(tr.names, pts, tr.rate_hz)
+    events, direction = detect_events(tr2, EXACT)
+    gap = (3.0, 3.6)
+    away = [t for t in w.truth_events() if not gap[0] - 0.15 < t.time_s < gap[1] + 0.15]
+    assert max(_match(events, away)) <= 1.0 / w.rate_hz  # found everywhere but at the long gap
+    truth = w.truth_events()
+    found_err = [min(abs(e.time_s - t.time_s) for t in truth if (t.side, t.event) == (e.side, e.event)) for e in events]
+    assert max(found_err) <= 1.0 / w.rate_hz  # no spurious event at the gap edges
+    p = compute_parameters(tr2, events, direction)
+    assert p.ok and p.overall["cadence_steps_per_min"] == pytest.approx(120 / w.stride_time, rel=0.02)
+
+
+@pytest.mark.parametrize("duration", [0.5, 0.9])
+def test_less_than_one_cycle_gives_not_enough_steps(duration: float) -> None:
+    w = Walker(duration=duration)
+    tr = w.trajectory()
+    events, direction = detect_events(tr)
+    p = compute_parameters(tr, events, direction)
+    assert p.status == STATUS_NOT_ENOUGH_STEPS and not p.ok
+    assert "not enough steps" in p.reason
+    d = p.to_dict()
+    assert d["left"]["stride_length_m"] is None and d["overall"]["cadence_steps_per_min"] is None
+    assert d["right"]["n_strides"] == 0
+
+
+def test_partial_steps_at_the_ends_are_not_events() -> None:
+    # start mid-swing and end mid-stance: only interior extrema are events
+    w = Walker(first_strike_right=0.05, duration=3.0)
+    tr = w.trajectory()
+    events, _ = detect_events(tr, EXACT)
+    truth = w.truth_events()
+    found_err = [min(abs(e.time_s - t.time_s) for t in truth if (t.side, t.event) == (e.side, e.event)) for e in events]
+    assert max(found_err) <= 0.5 / w.rate_hz + 1e-9  # nothing spurious at the ends
+    inner = [t for t in truth if 0.3 < t.time_s < tr.times()[-1] - 0.3]
+    assert max(_match(events, inner)) <= 0.5 / w.rate_hz + 1e-9
+
+
+def test_walking_direction_is_estimated_not_assumed() -> None:
+    for heading in (0.0, 90.0, 180.0, 270.0, 33.0):
+        d = estimate_walking_direction(replace(Walker(heading_deg=heading)).trajectory())
+        h = np.radians(heading)
+        assert d.forward @ [np.cos(h), np.sin(h), 0] > 0.999
+        assert np.cross(d.forward, d.left)[2] == pytest.approx(1.0)
+
+
+def test_cycles_and_normalisation() -> None:
+    ev = [
+        GaitEvent(0.1, "right", "foot_strike"), GaitEvent(0.25, "left", "foot_off"),
+        GaitEvent(0.6, "left", "foot_strike"), GaitEvent(0.75, "right", "foot_off"),
+        GaitEvent(1.1, "right", "foot_strike"),
+    ]  # fmt: skip
+    (c,) = find_cycles(ev, "right")
+    assert (c.start_s, c.end_s, c.foot_off_s, c.contra_off_s, c.contra_strike_s) == (0.1, 1.1, 0.75, 0.25, 0.6)
+    assert find_cycles(ev, "left") == []
+    t = np.arange(0, 1.3, 0.01)
+    curve = normalise_cycle(3 * t, t, c)
+    assert curve.shape == (N_CYCLE_POINTS,)
+    assert np.allclose(curve, 3 * np.linspace(0.1, 1.1, 101))
+    gap = 3 * t
+    gap[40:70] = np.nan
+    out = normalise_cycle(gap, t, GaitCycle("right", 0.1, 1.1, 0.75))
+    assert np.isnan(out).sum() > 0 and np.isfinite(out[:25]).all()
