@@ -52,7 +52,7 @@ def _register() -> None:
 
 
 # the command modules, in the order of the pipeline
-COMMAND_MODULES: list[str] = []
+COMMAND_MODULES: list[str] = ["silhouettes"]
 
 
 _register()
