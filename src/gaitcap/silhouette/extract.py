@@ -138,6 +138,10 @@ class SilhouetteExtractor:
             raise InputError(f"{self.name}: no background plate and no video frames to estimate one from")
         ref = plate if plate is not None else samples[0]  # type: ignore[index]
         h, w = ref.shape[:2]
+        if plate is not None and samples is not None and samples.shape[1:3] != (h, w):
+            raise InputError(
+                f"{self.name}: background plate is {w}x{h} but the video is {samples.shape[2]}x{samples.shape[1]}"
+            )
         s = self.config.scale
         self._full_size = (w, h)
         self._work_size = (max(8, round(w * s)), max(8, round(h * s)))
@@ -189,7 +193,8 @@ class SilhouetteExtractor:
         gain = global_gain(img, self._bg) if self.config.background.gain_compensation else np.ones(3, np.float32)
         bg = self._bg * gain.reshape(1, 1, 3)
         if self._thr2 is None:  # plate without samples: one global noise level from this frame
-            self._thr2 = self._threshold2(self._global_noise(img, bg))
+            g = gain if self.config.background.gain_compensation else global_gain(img, self._bg)
+            self._thr2 = self._threshold2(self._global_noise(img, self._bg * g.reshape(1, 1, 3)))
         candidate = self._candidates(img, bg)
         shadow = self._shadow(img, bg, candidate) if self.config.shadow.enabled else np.zeros_like(candidate)
         raw = (candidate & ~shadow).astype(np.uint8) * 255
