@@ -90,6 +90,11 @@ class FrameQuality:
         return flag_names(self.flags)
 
 
+def _scalar(values: np.ndarray) -> tuple[float, float, float, float]:
+    """Per-channel factors as an OpenCV Scalar (for cv2.multiply on 3-channel images)."""
+    return (float(values[0]), float(values[1]), float(values[2]), 0.0)
+
+
 def _disk(radius: int) -> np.ndarray:
     return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
 
@@ -191,7 +196,7 @@ class SilhouetteExtractor:
             )
         img = self._work(frame).astype(np.float32)
         gain = global_gain(img, self._bg) if self.config.background.gain_compensation else np.ones(3, np.float32)
-        bg = self._bg * gain.reshape(1, 1, 3)
+        bg = cv2.multiply(self._bg, _scalar(gain))
         if self._thr2 is None:  # plate without samples: one global noise level from this frame
             g = gain if self.config.background.gain_compensation else global_gain(img, self._bg)
             self._thr2 = self._threshold2(self._global_noise(img, self._bg * g.reshape(1, 1, 3)))
@@ -223,18 +228,31 @@ class SilhouetteExtractor:
         return d2 > self._thr2
 
     def _shadow(self, img: np.ndarray, bg: np.ndarray, candidate: np.ndarray) -> np.ndarray:
-        """(h, w) bool: candidate pixels explained as cast shadow on the background."""
+        """(h, w) bool: candidate pixels explained as cast shadow on the background.
+
+        Computed inside the bounding box of the candidates (plus the texture window) only.
+        """
         s = self.config.shadow
-        eps = np.float32(1.0)
+        shadow = np.zeros_like(candidate)
+        x, y, w, h = cv2.boundingRect(candidate.view(np.uint8))
+        if w == 0 or h == 0:
+            return shadow
+        m = s.texture_window
+        y0, y1 = max(0, y - m), min(candidate.shape[0], y + h + m)
+        x0, x1 = max(0, x - m), min(candidate.shape[1], x + w + m)
+        img_r, bg_r, cand_r = img[y0:y1, x0:x1], bg[y0:y1, x0:x1], candidate[y0:y1, x0:x1]
         ones = np.ones((1, 3), np.float32)
-        si = cv2.transform(img, ones) + eps  # sum of channels
-        sb = cv2.transform(bg, ones) + eps
+        si = cv2.transform(img_r, ones) + np.float32(1.0)  # sum of channels
+        sb = cv2.transform(bg_r, ones) + np.float32(1.0)
         ratio = si / sb
-        darker = (ratio >= s.min_ratio) & (ratio <= s.max_ratio)
-        chroma = np.abs(img / si[..., None] - bg / sb[..., None]).max(axis=2)
-        same_colour = chroma <= s.max_chroma
-        same_texture = self._same_texture(si, sb)
-        return candidate & darker & same_colour & same_texture
+        darker = cand_r & (ratio >= s.min_ratio) & (ratio <= s.max_ratio)
+        # chromaticity only where it matters (candidate pixels in the brightness range)
+        ys, xs = np.nonzero(darker)
+        chroma = np.abs(img_r[ys, xs] / si[ys, xs, None] - bg_r[ys, xs] / sb[ys, xs, None]).max(axis=1)
+        same_colour = np.zeros_like(darker)
+        same_colour[ys, xs] = chroma <= s.max_chroma
+        shadow[y0:y1, x0:x1] = darker & same_colour & self._same_texture(si, sb)
+        return shadow
 
     def _same_texture(self, si: np.ndarray, sb: np.ndarray) -> np.ndarray:
         """(h, w) bool: the frame keeps the background's local texture (or there is none).
@@ -293,7 +311,7 @@ class SilhouetteExtractor:
             return
         busy = cv2.dilate(mask, self._adapt_k) > 0
         still = (~busy & ~shadow).astype(np.uint8)
-        target = img / np.maximum(gain, 1e-3).reshape(1, 1, 3)
+        target = cv2.multiply(img, _scalar(1.0 / np.maximum(gain, 1e-3)))
         cv2.accumulateWeighted(target, self._bg, rate, mask=still)
 
     def _to_full(self, mask_small: np.ndarray) -> np.ndarray:
