@@ -1,0 +1,342 @@
+"""The articulated body model and its forward kinematics, vectorised over particles.
+
+A pose is a vector q of D = 31 numbers (radians for rotations, metres for the root translation),
+ordered as the DOF appear in ``configs/body.yaml``. For a segment s with parent p:
+
+    R_s = R_p · R_1(q_1) · R_2(q_2) ...      (intrinsic rotations about the segment's signed axes)
+    o_s = o_p + R_p · origin_s               (origin_s: the joint's offset in the parent frame)
+
+and a point with local coordinates l in segment s sits at ``o_s + R_s · l``. The root's origin
+is its translation DOF and its rotation the root's own DOF.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from gaitcap.body.spec import BodySpec
+from gaitcap.config import default_config_path, load_yaml_model
+from gaitcap.errors import ConfigError
+
+_AXIS_INDEX = {"x": 0, "y": 1, "z": 2}
+
+
+@dataclass(frozen=True)
+class Segment:
+    """One rigid segment, as the kinematics sees it."""
+
+    name: str
+    index: int
+    parent: int  # -1 for the root
+    joint: str
+    origin: np.ndarray  # (3,) metres, in the parent frame
+    dof_start: int
+    dof_stop: int
+    axes: tuple[int, ...]  # axis index per DOF (0, 1, 2)
+    signs: tuple[float, ...]  # +1 / -1 per DOF
+    translation: tuple[bool, ...]  # per DOF
+
+    @property
+    def dofs(self) -> slice:
+        return slice(self.dof_start, self.dof_stop)
+
+    @property
+    def n_dofs(self) -> int:
+        return self.dof_stop - self.dof_start
+
+
+def axis_rotation(axis: int, angle: np.ndarray) -> np.ndarray:
+    """Rotation matrices about a principal axis: angles (N,) -> (N, 3, 3)."""
+    c, s = np.cos(angle), np.sin(angle)
+    n = angle.shape[0]
+    R = np.zeros((n, 3, 3))
+    i, j = [(1, 2), (2, 0), (0, 1)][axis]
+    R[:, axis, axis] = 1.0
+    R[:, i, i] = c
+    R[:, j, j] = c
+    R[:, i, j] = -s
+    R[:, j, i] = s
+    return R
+
+
+class BodyModel:
+    """The body model scaled to a subject.
+
+    Args:
+        spec: the validated ``body.yaml``.
+        height_m: subject height (defaults to the spec's ``height_m``).
+        scales: optional per-segment anisotropic scale factors ``{segment: (sx, sy, sz)}`` applied
+            to everything expressed in that segment's frame (its children's joint offsets, its
+            landmarks and its shape end points), to fit a particular subject's proportions.
+    """
+
+    def __init__(
+        self,
+        spec: BodySpec,
+        height_m: float | None = None,
+        scales: Mapping[str, Sequence[float]] | None = None,
+        shifts: Mapping[str, Sequence[float]] | None = None,
+    ) -> None:
+        self.spec = spec
+        self.height_m = float(height_m if height_m is not None else spec.height_m)
+        if not (0.5 < self.height_m < 2.6):
+            raise ConfigError(f"subject height {self.height_m} m is outside 0.5-2.6 m")
+        scales = dict(scales or {})
+        unknown = set(scales) - set(spec.segments)
+        if unknown:
+            raise ConfigError(f"scales: unknown segments {', '.join(sorted(unknown))}")
+        self.scales = {n: np.asarray(scales.get(n, (1.0, 1.0, 1.0)), dtype=np.float64) for n in spec.segments}
+        for n, s in self.scales.items():
+            if s.shape != (3,) or not np.all(np.isfinite(s)) or np.any(s <= 0):
+                raise ConfigError(f"scales.{n}: must be three positive numbers")
+        shifts = dict(shifts or {})
+        unknown = set(shifts) - set(spec.segments)
+        if unknown:
+            raise ConfigError(f"shifts: unknown segments {', '.join(sorted(unknown))}")
+        self.shifts = {n: np.asarray(shifts.get(n, (0.0, 0.0, 0.0)), dtype=np.float64) for n in spec.segments}
+        for n, s in self.shifts.items():
+            if s.shape != (3,) or not np.all(np.isfinite(s)):
+                raise ConfigError(f"shifts.{n}: must be three finite numbers")
+        self._build()
+
+    # ------------------------------------------------------------------ build
+    def _build(self) -> None:
+        H = self.height_m
+        names = list(self.spec.segments)
+        index = {n: i for i, n in enumerate(names)}
+        segments: list[Segment] = []
+        dof_names: list[str] = []
+        lower: list[float] = []
+        upper: list[float] = []
+        wrap: list[bool] = []
+        is_rot: list[bool] = []
+        for i, (name, seg) in enumerate(self.spec.segments.items()):
+            parent = -1 if seg.parent is None else index[seg.parent]
+            parent_scale = self.scales[seg.parent] if seg.parent is not None else np.ones(3)
+            parent_shift = self.shifts[seg.parent] if seg.parent is not None else np.zeros(3)
+            start = len(dof_names)
+            axes, signs, trans = [], [], []
+            for d in seg.dofs:
+                axes.append(_AXIS_INDEX[d.axis[-1]])
+                signs.append(-1.0 if d.axis.startswith("-") else 1.0)
+                trans.append(d.kind == "translation")
+                dof_names.append(d.name)
+                conv = 1.0 if d.kind == "translation" else np.pi / 180.0
+                lo, hi = d.limits if d.limits is not None else (-np.inf, np.inf)
+                lower.append(lo * conv)
+                upper.append(hi * conv)
+                wrap.append(d.wrap)
+                is_rot.append(d.kind == "rotation")
+            segments.append(
+                Segment(
+                    name=name,
+                    index=i,
+                    parent=parent,
+                    joint=seg.joint,
+                    origin=np.asarray(seg.origin) * H * parent_scale + parent_shift,
+                    dof_start=start,
+                    dof_stop=len(dof_names),
+                    axes=tuple(axes),
+                    signs=tuple(signs),
+                    translation=tuple(trans),
+                )
+            )
+        self.segments: tuple[Segment, ...] = tuple(segments)
+        self.dof_names: tuple[str, ...] = tuple(dof_names)
+        self.lower = np.asarray(lower)
+        self.upper = np.asarray(upper)
+        self.wrap = np.asarray(wrap)
+        self.is_rotation = np.asarray(is_rot)
+
+        # points: joints (at a segment origin) and landmarks
+        point_names: list[str] = []
+        point_seg: list[int] = []
+        point_local: list[np.ndarray] = []
+        for seg in self.segments:
+            point_names.append(seg.joint)
+            point_seg.append(seg.index)
+            point_local.append(np.zeros(3))
+            for pname, local in self.spec.segments[seg.name].points.items():
+                point_names.append(pname)
+                point_seg.append(seg.index)
+                point_local.append(np.asarray(local) * H * self.scales[seg.name] + self.shifts[seg.name])
+        from gaitcap.trajectory import POINT_NAMES
+
+        order = [point_names.index(n) for n in POINT_NAMES if n in point_names]
+        self.point_names: tuple[str, ...] = tuple(point_names[k] for k in order)
+        self.point_segment = np.asarray([point_seg[k] for k in order])
+        self.point_local = np.asarray([point_local[k] for k in order]).reshape(-1, 3)
+
+        # capsules
+        cap_seg, cap_a, cap_b, cap_r = [], [], [], []
+        for seg in self.segments:
+            sc, sh = self.scales[seg.name], self.shifts[seg.name]
+            for shape in self.spec.segments[seg.name].shapes:
+                a, b = np.asarray(shape.a), np.asarray(shape.b)
+                cap_seg.append(seg.index)
+                cap_a.append(a * H * sc + sh)
+                cap_b.append(b * H * sc + sh)
+                cap_r.append(np.asarray(shape.radii) * H * _across_scale(b - a, sc))
+        self.capsule_segment = np.asarray(cap_seg, dtype=int)
+        self.capsule_a = np.asarray(cap_a).reshape(-1, 3)
+        self.capsule_b = np.asarray(cap_b).reshape(-1, 3)
+        self.capsule_radii = np.asarray(cap_r).reshape(-1, 2)
+
+    # --------------------------------------------------------------- queries
+    @property
+    def n_dofs(self) -> int:
+        return len(self.dof_names)
+
+    @property
+    def n_points(self) -> int:
+        return len(self.point_names)
+
+    def dof_index(self, name: str) -> int:
+        try:
+            return self.dof_names.index(name)
+        except ValueError:
+            raise ConfigError(f"unknown DOF {name!r}") from None
+
+    def segment(self, name: str) -> Segment:
+        for s in self.segments:
+            if s.name == name:
+                return s
+        raise ConfigError(f"unknown segment {name!r}")
+
+    def point_index(self, name: str) -> int:
+        try:
+            return self.point_names.index(name)
+        except ValueError:
+            raise ConfigError(f"unknown point {name!r}") from None
+
+    def children(self, index: int) -> list[int]:
+        return [s.index for s in self.segments if s.parent == index]
+
+    def with_proportions(
+        self, scales: Mapping[str, Sequence[float]] | None = None, shifts: Mapping[str, Sequence[float]] | None = None
+    ) -> BodyModel:
+        """The same model with other per-segment scales and shifts (see the constructor)."""
+        return BodyModel(self.spec, self.height_m, scales, shifts)
+
+    def with_height(self, height_m: float) -> BodyModel:
+        return BodyModel(self.spec, height_m, self.proportions()[0], self.proportions()[1])
+
+    def proportions(self) -> tuple[dict[str, tuple[float, ...]], dict[str, tuple[float, ...]]]:
+        """(scales, shifts) as plain dictionaries, for saving."""
+        return ({k: tuple(map(float, v)) for k, v in self.scales.items()},
+                {k: tuple(map(float, v)) for k, v in self.shifts.items()})
+
+    # ---------------------------------------------------------------- limits
+    def clip(self, q: np.ndarray) -> np.ndarray:
+        """Wrap heading DOF to [-pi, pi) and clip every other DOF to its limits. (N, D) -> (N, D)."""
+        q = np.array(q, dtype=np.float64, copy=True)
+        if self.wrap.any():
+            q[..., self.wrap] = (q[..., self.wrap] + np.pi) % (2 * np.pi) - np.pi
+        nw = ~self.wrap
+        q[..., nw] = np.clip(q[..., nw], self.lower[nw], self.upper[nw])
+        return q
+
+    def within_limits(self, q: np.ndarray, tol: float = 1e-9) -> np.ndarray:
+        """Boolean (N,) mask: every non-wrapping DOF within its limits."""
+        q = np.atleast_2d(q)
+        nw = ~self.wrap
+        return np.all((q[:, nw] >= self.lower[nw] - tol) & (q[:, nw] <= self.upper[nw] + tol), axis=1)
+
+    def neutral_pose(self, heading_rad: float = 0.0, x: float = 0.0, y: float = 0.0) -> np.ndarray:
+        """Standing pose (D,): every angle 0, the soles on the floor, facing ``heading_rad``."""
+        q = np.zeros(self.n_dofs)
+        q[self.dof_index("pelvis_rotation")] = heading_rad
+        pts = self.forward(q[None])[0]
+        q[self.dof_index("pelvis_tx")] = x
+        q[self.dof_index("pelvis_ty")] = y
+        q[self.dof_index("pelvis_tz")] = -pts[:, 2].min()
+        return q
+
+    # ------------------------------------------------------------ kinematics
+    def local_rotation(self, seg: Segment, q_seg: np.ndarray) -> np.ndarray:
+        """Rotation of a segment relative to its parent: q_seg (N, k) -> (N, 3, 3)."""
+        R: np.ndarray | None = None
+        for k, (axis, sign, trans) in enumerate(zip(seg.axes, seg.signs, seg.translation)):
+            if not trans:
+                Rk = axis_rotation(axis, sign * q_seg[:, k])
+                R = Rk if R is None else R @ Rk
+        if R is None:
+            return np.broadcast_to(np.eye(3), (q_seg.shape[0], 3, 3)).copy()
+        return R
+
+    def segment_frame(
+        self, seg: Segment, q_seg: np.ndarray, parent_R: np.ndarray | None, parent_o: np.ndarray | None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """World frame of one segment given its parent's: returns R (N, 3, 3) and origin (N, 3)."""
+        R_local = self.local_rotation(seg, q_seg)
+        if seg.parent < 0:
+            o = np.zeros((q_seg.shape[0], 3))
+            for k, (axis, sign, trans) in enumerate(zip(seg.axes, seg.signs, seg.translation)):
+                if trans:
+                    o[:, axis] += sign * q_seg[:, k]
+            return R_local, o
+        assert parent_R is not None and parent_o is not None
+        return parent_R @ R_local, parent_o + parent_R @ seg.origin
+
+    def frames(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Every segment's world frame: q (N, D) -> R (N, S, 3, 3), origins (N, S, 3)."""
+        q = self._check_poses(q)
+        n, S = q.shape[0], len(self.segments)
+        R = np.empty((n, S, 3, 3))
+        o = np.empty((n, S, 3))
+        for seg in self.segments:
+            pR = R[:, seg.parent] if seg.parent >= 0 else None
+            po = o[:, seg.parent] if seg.parent >= 0 else None
+            R[:, seg.index], o[:, seg.index] = self.segment_frame(seg, q[:, seg.dofs], pR, po)
+        return R, o
+
+    def forward(self, q: np.ndarray) -> np.ndarray:
+        """Forward kinematics: poses (N, D) -> points (N, P, 3) in :attr:`point_names` order."""
+        R, o = self.frames(q)
+        Rp = R[:, self.point_segment]  # (N, P, 3, 3)
+        return o[:, self.point_segment] + np.einsum("npij,pj->npi", Rp, self.point_local)
+
+    def capsules(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """World capsules: poses (N, D) -> ends A (N, C, 3), B (N, C, 3) and radii (C, 2) metres."""
+        R, o = self.frames(q)
+        return self.capsules_from_frames(R, o)
+
+    def capsules_from_frames(self, R: np.ndarray, o: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        Rc = R[:, self.capsule_segment]
+        oc = o[:, self.capsule_segment]
+        A = oc + np.einsum("ncij,cj->nci", Rc, self.capsule_a)
+        B = oc + np.einsum("ncij,cj->nci", Rc, self.capsule_b)
+        return A, B, self.capsule_radii
+
+    def _check_poses(self, q: np.ndarray) -> np.ndarray:
+        q = np.asarray(q, dtype=np.float64)
+        if q.ndim != 2 or q.shape[1] != self.n_dofs:
+            raise ValueError(f"poses must have shape (N, {self.n_dofs}), got {q.shape}")
+        return q
+
+
+def _across_scale(axis: np.ndarray, scale: np.ndarray) -> float:
+    """Scale of a capsule's thickness: the segment's scale factors weighted across the capsule axis."""
+    n = np.linalg.norm(axis)
+    u = axis / n if n > 0 else np.zeros(3)
+    w = 1.0 - u * u
+    return float(np.sum(w * scale) / np.sum(w))
+
+
+def load_body_spec(path: str | Path | None = None) -> BodySpec:
+    """Load and validate a body model file (the shipped ``configs/body.yaml`` by default)."""
+    return load_yaml_model(BodySpec, path or default_config_path("body.yaml"))
+
+
+def load_body_model(
+    path: str | Path | None = None,
+    height_m: float | None = None,
+    scales: Mapping[str, Sequence[float]] | None = None,
+    shifts: Mapping[str, Sequence[float]] | None = None,
+) -> BodyModel:
+    """Load ``body.yaml`` and scale it to a subject."""
+    return BodyModel(load_body_spec(path), height_m=height_m, scales=scales, shifts=shifts)

@@ -1,0 +1,135 @@
+"""Read calibration views (image files, folders of images, videos) and detect the board in them.
+
+Reading only: the choice of views and the calibration itself live in
+:mod:`gaitcap.calibration.intrinsics` and :mod:`gaitcap.calibration.extrinsics`.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from gaitcap.calibration.boards import Board, Detection, detect_board, is_blurred
+from gaitcap.errors import CalibrationError, InputError
+
+log = logging.getLogger(__name__)
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
+VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv")
+
+
+@dataclass
+class ViewSet:
+    """The detections of one camera's views, in input order.
+
+    Attributes:
+        image_size: ``(width, height)`` shared by every view.
+        detections: usable views.
+        rejected: ``source -> reason`` for views that were read but not used.
+        frames: for each input frame (in order), its detection or ``None`` (for synchronised
+            multi-camera use: frame k of every camera shows the same board pose).
+    """
+
+    image_size: tuple[int, int] | None = None
+    detections: list[Detection] = field(default_factory=list)
+    rejected: dict[str, str] = field(default_factory=dict)
+    frames: list[Detection | None] = field(default_factory=list)
+
+    def require(self, n: int, what: str) -> None:
+        """Raise :class:`CalibrationError` naming every rejected view when fewer than ``n`` are usable."""
+        if len(self.detections) >= n:
+            return
+        why = "; ".join(f"{src}: {reason}" for src, reason in list(self.rejected.items())[:10])
+        more = f" (and {len(self.rejected) - 10} more)" if len(self.rejected) > 10 else ""
+        raise CalibrationError(
+            f"{what}: only {len(self.detections)} usable view(s), at least {n} needed. Rejected: {why}{more}"
+        )
+
+
+def expand_inputs(paths: Sequence[str | Path]) -> list[Path]:
+    """Files named directly, plus the sorted images and videos of any folder named."""
+    out: list[Path] = []
+    for p in map(Path, paths):
+        if p.is_dir():
+            found = sorted(q for q in p.iterdir() if q.suffix.lower() in IMAGE_SUFFIXES + VIDEO_SUFFIXES)
+            if not found:
+                raise InputError(f"{p}: folder holds no image or video")
+            out.extend(found)
+        elif p.is_file():
+            out.append(p)
+        else:
+            raise InputError(f"{p}: file not found")
+    return out
+
+
+def iter_frames(path: Path, video_step: int = 1, max_frames: int | None = None) -> Iterator[tuple[str, np.ndarray]]:
+    """Yield ``(source, gray image (H, W))`` for an image file or every ``video_step``-th frame."""
+    suffix = path.suffix.lower()
+    if suffix in VIDEO_SUFFIXES:
+        cap = cv2.VideoCapture(str(path))
+        if not cap.isOpened():
+            raise InputError(f"{path}: cannot open video")
+        try:
+            k = kept = 0
+            while max_frames is None or kept < max_frames:
+                ok, frame = cap.read()
+                if not ok:
+                    break
+                if k % video_step == 0:
+                    kept += 1
+                    yield f"{path.name}#{k}", cv2.cvtColor(frame, cv2.COLOR_BGR2GRAY)
+                k += 1
+            if k == 0:
+                raise InputError(f"{path}: no frame could be decoded")
+        finally:
+            cap.release()
+    elif suffix in IMAGE_SUFFIXES:
+        image = cv2.imread(str(path), cv2.IMREAD_GRAYSCALE)
+        if image is None:
+            raise InputError(f"{path}: cannot read image")
+        yield path.name, image
+    else:
+        raise InputError(f"{path}: not an image or a video ({', '.join(IMAGE_SUFFIXES + VIDEO_SUFFIXES)})")
+
+
+def detect_views(
+    paths: Sequence[str | Path],
+    board: Board,
+    video_step: int = 1,
+    max_frames: int | None = None,
+    max_blur: float | None = None,
+) -> ViewSet:
+    """Detect ``board`` in every view of ``paths`` (files or folders).
+
+    Raises :class:`InputError` naming the file when views differ in size. Views without the
+    (complete) board or too blurred go to ``rejected`` with the reason.
+    """
+    views = ViewSet()
+    first: str = ""
+    for path in expand_inputs(paths):
+        for source, gray in iter_frames(path, video_step, max_frames):
+            size = (gray.shape[1], gray.shape[0])
+            if views.image_size is None:
+                views.image_size, first = size, source
+            elif size != views.image_size:
+                raise InputError(
+                    f"{path}: image size {size[0]}x{size[1]} differs from {views.image_size[0]}x"
+                    f"{views.image_size[1]} of {first}; calibrate one camera at a time"
+                )
+            det = detect_board(gray, board, source)
+            if det is None:
+                views.rejected[source] = f"{board.describe()} not found"
+            elif max_blur is not None and is_blurred(det, max_blur):
+                views.rejected[source] = f"blurred (edges {det.blur_fraction:.2f} of a square wide)"
+                det = None
+            else:
+                views.detections.append(det)
+            views.frames.append(det)
+    for source, reason in views.rejected.items():
+        log.debug("%s: rejected: %s", source, reason)
+    return views

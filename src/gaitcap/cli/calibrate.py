@@ -1,0 +1,317 @@
+"""``gaitcap calibrate``: intrinsics, extrinsics, stereo, check, import and export."""
+
+from __future__ import annotations
+
+import logging
+import sys
+from pathlib import Path
+
+import click
+import cv2
+
+from gaitcap.calibration import extrinsics as ext
+from gaitcap.calibration.boards import Board, parse_board_size, parse_length
+from gaitcap.calibration.formats import read_opencv_camera, read_qualisys, write_opencv_camera
+from gaitcap.calibration.intrinsics import MIN_VIEWS, calibrate_intrinsics
+from gaitcap.calibration.quality import check_rig
+from gaitcap.calibration.views import IMAGE_SUFFIXES, VIDEO_SUFFIXES, detect_views
+from gaitcap.camera import Camera, CameraRig
+from gaitcap.cli.options import force_option, handle_errors
+from gaitcap.config import load_yaml_model
+from gaitcap.errors import CalibrationError, InputError, OutputError
+from gaitcap.io.calibration_toml import read_calibration, read_calibration_metadata, write_calibration
+from gaitcap.session import CALIBRATION_FILE, VIDEOS_DIR, VIDEO_EXTENSIONS, find_per_camera
+
+log = logging.getLogger("gaitcap.cli.calibrate")
+
+
+def board_options(func):
+    """--board, --square, --charuco, --marker, --dictionary."""
+    for opt in reversed([
+        click.option("--board", "board_size", default="9x6", show_default=True, help="Inner corners COLSxROWS (ChArUco: squares)."),
+        click.option("--square", default="25mm", show_default=True, help="Square side, e.g. 25mm, 2.5cm, 0.025m."),
+        click.option("--charuco", is_flag=True, help="A ChArUco board instead of a checkerboard."),
+        click.option("--marker", default=None, help="ChArUco marker side (default 3/4 of the square)."),
+        click.option("--dictionary", default="DICT_4X4_50", show_default=True, help="ChArUco ArUco dictionary."),
+    ]):
+        func = opt(func)
+    return func
+
+
+def make_board(board_size: str, square: str, charuco: bool, marker: str | None, dictionary: str) -> Board:
+    cols, rows = parse_board_size(board_size)
+    return Board(cols, rows, parse_length(square), "charuco" if charuco else "checkerboard",
+                 parse_length(marker) if marker else None, dictionary)
+
+
+def read_cameras(path: Path) -> list[Camera]:
+    """Cameras from calibration.toml, OpenCV .yml/.yaml/.xml or Qualisys .qca.txt."""
+    name = path.name.lower()
+    if name.endswith(".toml"):
+        return list(read_calibration(path))
+    if name.endswith((".yml", ".yaml", ".xml")) and not name.endswith(".qca.txt"):
+        return [read_opencv_camera(path)]
+    if name.endswith((".qca.txt", ".qca")):
+        return list(read_qualisys(path))
+    raise CalibrationError(f"{path}: unknown calibration format (expected .toml, .yml, .xml or .qca.txt)")
+
+
+def write_cameras(path: Path, rig: CameraRig, metadata: dict, force: bool) -> None:
+    if path.exists() and not force:
+        raise OutputError(f"{path}: exists already (use --force to overwrite)")
+    if path.suffix.lower() in (".yml", ".yaml", ".xml"):
+        if len(rig) != 1:
+            raise OutputError(f"{path}: an OpenCV file holds one camera; use `gaitcap calibrate export` for a rig")
+        write_opencv_camera(path, rig[0], metadata)
+    else:
+        write_calibration(path, rig, metadata)
+
+
+@click.group("calibrate")
+def command() -> None:
+    """Calibrate cameras: intrinsics, extrinsics, checks, and conversions of calibration files.
+
+    \b
+    Example:
+        gaitcap calibrate intrinsics calib/left*.jpg --board 9x6 --square 25mm -o left.toml
+        gaitcap calibrate extrinsics sessions/walk01 --board 9x6 --square 120mm --intrinsics cams.toml
+        gaitcap calibrate check sessions/walk01
+    """
+
+
+@command.command("intrinsics")
+@click.argument("inputs", nargs=-1, required=True, type=click.Path(path_type=Path))
+@board_options
+@click.option("-o", "--output", type=click.Path(path_type=Path), required=True, help="calibration.toml, or OpenCV .yml/.xml.")
+@click.option("--name", default=None, help="Camera name (default: the output file stem).")
+@click.option("--fix-aspect-ratio", is_flag=True, help="Force fx = fy.")
+@click.option("--fix-k3", is_flag=True, help="Estimate k1, k2, p1, p2 only (few views or a small board).")
+@click.option("--max-views", type=int, default=25, show_default=True, help="Use at most this many well-spread views.")
+@click.option("--video-step", type=int, default=10, show_default=True, help="Read every n-th video frame.")
+@click.option("--max-blur", type=float, default=0.25, show_default=True, help="Reject views whose edges are blurred over this fraction of a square.")
+@force_option
+@handle_errors
+def intrinsics_cmd(inputs, board_size, square, charuco, marker, dictionary, output, name, fix_aspect_ratio, fix_k3, max_views, video_step, max_blur, force):
+    """Calibrate one camera from images or a video of a board.
+
+    \b
+    Example:
+        gaitcap calibrate intrinsics calib/left*.jpg --board 9x6 --square 25mm --fix-aspect-ratio -o left.toml
+        gaitcap calibrate intrinsics cam01_board.mp4 --board 4x7 --square 60mm -o cam01.toml
+    """
+    board = make_board(board_size, square, charuco, marker, dictionary)
+    views = detect_views(inputs, board, video_step=video_step, max_blur=max_blur)
+    for source, reason in views.rejected.items():
+        log.info("  rejected %s: %s", source, reason)
+    name = name or output.name.split(".")[0]
+    views.require(MIN_VIEWS, f"camera {name!r}")
+    res = calibrate_intrinsics(views.detections, board, name, fix_aspect_ratio, fix_k3, max_views=max_views)
+    K = res.camera.matrix
+    click.echo(f"{name}: {len(res.per_view_px)} views used, {len(views.rejected)} rejected, image {res.camera.width}x{res.camera.height}")
+    click.echo(f"  fx {K[0, 0]:.3f}  fy {K[1, 1]:.3f}  cx {K[0, 2]:.3f}  cy {K[1, 2]:.3f}")
+    click.echo("  distortion " + " ".join(f"{v:.5f}" for v in res.camera.dist))
+    click.echo(f"  RMS reprojection error {res.rms_px:.4f} px; image coverage {res.coverage:.0%}")
+    for source, err in res.per_view_px.items():
+        click.echo(f"    {source:<28} {err:.4f} px")
+    write_cameras(output, CameraRig((res.camera,)), res.metadata(), force)
+    click.echo(f"wrote {output}")
+
+
+def _default_views(session: Path, name: str) -> Path:
+    folder = session / "extrinsics"
+    for cand in [folder / name] + [folder / f"{name}{ext}" for ext in IMAGE_SUFFIXES + VIDEO_SUFFIXES]:
+        if cand.exists():
+            return cand
+    raise InputError(f"{folder}: no board view for camera {name!r} (give --views {name}=PATH)")
+
+
+@command.command("extrinsics")
+@click.argument("session", type=click.Path(path_type=Path, file_okay=False))
+@board_options
+@click.option("--intrinsics", "intrinsics_files", multiple=True, type=click.Path(path_type=Path, dir_okay=False),
+              help="Camera intrinsics (.toml/.yml/.xml, repeatable); default: the session's calibration.toml.")
+@click.option("--views", "views_opt", multiple=True, metavar="CAMERA=PATH",
+              help="Board image, video or image folder of a camera (repeatable); default SESSION/extrinsics/<camera>.*")
+@click.option("--points", type=click.Path(path_type=Path, dir_okay=False), default=None,
+              help="Scene calibration: YAML of known 3D points and their pixels per camera (instead of a board).")
+@click.option("--video-step", type=int, default=1, show_default=True, help="Read every n-th video frame.")
+@click.option("--no-adjust", is_flag=True, help="Skip the joint refinement (bundle adjustment).")
+@handle_errors
+def extrinsics_cmd(session, board_size, square, charuco, marker, dictionary, intrinsics_files, views_opt, points, video_step, no_adjust):
+    """Place every camera in the floor frame (metres, z up, floor z = 0) and write calibration.toml.
+
+    With a board lying on the floor: origin at its first corner, x along its rows. With --points:
+    the frame of the given coordinates.
+
+    \b
+    Example:
+        gaitcap calibrate extrinsics sessions/walk01 --board 9x6 --square 120mm --intrinsics cams.toml \\
+            --views cam1=floor/cam1.png --views cam2=floor/cam2.png
+        gaitcap calibrate extrinsics sessions/walk01 --points scene_points.yaml
+    """
+    target = session / CALIBRATION_FILE
+    cams: list[Camera] = []
+    for f in intrinsics_files or [target]:
+        cams.extend(read_cameras(f))
+    if points is not None:
+        scene = load_yaml_model(ext.ScenePoints, points)
+        res = ext.calibrate_from_points(cams, scene, str(points))
+    else:
+        board = make_board(board_size, square, charuco, marker, dictionary)
+        given = {}
+        for item in views_opt:
+            if "=" not in item:
+                raise click.BadParameter(f"{item!r}: expected CAMERA=PATH", param_hint="--views")
+            k, v = item.split("=", 1)
+            given[k] = Path(v)
+        unknown = sorted(set(given) - {c.name for c in cams})
+        if unknown:
+            raise click.BadParameter(f"unknown camera(s) {', '.join(unknown)}", param_hint="--views")
+        frames = {}
+        for cam in cams:
+            vs = detect_views([given.get(cam.name) or _default_views(session, cam.name)], board, video_step=video_step)
+            if vs.image_size != cam.size:
+                raise InputError(f"camera {cam.name!r}: board views are {vs.image_size[0]}x{vs.image_size[1]}, "
+                                 f"its intrinsics are for {cam.width}x{cam.height}")
+            frames[cam.name] = vs.frames
+        res = ext.calibrate_from_board(cams, frames, board, adjust=not no_adjust)
+    for cam in res.rig:
+        c = cam.center
+        click.echo(f"{cam.name}: position {c[0]:.3f} {c[1]:.3f} {c[2]:.3f} m, reprojection RMS {res.rms_px[cam.name]:.3f} px")
+    click.echo(f"3D check: {res.check_mm:.2f} mm RMS ({res.method}, {res.n_positions} position(s), adjusted={res.adjusted})")
+    write_calibration(target, res.rig, res.metadata())
+    click.echo(f"wrote {target}")
+
+
+@command.command("stereo")
+@click.argument("left", nargs=1, type=click.Path(path_type=Path))
+@click.argument("right", nargs=1, type=click.Path(path_type=Path))
+@board_options
+@click.option("--fix-aspect-ratio", is_flag=True, help="Force fx = fy for each camera.")
+@click.option("-o", "--output", type=click.Path(path_type=Path), required=True, help="calibration.toml of the pair.")
+@force_option
+@handle_errors
+def stereo_cmd(left, right, board_size, square, charuco, marker, dictionary, fix_aspect_ratio, output, force):
+    """Calibrate a synchronised pair: intrinsics of each, then their relative pose (LEFT is the frame).
+
+    LEFT and RIGHT are folders (or videos) whose k-th views were taken together.
+
+    \b
+    Example:
+        gaitcap calibrate stereo pairs/left pairs/right --board 9x6 --square 25mm -o stereo.toml
+    """
+    board = make_board(board_size, square, charuco, marker, dictionary)
+    vl, vr = detect_views([left], board), detect_views([right], board)
+    cl = calibrate_intrinsics(vl.detections, board, "left", fix_aspect_ratio).camera
+    cr = calibrate_intrinsics(vr.detections, board, "right", fix_aspect_ratio).camera
+    pairs = [(a, b) for a, b in zip(vl.frames, vr.frames) if a is not None and b is not None]
+    res = ext.calibrate_stereo(cl, cr, pairs, board)
+    click.echo(f"{res.n_pairs} pairs: RMS {res.rms_px:.4f} px, baseline {res.baseline_m * 1000:.2f} mm, "
+               f"mean epipolar error {res.epipolar_px:.4f} px")
+    write_cameras(output, res.rig, {"error": round(res.rms_px, 4), "baseline_m": res.baseline_m,
+                                    "epipolar_px": res.epipolar_px}, force)
+    click.echo(f"wrote {output}")
+
+
+def _frame_sizes(session: Path, names: list[str]) -> dict[str, tuple[int, int]]:
+    sizes = {}
+    for name, path in find_per_camera(session / VIDEOS_DIR, names, VIDEO_EXTENSIONS, required=False).items():
+        cap = cv2.VideoCapture(str(path))
+        ok, frame = cap.read()
+        cap.release()
+        if ok:
+            sizes[name] = (frame.shape[1], frame.shape[0])
+    return sizes
+
+
+@command.command("check")
+@click.argument("target", type=click.Path(path_type=Path, exists=True))
+@click.option("--max-error", type=float, default=1.0, show_default=True, help="Largest acceptable reprojection RMS, px.")
+@handle_errors
+def check_cmd(target, max_error):
+    """Print each camera's intrinsics, position, the distances between cameras and the
+    reprojection summary; exit with code 1 when the calibration is poor.
+
+    TARGET is a session folder or a calibration file.
+
+    \b
+    Example:
+        gaitcap calibrate check sessions/walk01
+    """
+    path = target / CALIBRATION_FILE if target.is_dir() else target
+    if path.name.lower().endswith(".toml"):
+        rig, meta = read_calibration(path), read_calibration_metadata(path)
+    else:
+        rig, meta = CameraRig(tuple(read_cameras(path))), {}
+    sizes = _frame_sizes(target, rig.names) if target.is_dir() else {}
+    rep = check_rig(rig, meta, sizes, max_error)
+    click.echo(f"{path}: {len(rig)} camera(s)")
+    for line in rep.lines:
+        click.echo(line)
+    for note in rep.notes:
+        click.echo(f"note: {note}")
+    if not rep.ok:
+        raise CalibrationError(f"{path}: poor calibration:\n  " + "\n  ".join(rep.problems))
+    click.echo("calibration OK")
+
+
+@command.command("import-qualisys")
+@click.argument("qca", type=click.Path(path_type=Path, dir_okay=False))
+@click.option("-o", "--output", type=click.Path(path_type=Path), required=True, help="calibration.toml to write.")
+@force_option
+@handle_errors
+def import_qualisys_cmd(qca, output, force):
+    """Convert a Qualisys .qca.txt calibration to calibration.toml (metres, lab frame).
+
+    \b
+    Example:
+        gaitcap calibrate import-qualisys Calib.qca.txt -o sessions/demo/calibration.toml
+    """
+    rig = read_qualisys(qca)
+    write_cameras(output, rig, {"source": str(qca.name), "error": -1.0}, force)  # -1: not measured here
+    click.echo(f"{len(rig)} cameras ({', '.join(rig.names)}) -> {output}")
+
+
+@command.command("import-opencv")
+@click.argument("files", nargs=-1, required=True, type=click.Path(path_type=Path, dir_okay=False))
+@click.option("-o", "--output", type=click.Path(path_type=Path), required=True, help="calibration.toml to write.")
+@force_option
+@handle_errors
+def import_opencv_cmd(files, output, force):
+    """Gather OpenCV YAML/XML camera files (one camera each) into calibration.toml.
+
+    \b
+    Example:
+        gaitcap calibrate import-opencv left_intrinsics.yml right_intrinsics.yml -o calibration.toml
+    """
+    rig = CameraRig(tuple(read_opencv_camera(f) for f in files))
+    write_cameras(output, rig, {"error": -1.0}, force)  # -1: not measured here
+    click.echo(f"{len(rig)} camera(s) -> {output}")
+
+
+@command.command("export")
+@click.argument("calibration", type=click.Path(path_type=Path, dir_okay=False))
+@click.option("-o", "--output", type=click.Path(path_type=Path, file_okay=False), required=True, help="Folder to write.")
+@click.option("--format", "fmt", type=click.Choice(["yml", "xml", "toml"]), default="yml", show_default=True)
+@force_option
+@handle_errors
+def export_cmd(calibration, output, fmt, force):
+    """Write a calibration (.toml, .yml, .xml, .qca.txt) as one OpenCV file per camera or as calibration.toml.
+
+    \b
+    Example:
+        gaitcap calibrate export sessions/walk01/calibration.toml -o opencv/ --format yml
+    """
+    rig = CameraRig(tuple(read_cameras(calibration)))
+    meta = read_calibration_metadata(calibration) if calibration.suffix == ".toml" else {}
+    targets = [output / CALIBRATION_FILE] if fmt == "toml" else [output / f"{c.name}.{fmt}" for c in rig]
+    for t in targets:
+        if t.exists() and not force:
+            raise OutputError(f"{t}: exists already (use --force to overwrite)")
+    if fmt == "toml":
+        write_calibration(targets[0], rig, meta)
+    else:
+        for cam, t in zip(rig, targets):
+            write_opencv_camera(t, cam, {"avg_reprojection_error": meta.get("error", 0.0)})
+    for t in targets:
+        click.echo(f"wrote {t}")

@@ -1,0 +1,184 @@
+"""C3D motion files (read only), through ezc3d.
+
+What is read:
+
+- marker points (POINT channels that are not model outputs: labels listed in POINT:ANGLES,
+  FORCES, MOMENTS, POWERS, REACTIONS are left out; virtual points such as Vicon's KJC/AJC or
+  PELO/LFEO are kept), converted to metres from POINT:UNITS, in the file's axes;
+- time: ``t0_s = first_frame / rate`` where ``first_frame`` is ezc3d's 0-based header value
+  (the C3D header stores it 1-based: a Vicon file with header frame 153 starts at 1.52 s at
+  100 Hz), so frame i is at ``t0_s + i / rate``, the axis C3D EVENT:TIMES use;
+- events from the EVENT group: contexts Left/Right, labels Foot Strike/Foot Off;
+- subject height from PROCESSING:Height (``meta["height_m"]``);
+- the file's up axis from POINT:Y_SCREEN (``meta["up_axis"]``, e.g. ``"+Z"`` -> ``"z"``);
+- model angles (POINT:ANGLES channels, degrees) through :func:`read_c3d_angles`.
+
+Analog channels (force plates, EMG) are never read.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from gaitcap.errors import InputError
+from gaitcap.markers.axes import metres_per_unit
+from gaitcap.trajectory import GaitEvent, Trajectory
+
+log = logging.getLogger("gaitcap.io.c3d")
+
+#: POINT sub-groups whose labels are model outputs, not positions.
+NON_POSITION_GROUPS: tuple[str, ...] = ("ANGLES", "FORCES", "MOMENTS", "POWERS", "REACTIONS", "SCALARS")
+
+_EVENT_KINDS = {"foot strike": "foot_strike", "foot off": "foot_off"}
+_EVENT_SIDES = {"left": "left", "right": "right"}
+
+
+@dataclass(frozen=True)
+class AngleSeries:
+    """Model angles stored in a C3D file.
+
+    Attributes:
+        names: channel labels, length A (e.g. ``LKneeAngles``).
+        values: degrees, shape (T, A, 3); NaN where missing.
+        rate_hz, t0_s: the same time axis as the file's markers.
+    """
+
+    names: tuple[str, ...]
+    values: np.ndarray
+    rate_hz: float
+    t0_s: float
+
+    def get(self, name: str) -> np.ndarray:
+        """One channel, shape (T, 3)."""
+        try:
+            return self.values[:, self.names.index(name)]
+        except ValueError:
+            raise InputError(f"no angle channel {name!r} (channels: {', '.join(self.names)})") from None
+
+
+def _open(path: Path) -> Any:
+    import ezc3d
+
+    if not path.is_file():
+        raise InputError(f"{path}: C3D file not found")
+    try:
+        return ezc3d.c3d(str(path))
+    except Exception as e:  # ezc3d raises plain RuntimeError/IOError
+        raise InputError(f"{path}: cannot read C3D file ({e})") from e
+
+
+def _param(c3d: Any, group: str, name: str, default: Any = None) -> Any:
+    try:
+        return c3d["parameters"][group][name]["value"]
+    except KeyError:
+        return default
+
+
+def _strings(values: Any) -> list[str]:
+    return [str(v).strip() for v in (values if values is not None else [])]
+
+
+def _time_axis(c3d: Any) -> tuple[float, float]:
+    rate = float(c3d["header"]["points"]["frame_rate"])
+    if not rate > 0:
+        raise InputError("C3D header point rate is not positive")
+    return rate, float(c3d["header"]["points"]["first_frame"]) / rate
+
+
+def _points(c3d: Any, labels: list[str], keep: list[int]) -> np.ndarray:
+    """POINT data of the kept channels, shape (T, len(keep), 3), NaN where the residual is < 0."""
+    data = np.asarray(c3d["data"]["points"], dtype=np.float64)[:3, keep, :]
+    residuals = np.asarray(c3d["data"]["meta_points"]["residuals"])[0, keep, :]
+    data[:, residuals < 0] = np.nan
+    return np.transpose(data, (2, 1, 0))
+
+
+def _events(c3d: Any, source: Path) -> tuple[GaitEvent, ...]:
+    labels = _strings(_param(c3d, "EVENT", "LABELS"))
+    contexts = _strings(_param(c3d, "EVENT", "CONTEXTS"))
+    times = _param(c3d, "EVENT", "TIMES")
+    if not labels or times is None:
+        return ()
+    times = np.asarray(times, dtype=np.float64).reshape(2, -1)
+    seconds = 60.0 * times[0] + times[1]  # row 0 minutes, row 1 seconds; float32 in the file
+    out = []
+    for label, context, t in zip(labels, contexts, seconds, strict=False):
+        kind = _EVENT_KINDS.get(label.lower().replace("_", " "))
+        side = _EVENT_SIDES.get(context.lower())
+        if kind is None or side is None:
+            log.debug("%s: event %s/%s at %.3f s ignored", source, context, label, t)
+            continue
+        out.append(GaitEvent(round(float(t), 6), side, kind, source="c3d"))  # type: ignore[arg-type]
+    return tuple(sorted(out))
+
+
+def _height_m(c3d: Any) -> float | None:
+    value = _param(c3d, "PROCESSING", "Height")
+    if value is None or len(np.atleast_1d(value)) == 0:
+        return None
+    h = float(np.atleast_1d(value)[0])
+    if not h > 0:
+        return None
+    return h / 1000.0 if h > 3.0 else h  # Vicon stores millimetres; a value above 3 cannot be metres
+
+
+def _up_axis(c3d: Any) -> str | None:
+    screen = _strings(_param(c3d, "POINT", "Y_SCREEN"))
+    if screen and screen[0].upper() in ("+X", "+Y", "+Z"):
+        return screen[0][1].lower()
+    return None
+
+
+def _non_position_labels(c3d: Any) -> set[str]:
+    out: set[str] = set()
+    for group in NON_POSITION_GROUPS:
+        out.update(_strings(_param(c3d, "POINT", group)))
+    return out
+
+
+def read_c3d_markers(path: str | Path) -> Trajectory:
+    """Read the marker (position) points of a C3D file, metres, file axes.
+
+    Returns a :class:`Trajectory` whose names are the marker labels (model angle/force/moment/
+    power channels left out), with the file's events and ``meta`` keys ``source``, ``format``,
+    ``units``, ``up_axis`` (from POINT:Y_SCREEN, or None) and ``height_m`` (or None).
+    """
+    path = Path(path)
+    c3d = _open(path)
+    labels = _strings(_param(c3d, "POINT", "LABELS"))
+    n_channels = np.asarray(c3d["data"]["points"]).shape[1]
+    if len(labels) < n_channels:  # more than 255 points: labels continue in LABELS2, LABELS3...
+        for k in range(2, 10):
+            labels += _strings(_param(c3d, "POINT", f"LABELS{k}"))
+    labels = labels[:n_channels]
+    skip = _non_position_labels(c3d)
+    keep = [i for i, n in enumerate(labels) if n not in skip]
+    units = (_strings(_param(c3d, "POINT", "UNITS")) or ["mm"])[0]
+    scale = metres_per_unit(units, str(path))
+    rate, t0 = _time_axis(c3d)
+    meta = {"source": str(path), "format": "c3d", "units": units,
+            "up_axis": _up_axis(c3d), "height_m": _height_m(c3d)}  # fmt: skip
+    return Trajectory(
+        names=tuple(labels[i] for i in keep),
+        points=_points(c3d, labels, keep) * scale,
+        rate_hz=rate,
+        t0_s=t0,
+        events=_events(c3d, path),
+        meta=meta,
+    )
+
+
+def read_c3d_angles(path: str | Path) -> AngleSeries:
+    """Read the model angle channels (POINT:ANGLES, degrees) of a C3D file, e.g. Plug-in-Gait's."""
+    path = Path(path)
+    c3d = _open(path)
+    labels = _strings(_param(c3d, "POINT", "LABELS"))
+    angle_names = set(_strings(_param(c3d, "POINT", "ANGLES")))
+    keep = [i for i, n in enumerate(labels) if n in angle_names]
+    rate, t0 = _time_axis(c3d)
+    return AngleSeries(tuple(labels[i] for i in keep), _points(c3d, labels, keep), rate, t0)

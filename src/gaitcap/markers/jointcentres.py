@@ -1,0 +1,250 @@
+"""Joint-centre rules: the maths behind each mapping rule (:mod:`gaitcap.markers.mapping`).
+
+Every function takes point trajectories of shape (T, 3) in metres, gaitcap frame (z up, floor
+z = 0) and returns shape (T, 3); NaN propagates (a frame missing an input gives NaN).
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from gaitcap.errors import InputError
+from gaitcap.markers.mapping import (
+    ClusterRule,
+    HarringtonRule,
+    LerpRule,
+    Mapping,
+    Rule,
+    ShiftRule,
+    SoleRule,
+)
+from gaitcap.trajectory import POINT_NAMES, Trajectory
+
+log = logging.getLogger("gaitcap.markers.jointcentres")
+
+UP = np.array([0.0, 0.0, 1.0])
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    """Normalise rows of (..., 3); zero-length rows become NaN."""
+    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(n > 1e-12, v / n, np.nan)
+
+
+def harrington_hjc(
+    lasi: np.ndarray, rasi: np.ndarray, mid_psis: np.ndarray, side: str
+) -> np.ndarray:
+    """Hip joint centre, Harrington et al. 2007 (J Biomech 40:595-602), pelvis width/depth form.
+
+    Pelvis frame (ISB): origin at mid-ASIS; z from LASI to RASI (right); x anterior, in the
+    plane of the ASISs and mid-PSIS, orthogonal to z; y = z x x (up). With PW = |RASI - LASI|
+    and PD = |mid-ASIS - mid-PSIS| in mm:
+
+        x = -0.24 PD - 9.9     y = -0.30 PW - 10.9     z = +/-(0.33 PW + 7.3)   (+ right)
+
+    Args:
+        lasi, rasi, mid_psis: shape (T, 3), metres.
+        side: ``"left"`` or ``"right"``.
+    Returns:
+        shape (T, 3), metres.
+    """
+    origin = 0.5 * (lasi + rasi)
+    z = _unit(rasi - lasi)
+    back = origin - mid_psis
+    x = _unit(back - np.sum(back * z, axis=-1, keepdims=True) * z)
+    y = np.cross(z, x)
+    pw = np.linalg.norm(rasi - lasi, axis=-1, keepdims=True) * 1000.0
+    pd = np.linalg.norm(back, axis=-1, keepdims=True) * 1000.0
+    sign = 1.0 if side == "right" else -1.0
+    local_x = -0.24 * pd - 9.9
+    local_y = -0.30 * pw - 10.9
+    local_z = sign * (0.33 * pw + 7.3)
+    return origin + (local_x * x + local_y * y + local_z * z) / 1000.0
+
+
+def rigid_cluster_point(
+    static_cluster: np.ndarray, static_point: np.ndarray, cluster: np.ndarray
+) -> np.ndarray:
+    """Carry a point fixed to a rigid marker cluster from a static pose into each frame.
+
+    For each frame, the rotation R and translation minimising sum_i |c_i - (R s_i + t)|^2 over
+    the cluster markers present (>= 3) is found with :meth:`Rotation.align_vectors` (Kabsch)
+    on centred coordinates, and the point is moved the same way: p = R (p_s - s_bar) + c_bar.
+
+    Args:
+        static_cluster: cluster markers in the static pose, shape (M, 3).
+        static_point: the point in the static pose, shape (3,).
+        cluster: cluster markers over time, shape (T, M, 3), NaN where missing.
+    Returns:
+        shape (T, 3); NaN in frames with fewer than 3 markers present.
+    """
+    out = np.full((cluster.shape[0], 3), np.nan)
+    for i, frame in enumerate(cluster):
+        ok = np.isfinite(frame).all(axis=1) & np.isfinite(static_cluster).all(axis=1)
+        if ok.sum() < 3:
+            continue
+        s, c = static_cluster[ok], frame[ok]
+        s_bar, c_bar = s.mean(axis=0), c.mean(axis=0)
+        rot, _ = Rotation.align_vectors(c - c_bar, s - s_bar)
+        out[i] = rot.apply(static_point - s_bar) + c_bar
+    return out
+
+
+def sole_point(marker: np.ndarray, heel: np.ndarray, toe: np.ndarray, height_m: float) -> np.ndarray:
+    """A foot marker moved ``height_m`` along the foot's down axis.
+
+    down = world down (-z) minus its component along the foot axis heel -> toe, normalised: in
+    foot-flat it is the world vertical, and it pitches with the foot in swing.
+    """
+    axis = _unit(toe - heel)
+    down = -UP - np.sum(-UP * axis, axis=-1, keepdims=True) * axis
+    return marker + height_m * _unit(down)
+
+
+def sole_height(marker: np.ndarray, percentile: float) -> float:
+    """The marker's height above the floor (z = 0) in foot-flat: a low percentile of its z."""
+    z = marker[:, 2][np.isfinite(marker[:, 2])]
+    if z.size == 0:
+        return float("nan")
+    return float(np.percentile(z, percentile))
+
+
+def shift_point(
+    point: np.ndarray,
+    start: np.ndarray,
+    end: np.ndarray,
+    distance: np.ndarray | float,
+    ortho_start: np.ndarray | None = None,
+    ortho_end: np.ndarray | None = None,
+) -> np.ndarray:
+    """``point + distance * d``, d = unit(end - start), optionally orthogonal to unit(ortho_end - ortho_start)."""
+    d = end - start
+    if ortho_start is not None and ortho_end is not None:
+        a = _unit(ortho_end - ortho_start)
+        d = d - np.sum(d * a, axis=-1, keepdims=True) * a
+    return point + np.reshape(distance, (-1, 1)) * _unit(d)
+
+
+class _Evaluator:
+    """Evaluates a mapping's definitions in order over a marker trajectory."""
+
+    def __init__(self, markers: Trajectory, static: Trajectory | None, source: str) -> None:
+        self.markers = markers
+        self.static = static
+        self.source = source
+        self.values: dict[str, np.ndarray] = {}
+
+    def get(self, name: str) -> np.ndarray:
+        if name in self.values:
+            return self.values[name]
+        if self.markers.has(name):
+            return self.markers.point(name)
+        raise InputError(f"{self.source}: marker {name!r} not found")
+
+    def first_present(self, names: list[str]) -> np.ndarray:
+        for n in names:
+            if n in self.values or self.markers.has(n):
+                return self.get(n)
+        raise InputError(f"{self.source}: none of the markers {names} found")
+
+    def static_mean(self, names: list[str]) -> np.ndarray:
+        """Mean over the static trial's frames of each named marker, shape (len(names), 3)."""
+        if self.static is None:
+            raise InputError(f"{self.source}: a static trial is needed (cluster rule) but none was given")
+        missing = [n for n in names if not self.static.has(n)]
+        if missing:
+            raise InputError(f"{self.static.meta.get('source', 'static trial')}: missing markers {missing}")
+        pts = self.static.subset(names).points
+        complete = np.isfinite(pts).all(axis=(1, 2))
+        if not complete.any():
+            raise InputError(f"{self.static.meta.get('source')}: no frame has all of {names}")
+        return pts[complete].mean(axis=0)
+
+    def evaluate(self, name: str, rule: Rule) -> np.ndarray:
+        kind = rule.kind
+        if kind == "marker":
+            names = [rule.marker] if isinstance(rule.marker, str) else list(rule.marker or [])
+            return self.first_present(names)
+        if kind == "mean":
+            return np.mean([self.get(n) for n in rule.mean or []], axis=0)
+        if kind == "harrington":
+            return self._harrington(rule.harrington)  # type: ignore[arg-type]
+        if kind == "cluster":
+            return self._cluster(rule.cluster)  # type: ignore[arg-type]
+        if kind == "sole":
+            return self._sole(name, rule.sole)  # type: ignore[arg-type]
+        if kind == "shift":
+            return self._shift(rule.shift)  # type: ignore[arg-type]
+        if kind == "lerp":
+            r: LerpRule = rule.lerp  # type: ignore[assignment]
+            a, b = self.get(r.start), self.get(r.end)
+            return a + r.fraction * (b - a)
+        raise InputError(f"unknown rule {kind}")  # pragma: no cover - schema prevents it
+
+    def _harrington(self, r: HarringtonRule) -> np.ndarray:
+        if r.sacral is not None:
+            mid_psis = self.get(r.sacral)
+        else:
+            mid_psis = 0.5 * (self.get(r.lpsi) + self.get(r.rpsi))  # type: ignore[arg-type]
+        return harrington_hjc(self.get(r.lasi), self.get(r.rasi), mid_psis, r.side)
+
+    def _cluster(self, r: ClusterRule) -> np.ndarray:
+        static_cluster = self.static_mean(r.markers)
+        static_point = self.static_mean(r.static_mean).mean(axis=0)
+        cluster = np.stack([self.get(m) for m in r.markers], axis=1)
+        return rigid_cluster_point(static_cluster, static_point, cluster)
+
+    def _sole(self, name: str, r: SoleRule) -> np.ndarray:
+        marker = self.get(r.point)
+        h = r.height_m if r.height_m is not None else sole_height(marker, r.percentile)
+        if not (0.0 <= h <= 0.15):
+            log.warning("%s: %s: marker height above the floor estimated at %.3f m: is the floor at z = 0?",
+                        self.source, name, h)  # fmt: skip
+        log.debug("%s: %s: %s lowered by %.4f m to the sole", self.source, name, r.point, h)
+        return sole_point(marker, self.get(r.heel), self.get(r.toe), h)
+
+    def _shift(self, r: ShiftRule) -> np.ndarray:
+        if r.distance_m is not None:
+            distance: np.ndarray | float = r.distance_m
+        else:
+            a, b = r.fraction_of  # type: ignore[misc]
+            distance = r.fraction * np.linalg.norm(self.get(a) - self.get(b), axis=-1)  # type: ignore[operator]
+        ortho = (self.get(r.orthogonal_to[0]), self.get(r.orthogonal_to[1])) if r.orthogonal_to else (None, None)
+        return shift_point(self.get(r.point), self.get(r.direction[0]), self.get(r.direction[1]), distance, *ortho)
+
+
+def apply_mapping(
+    mapping: Mapping,
+    markers: Trajectory,
+    static: Trajectory | None = None,
+) -> Trajectory:
+    """Evaluate ``mapping`` on marker trajectories (metres, z up) -> gaitcap points.
+
+    Args:
+        mapping: the rules.
+        markers: marker trajectory of the motion trial, (T, M, 3).
+        static: marker trajectory of the static trial (needed by cluster rules).
+    Returns:
+        a :class:`Trajectory` with the mapping's output points in :data:`POINT_NAMES` order,
+        shape (T, P, 3), same time axis, events and meta as ``markers`` (plus ``mapping``).
+    Raises:
+        InputError: naming the missing markers.
+    """
+    source = str(markers.meta.get("source", "motion"))
+    missing = mapping.missing_markers(markers.names)
+    if missing:
+        raise InputError(f"{source}: mapping {mapping.name!r} needs markers missing from the file: {', '.join(missing)}")
+    ev = _Evaluator(markers, static, source)
+    for name, rule in mapping.definitions():
+        value = np.asarray(ev.evaluate(name, rule), dtype=np.float64)
+        ev.values[name] = np.broadcast_to(value, (markers.n_frames, 3)).copy()
+    names = tuple(n for n in POINT_NAMES if n in mapping.points)
+    points = np.stack([ev.values[n] for n in names], axis=1)
+    meta = {**markers.meta, "mapping": mapping.name}
+    return Trajectory(names, points, markers.rate_hz, markers.t0_s, markers.events, meta)
+
+

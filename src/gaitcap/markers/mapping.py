@@ -1,0 +1,254 @@
+"""The marker mapping schema: how each gaitcap point is built from a marker set.
+
+A mapping is a YAML file (``configs/mappings/<name>.yaml``) that only *declares* rules; the
+maths lives in :mod:`gaitcap.markers.jointcentres`. Each definition is one rule::
+
+    virtual:                 # helper points, evaluated first, in order (any names)
+      mid_asis: {mean: [LASI, RASI]}
+    points:                  # output points: names from gaitcap.trajectory.POINT_NAMES, in order
+      hip_l: {harrington: {side: left, lasi: LASI, rasi: RASI, lpsi: LPSI, rpsi: RPSI}}
+      knee_l: {marker: [LKJC, LFEO]}          # first one present in the file
+
+A rule refers to markers of the file or to helper/output points defined *above* it.
+Rules: ``marker``, ``mean``, ``harrington``, ``cluster``, ``sole``, ``shift``, ``lerp`` (see the
+classes below).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Literal
+
+from pydantic import Field, model_validator
+
+from gaitcap.config import CONFIG_DIR, Strict, load_yaml_model
+from gaitcap.errors import ConfigError
+from gaitcap.trajectory import POINT_NAMES
+
+MAPPINGS_DIR = CONFIG_DIR / "mappings"
+
+
+class HarringtonRule(Strict):
+    """Hip joint centre from the pelvis markers, Harrington et al. 2007 (J Biomech 40:595).
+
+    Give both PSIS markers (``lpsi``, ``rpsi``) or one ``sacral`` marker standing for mid-PSIS.
+    """
+
+    side: Literal["left", "right"]
+    lasi: str
+    rasi: str
+    lpsi: str | None = None
+    rpsi: str | None = None
+    sacral: str | None = None
+
+    @model_validator(mode="after")
+    def _psis_or_sacral(self) -> HarringtonRule:
+        pair = self.lpsi is not None and self.rpsi is not None
+        if pair == (self.sacral is not None) or (self.lpsi is None) != (self.rpsi is None):
+            raise ValueError("give either both lpsi and rpsi, or sacral")
+        return self
+
+    def references(self) -> list[str]:
+        return [n for n in (self.lasi, self.rasi, self.lpsi, self.rpsi, self.sacral) if n is not None]
+
+
+class ClusterRule(Strict):
+    """A point defined in a static trial, carried by a rigid marker cluster into the motion trial.
+
+    In the static trial the point is the mean of ``static_mean`` (e.g. the two epicondyles) and
+    is expressed relative to ``markers`` (>= 3, non-collinear); in each motion frame the
+    cluster's least-squares rigid motion (Kabsch) from the static pose moves it.
+    """
+
+    markers: list[str] = Field(min_length=3)
+    static_mean: list[str] = Field(min_length=1)
+
+    def references(self) -> list[str]:
+        return list(self.markers)
+
+
+class SoleRule(Strict):
+    """A foot marker brought down to the sole along the foot's own vertical.
+
+    down = world down made orthogonal to the foot's long axis (``heel`` -> ``toe``), so the
+    shift follows the foot when it pitches; distance = the marker's height above the floor
+    (z = 0) during foot-flat, estimated as the ``percentile`` of its height over the trial
+    (or fixed by ``height_m``).
+    """
+
+    point: str
+    heel: str
+    toe: str
+    percentile: float = Field(default=5.0, ge=0.0, le=50.0)
+    height_m: float | None = Field(default=None, ge=0.0, le=0.2)
+
+    def references(self) -> list[str]:
+        return [self.point, self.heel, self.toe]
+
+
+class ShiftRule(Strict):
+    """``point`` moved by a distance along a direction defined by two points.
+
+    direction = unit vector ``direction[0] -> direction[1]``, made orthogonal to the axis
+    ``orthogonal_to[0] -> orthogonal_to[1]`` when given; distance = ``distance_m``, or
+    ``fraction`` x |``fraction_of[0]`` - ``fraction_of[1]``| (per frame).
+    """
+
+    point: str
+    direction: tuple[str, str]
+    orthogonal_to: tuple[str, str] | None = None
+    distance_m: float | None = None
+    fraction: float | None = None
+    fraction_of: tuple[str, str] | None = None
+
+    @model_validator(mode="after")
+    def _one_distance(self) -> ShiftRule:
+        relative = self.fraction is not None and self.fraction_of is not None
+        if (self.fraction is None) != (self.fraction_of is None):
+            raise ValueError("fraction and fraction_of go together")
+        if relative == (self.distance_m is not None):
+            raise ValueError("give either distance_m, or fraction with fraction_of")
+        return self
+
+    def references(self) -> list[str]:
+        out = [self.point, *self.direction]
+        out += list(self.orthogonal_to or ()) + list(self.fraction_of or ())
+        return out
+
+
+class LerpRule(Strict):
+    """The point ``fraction`` of the way from ``start`` to ``end`` (0 -> start, 1 -> end)."""
+
+    start: str
+    end: str
+    fraction: float
+
+    def references(self) -> list[str]:
+        return [self.start, self.end]
+
+
+RULE_KINDS: tuple[str, ...] = ("marker", "mean", "harrington", "cluster", "sole", "shift", "lerp")
+
+
+class Rule(Strict):
+    """One definition: exactly one of the rule keys.
+
+    ``marker``: an existing (possibly virtual) point of the file; a list means the first one
+    present. ``mean``: the mean of several points (NaN if any is missing).
+    """
+
+    marker: str | list[str] | None = None
+    mean: list[str] | None = Field(default=None, min_length=1)
+    harrington: HarringtonRule | None = None
+    cluster: ClusterRule | None = None
+    sole: SoleRule | None = None
+    shift: ShiftRule | None = None
+    lerp: LerpRule | None = None
+
+    @model_validator(mode="after")
+    def _exactly_one(self) -> Rule:
+        given = [k for k in RULE_KINDS if getattr(self, k) is not None]
+        if len(given) != 1:
+            raise ValueError(f"give exactly one rule among {', '.join(RULE_KINDS)} (got {given or 'none'})")
+        return self
+
+    @property
+    def kind(self) -> str:
+        return next(k for k in RULE_KINDS if getattr(self, k) is not None)
+
+    def alternatives(self) -> list[list[str]]:
+        """Referenced names, each as a list of alternatives (one of them must exist)."""
+        if self.marker is not None:
+            return [[self.marker] if isinstance(self.marker, str) else list(self.marker)]
+        if self.mean is not None:
+            return [[n] for n in self.mean]
+        body = getattr(self, self.kind)
+        return [[n] for n in body.references()]
+
+
+class GrfSpec(Strict):
+    """Gait events from a force-plate table next to the motion file (OpenSim .mot)."""
+
+    file_suffix: str = "_grf.mot"
+    right: str = Field(description="column prefix of the right foot's force, e.g. ground_force_v")
+    left: str
+    threshold_n: float = Field(default=20.0, gt=0.0)
+
+
+class Mapping(Strict):
+    """A marker set -> gaitcap points mapping (see the module docstring)."""
+
+    name: str
+    description: str = ""
+    up_axis: Literal["x", "y", "z"] | None = None
+    static_trial: str | None = Field(default=None, description="glob of the static trial beside the motion file")
+    grf: GrfSpec | None = None
+    virtual: dict[str, Rule] = Field(default_factory=dict)
+    points: dict[str, Rule]
+
+    @model_validator(mode="after")
+    def _names_and_order(self) -> Mapping:
+        unknown = [n for n in self.points if n not in POINT_NAMES]
+        if unknown:
+            raise ValueError(f"unknown output point(s) {unknown}; valid: {', '.join(POINT_NAMES)}")
+        clash = sorted(set(self.virtual) & set(self.points))
+        if clash:
+            raise ValueError(f"names defined both as virtual and output points: {clash}")
+        order = list(self.virtual) + list(self.points)
+        for i, (name, rule) in enumerate(self.definitions()):
+            for alts in rule.alternatives():
+                for ref in alts:
+                    if ref == name or ref in order[i + 1 :]:
+                        raise ValueError(f"{name}: refers to {ref!r}, which is defined later (or is itself)")
+        return self
+
+    def definitions(self) -> Iterator[tuple[str, Rule]]:
+        """(name, rule) in evaluation order: virtual points first, then output points."""
+        yield from self.virtual.items()
+        yield from self.points.items()
+
+    def defined_names(self) -> set[str]:
+        return set(self.virtual) | set(self.points)
+
+    def needs_static(self) -> bool:
+        return any(rule.cluster is not None for _, rule in self.definitions())
+
+    def marker_requirements(self) -> list[list[str]]:
+        """Markers the motion file must hold, each as alternatives (one must be present)."""
+        defined = self.defined_names()
+        out: list[list[str]] = []
+        for _, rule in self.definitions():
+            for alts in rule.alternatives():
+                if not any(a in defined for a in alts) and alts not in out:
+                    out.append(alts)
+        return out
+
+    def static_requirements(self) -> list[str]:
+        """Markers the static trial must hold (cluster markers and the defined points)."""
+        out: list[str] = []
+        for _, rule in self.definitions():
+            if rule.cluster is not None:
+                out += [m for m in rule.cluster.markers + rule.cluster.static_mean if m not in out]
+        return out
+
+    def missing_markers(self, available: set[str] | list[str] | tuple[str, ...]) -> list[str]:
+        """Requirements not met by ``available`` marker names (alternatives shown as ``a|b``)."""
+        have = set(available)
+        return ["|".join(alts) for alts in self.marker_requirements() if not any(a in have for a in alts)]
+
+
+def load_mapping(name_or_path: str | Path) -> Mapping:
+    """A shipped mapping by name (``plugin_gait``) or a mapping YAML file by path."""
+    path = Path(name_or_path)
+    if path.suffix.lower() not in (".yaml", ".yml"):
+        path = MAPPINGS_DIR / f"{name_or_path}.yaml"
+        if not path.is_file():
+            known = ", ".join(shipped_mapping_names())
+            raise ConfigError(f"unknown mapping {name_or_path!r} (shipped mappings: {known})")
+    return load_yaml_model(Mapping, path)
+
+
+def shipped_mapping_names() -> list[str]:
+    """Names of the mappings shipped in ``configs/mappings``."""
+    return sorted(p.stem for p in MAPPINGS_DIR.glob("*.yaml"))

@@ -1,0 +1,1 @@
+"""Synthetic sessions rendered from real marker-based walks, with ground truth."""

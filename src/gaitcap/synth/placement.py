@@ -1,0 +1,84 @@
+"""Automatic camera placement that keeps the whole walk in view.
+
+The walking direction d is the principal horizontal direction of the pelvis path (or, for a walk
+in place, the direction the subject faces). Camera i sits at azimuth theta_i from d (90 degrees:
+lateral, on the subject's left; -45 degrees: front-oblique on the right), at ``height`` metres,
+looking at the middle of the walk, and is moved back until every point of the walk, padded by the
+body's thickness, lies inside the image with a margin.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from gaitcap.camera import Camera
+
+#: default azimuths (degrees from the walking direction, positive to the subject's left)
+DEFAULT_AZIMUTHS = (90.0, -45.0, -135.0, 45.0, 180.0, -90.0, 0.0, 135.0)
+DEFAULT_DISTORTION = (-0.06, 0.015, 0.0, 0.0)
+
+
+def walking_direction(pelvis: np.ndarray, hip_l: np.ndarray, hip_r: np.ndarray) -> np.ndarray:
+    """Unit horizontal walking direction (3,), from the pelvis path (T, 3) or the hips' facing."""
+    xy = pelvis[np.all(np.isfinite(pelvis), axis=1), :2]
+    facing = np.nanmean(np.cross(hip_l - hip_r, [0.0, 0.0, 1.0]), axis=0)[:2]
+    facing /= np.linalg.norm(facing)
+    if len(xy) >= 2 and np.ptp(xy, axis=0).max() > 0.5:
+        _, _, vt = np.linalg.svd(xy - xy.mean(axis=0))
+        d = vt[0]
+        if np.dot(d, xy[-1] - xy[0]) < 0:
+            d = -d
+    else:
+        d = facing
+    return np.array([d[0], d[1], 0.0]) / np.linalg.norm(d)
+
+
+def _fits(cam: Camera, pts: np.ndarray, margin: float) -> bool:
+    px = cam.project(pts)
+    return bool(np.all(cam.in_image(px, margin=margin * min(cam.size))))
+
+
+def place_cameras(
+    points: np.ndarray,
+    pelvis: np.ndarray,
+    hip_l: np.ndarray,
+    hip_r: np.ndarray,
+    n_cameras: int = 2,
+    size: tuple[int, int] = (640, 480),
+    focal_factor: float = 0.85,
+    height_m: float = 1.1,
+    azimuths_deg: Sequence[float] | None = None,
+    distortion: Sequence[float] = DEFAULT_DISTORTION,
+    margin: float = 0.04,
+) -> list[Camera]:
+    """Cameras named cam1..camN keeping ``points`` (T, P, 3) in view (see the module docstring)."""
+    azimuths = list(azimuths_deg) if azimuths_deg is not None else list(DEFAULT_AZIMUTHS[:n_cameras])
+    if len(azimuths) < n_cameras:
+        raise ValueError(f"{n_cameras} cameras need {n_cameras} azimuths, got {len(azimuths)}")
+    d = walking_direction(pelvis, hip_l, hip_r)
+    n = np.cross([0.0, 0.0, 1.0], d)  # to the subject's left
+    pts = points.reshape(-1, 3)
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    pad = np.array([[dx, dy, dz] for dx in (-0.15, 0.15) for dy in (-0.15, 0.15) for dz in (0.0, 0.12)])
+    padded = (pts[:, None, :] + pad[None]).reshape(-1, 3)
+    padded[:, 2] = np.maximum(padded[:, 2], 0.0)
+    lo, hi = padded.min(axis=0), padded.max(axis=0)
+    centre = 0.5 * (lo + hi)
+    target = np.array([centre[0], centre[1], 0.5 * (hi[2] + lo[2])])
+    w, _ = size
+    cams = []
+    for i, az in enumerate(azimuths[:n_cameras]):
+        a = np.radians(az)
+        direction = np.cos(a) * d + np.sin(a) * n
+        dist = 1.5
+        while True:
+            pos = target + dist * direction
+            pos[2] = height_m
+            cam = Camera.look_at(f"cam{i + 1}", pos, target, size=size, focal_px=focal_factor * w, dist=distortion)
+            if _fits(cam, padded, margin) or dist > 30:
+                break
+            dist *= 1.05
+        cams.append(cam)
+    return cams

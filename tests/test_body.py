@@ -1,0 +1,171 @@
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import yaml
+
+from gaitcap.body import load_body_model
+from gaitcap.body.model import load_body_spec
+from gaitcap.config import default_config_path
+from gaitcap.errors import ConfigError
+from gaitcap.trajectory import POINT_NAMES
+
+BONES = [("hip_l", "knee_l"), ("knee_l", "ankle_l"), ("hip_r", "knee_r"), ("knee_r", "ankle_r"),
+         ("ankle_l", "heel_l"), ("ankle_l", "toe_l"), ("hip_l", "hip_r"), ("shoulder_l", "elbow_l"),
+         ("elbow_r", "wrist_r"), ("thorax", "neck"), ("neck", "head")]
+
+
+@pytest.fixture(scope="module")
+def model():
+    return load_body_model(height_m=1.75)
+
+
+def _random_poses(model, rng, n):
+    lo = np.where(np.isfinite(model.lower), model.lower, -2.0)
+    hi = np.where(np.isfinite(model.upper), model.upper, 2.0)
+    return rng.uniform(lo, hi, size=(n, model.n_dofs))
+
+
+def test_model_has_31_dofs_and_all_points(model):
+    assert model.n_dofs == 31
+    assert model.point_names == POINT_NAMES
+    assert len(model.segments) == 13
+
+
+def test_neutral_pose_stands_on_the_floor(model):
+    q = model.neutral_pose(heading_rad=0.3, x=1.0, y=-2.0)
+    pts = model.forward(q[None])[0]
+    assert pts[:, 2].min() == pytest.approx(0.0, abs=1e-12)
+    head = pts[model.point_index("head")]
+    assert 0.85 * 1.75 < head[2] < 1.75
+    pelvis = pts[model.point_index("pelvis")]
+    np.testing.assert_allclose(pelvis[:2], [1.0, -2.0])
+    # standing hip height about 0.53 H (Winter 2009)
+    assert pelvis[2] == pytest.approx(0.53 * 1.75, rel=0.02)
+
+
+def test_bone_lengths_constant_over_random_poses(model, rng):
+    q = _random_poses(model, rng, 500)
+    pts = model.forward(q)
+    ref = model.forward(model.neutral_pose()[None])[0]
+    for a, b in BONES:
+        ia, ib = model.point_index(a), model.point_index(b)
+        lengths = np.linalg.norm(pts[:, ia] - pts[:, ib], axis=1)
+        expected = np.linalg.norm(ref[ia] - ref[ib])
+        np.testing.assert_allclose(lengths, expected, rtol=1e-10, err_msg=f"{a}-{b}")
+
+
+def test_forward_is_vectorised_consistently(model, rng):
+    q = _random_poses(model, rng, 64)
+    batch = model.forward(q)
+    single = np.stack([model.forward(q[i : i + 1])[0] for i in range(len(q))])
+    np.testing.assert_allclose(batch, single)
+    assert batch.shape == (64, 20, 3)
+
+
+def test_clinical_sign_conventions(model):
+    q0 = model.neutral_pose()
+    base = model.forward(q0[None])[0]
+
+    def moved(dof, deg):
+        q = q0.copy()
+        q[model.dof_index(dof)] = np.radians(deg)
+        return model.forward(q[None])[0]
+
+    k = model.point_index
+    # hip flexion brings the knee forward (+x, the body faces +x at heading 0)
+    assert moved("hip_flexion_l", 30)[k("knee_l"), 0] > base[k("knee_l"), 0] + 0.1
+    # knee flexion takes the ankle backwards
+    assert moved("knee_flexion_r", 40)[k("ankle_r"), 0] < base[k("ankle_r"), 0] - 0.1
+    # ankle dorsiflexion raises the toe
+    assert moved("ankle_dorsiflexion_l", 20)[k("toe_l"), 2] > base[k("toe_l"), 2] + 0.01
+    # hip adduction moves the knee towards the midline, on both sides
+    assert moved("hip_adduction_l", 15)[k("knee_l"), 1] < base[k("knee_l"), 1] - 0.05
+    assert moved("hip_adduction_r", 15)[k("knee_r"), 1] > base[k("knee_r"), 1] + 0.05
+    # internal hip rotation with a flexed knee swings the ankle outwards
+    q = q0.copy()
+    q[model.dof_index("knee_flexion_l")] = np.radians(90)
+    flexed = model.forward(q[None])[0]
+    q[model.dof_index("hip_rotation_l")] = np.radians(30)
+    assert model.forward(q[None])[0][k("ankle_l"), 1] > flexed[k("ankle_l"), 1] + 0.1
+    # anterior pelvic tilt brings the thorax forward
+    assert moved("pelvis_tilt", 20)[k("thorax"), 0] > base[k("thorax"), 0] + 0.02
+    # heading 90 degrees faces +y
+    turned = moved("pelvis_rotation", 90)
+    foot = turned[k("toe_l")] - turned[k("heel_l")]
+    assert foot[1] > 0.15 and abs(foot[0]) < 1e-9
+
+
+def test_clip_enforces_limits_and_wraps_heading(model, rng):
+    q = rng.normal(0, 5, size=(200, model.n_dofs))
+    c = model.clip(q)
+    assert model.within_limits(c).all()
+    h = model.dof_index("pelvis_rotation")
+    assert np.all((c[:, h] >= -np.pi) & (c[:, h] < np.pi))
+    np.testing.assert_allclose(np.cos(c[:, h]), np.cos(q[:, h]))
+
+
+def test_capsules_contain_their_points(model, rng):
+    """Every named point lies inside the body volume (needed for the synth's truth-in-mask check)."""
+    q = _random_poses(model, rng, 50)
+    pts = model.forward(q)
+    A, B, r = model.capsules(q)
+    ab = B - A
+    d = pts[:, :, None, :] - A[:, None]  # (N, P, C, 3)
+    t = np.clip(np.einsum("npcj,ncj->npc", d, ab) / np.einsum("ncj,ncj->nc", ab, ab)[:, None], 0, 1)
+    closest = A[:, None] + t[..., None] * ab[:, None]
+    dist = np.linalg.norm(pts[:, :, None] - closest, axis=-1)
+    radius = r[None, None, :, 0] + t * (r[None, None, :, 1] - r[None, None, :, 0])
+    inside = (dist < radius).any(axis=2)
+    assert inside.all(), [model.point_names[i] for i in np.where(~inside.all(axis=0))[0]]
+
+
+def test_scales_change_lengths(model):
+    scaled = model.with_proportions({"thigh_l": (1.0, 1.0, 1.2)})
+    q = scaled.neutral_pose()
+    p = scaled.forward(q[None])[0]
+    thigh = np.linalg.norm(p[scaled.point_index("hip_l")] - p[scaled.point_index("knee_l")])
+    assert thigh == pytest.approx(0.245 * 1.75 * 1.2, rel=1e-9)
+
+
+def _spec_with(tmp_path, edit):
+    data = yaml.safe_load(default_config_path("body.yaml").read_text())
+    edit(data)
+    path = tmp_path / "body.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
+def test_unknown_key_is_rejected_with_suggestion(tmp_path):
+    path = _spec_with(tmp_path, lambda d: d["segments"]["thigh_l"].update(orgin=[0, 0, 0]))
+    with pytest.raises(ConfigError, match=r"segments\.thigh_l\.orgin: unknown key \(did you mean 'origin'\?\)"):
+        load_body_spec(path)
+
+
+def test_min_greater_than_max_names_the_key(tmp_path):
+    path = _spec_with(tmp_path, lambda d: d["segments"]["shank_l"]["dofs"][0].update(limits=[90, 10]))
+    with pytest.raises(ConfigError, match=r"body.yaml: segments\.shank_l\.dofs\.0\.limits.*greater than max"):
+        load_body_spec(path)
+
+
+def test_negative_radius_and_non_finite_values_rejected(tmp_path):
+    path = _spec_with(tmp_path, lambda d: d["segments"]["foot_r"]["shapes"][0].update(radius=-0.01))
+    with pytest.raises(ConfigError, match=r"segments\.foot_r\.shapes\.0\.radius.*positive"):
+        load_body_spec(path)
+    path = _spec_with(tmp_path, lambda d: d["segments"]["torso"].update(origin=[0, 0, float("nan")]))
+    with pytest.raises(ConfigError, match=r"segments\.torso\.origin.*finite"):
+        load_body_spec(path)
+
+
+def test_parent_must_come_first(tmp_path):
+    def edit(d):
+        segs = d["segments"]
+        d["segments"] = {"shank_l": segs.pop("shank_l"), **segs}
+
+    with pytest.raises(ConfigError, match="shank_l"):
+        load_body_spec(_spec_with(tmp_path, edit))
+
+
+def test_bad_poses_shape_is_an_error(model):
+    with pytest.raises(ValueError, match=r"\(N, 31\)"):
+        model.forward(np.zeros((3, 30)))

@@ -1,0 +1,326 @@
+from __future__ import annotations
+
+import re
+from dataclasses import replace
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from gaitcap.calibration.boards import Board, detect_board, parse_board_size, parse_length
+from gaitcap.calibration.extrinsics import (
+    ScenePoints,
+    calibrate_from_board,
+    calibrate_from_points,
+    calibrate_stereo,
+    scene_reprojection,
+)
+from gaitcap.calibration.formats import fit_to_frame_size, read_opencv_camera, read_qualisys, write_opencv_camera
+from gaitcap.calibration.intrinsics import calibrate_intrinsics, coverage, select_spread
+from gaitcap.calibration.synthetic import render_board_view
+from gaitcap.calibration.views import detect_views
+from gaitcap.camera import Camera
+from gaitcap.cli.main import cli
+from gaitcap.config import load_yaml_model
+from gaitcap.errors import CalibrationError, ConfigError
+from gaitcap.io.calibration_toml import read_calibration, read_calibration_metadata, write_calibration
+
+FIX = Path(__file__).resolve().parent / "fixtures" / "calibration"
+CHESS = FIX / "opencv_chessboard_9x6"
+QUALISYS = FIX / "pose2sim_qualisys"
+BOARD96 = Board(9, 6, 0.025)
+
+
+@pytest.fixture(scope="module")
+def left_views():
+    return detect_views(sorted(CHESS.glob("left*.jpg")), BOARD96, max_blur=0.25)
+
+
+# ------------------------------------------------------------------------- boards
+def test_parse_board_and_lengths():
+    assert parse_board_size("9x6") == (9, 6)
+    assert parse_length("25mm") == pytest.approx(0.025)
+    assert parse_length("2.5cm") == pytest.approx(0.025)
+    assert parse_length("0.06m") == pytest.approx(0.06)
+    for bad in ("9by6", "x6"):
+        with pytest.raises(ConfigError, match="COLSxROWS"):
+            parse_board_size(bad)
+    with pytest.raises(ConfigError, match="mm"):
+        parse_length("25 inches")
+
+
+def test_object_points_frame_is_z_up_right_handed():
+    pts = Board(4, 3, 0.1).object_points()
+    assert pts.shape == (12, 3)
+    np.testing.assert_allclose(pts[1], [0.1, 0, 0])
+    np.testing.assert_allclose(pts[4], [0, -0.1, 0])
+
+
+def test_detection_order_is_canonical_under_a_half_turn(left_views):
+    img = cv2.imread(str(CHESS / "left01.jpg"), cv2.IMREAD_GRAYSCALE)
+    a = detect_board(img, BOARD96, "a")
+    b = detect_board(cv2.rotate(img, cv2.ROTATE_180), BOARD96, "b")
+    h, w = img.shape
+    turned = np.c_[w - 1 - b.corners[:, 0], h - 1 - b.corners[:, 1]]
+    np.testing.assert_allclose(turned, a.corners, atol=0.3)
+
+
+# --------------------------------------------------------------------- intrinsics
+def test_opencv_sample_matches_reference(left_views):
+    ref = read_opencv_camera(CHESS / "left_intrinsics.yml")
+    assert len(left_views.detections) == 13
+    res = calibrate_intrinsics(left_views.detections, BOARD96, "left", fix_aspect_ratio=True)
+    K, R = res.camera.matrix, ref.matrix
+    for (i, j) in [(0, 0), (1, 1), (0, 2), (1, 2)]:
+        assert abs(K[i, j] - R[i, j]) < 1.0
+    assert abs(res.rms_px - 0.393) < 0.05
+    assert K[0, 0] == pytest.approx(K[1, 1])
+    worst = max(res.per_view_px, key=res.per_view_px.get)
+    assert worst == "left02.jpg"  # the reference also names left02 its worst view (1.18 px)
+
+
+def test_pose2sim_focal_within_1p5_percent_of_qualisys():
+    views = detect_views([QUALISYS / "int_cam01_half"], Board(4, 7, 0.06), max_blur=0.25)
+    assert len(views.detections) >= 4 and "cam01_02_int.jpg" in views.rejected
+    res = calibrate_intrinsics(views.detections, Board(4, 7, 0.06), "cam01")
+    ref = read_qualisys(QUALISYS / "Calib.qca.txt")["cam01"].matrix
+    for i in (0, 1):
+        assert abs(2 * res.camera.matrix[i, i] / ref[i, i] - 1) < 0.015
+
+
+def test_select_spread_keeps_distinct_views(left_views):
+    dets = left_views.detections
+    doubled = dets + [replace(d, source=d.source + "-copy") for d in dets]
+    chosen = select_spread(doubled, len(dets))
+    assert len(chosen) == len(dets)
+    assert len({c.source.removesuffix("-copy") for c in chosen}) >= len(dets) - 2
+    frac, empty = coverage(dets[:1], (640, 480))
+    assert 0 < frac < 1 and empty
+
+
+def test_fewer_than_three_views_is_an_error(left_views):
+    with pytest.raises(CalibrationError, match="only 2 usable view"):
+        calibrate_intrinsics(left_views.detections[:2], BOARD96, "left")
+
+
+# --------------------------------------------------------------------- extrinsics
+def _rig_truth():
+    t = [0.5, -0.3, 0.0]
+    return [
+        Camera.look_at("c1", [2.5, -2.0, 2.2], t, focal_px=800, dist=(-0.1, 0.02, 0.0, 0.0)),
+        Camera.look_at("c2", [-1.5, -2.5, 2.0], t, focal_px=800),
+        Camera.look_at("c3", [0.8, 2.2, 2.5], t, focal_px=700),
+    ]
+
+
+def _angle_deg(a: Camera, b: Camera) -> float:
+    return float(np.degrees(np.linalg.norm(cv2.Rodrigues(a.R @ b.R.T)[0])))
+
+
+@pytest.mark.parametrize("n_positions", [1, 3])
+def test_floor_board_extrinsics_recover_known_cameras(n_positions):
+    board = Board(9, 6, 0.12)
+    truth = _rig_truth()
+    poses = [(np.zeros(3), np.zeros(3)), (np.array([0, 0, 0.5]), np.array([-0.3, 0.4, 0])),
+             (np.array([0, 0, -0.4]), np.array([0.3, -0.5, 0]))][:n_positions]
+    rng = np.random.default_rng(7)
+    frames = {c.name: [detect_board(render_board_view(c, board, p, rng), board, f"{c.name}#{k}") for k, p in enumerate(poses)]
+              for c in truth}
+    assert all(d is not None for fr in frames.values() for d in fr)
+    intr = [Camera(c.name, c.size, c.matrix, c.dist) for c in truth]
+    res = calibrate_from_board(intr, frames, board)
+    assert res.n_positions == n_positions and res.adjusted == (n_positions > 1)
+    for est, true in zip(res.rig, truth):
+        assert np.linalg.norm(est.center - true.center) < 0.005
+        assert _angle_deg(est, true) < 0.2
+        assert est.center[2] > 0  # z up: the cameras are above the floor
+    assert max(res.rms_px.values()) < 0.3
+    assert res.check_mm < 2.0
+
+
+def test_scene_points_extrinsics(rng):
+    truth = _rig_truth()
+    pts = {f"q{i}": tuple(p) for i, p in enumerate(rng.uniform([-1, -1, 0], [1.5, 1, 0.3], size=(8, 3)))}
+    pixels = {c.name: {n: tuple(c.project(np.array(p)[None])[0] + rng.normal(0, 0.3, 2)) for n, p in pts.items()} for c in truth}
+    pixels["c3"]["q0"] = None
+    scene = ScenePoints(points=pts, pixels=pixels)
+    res = calibrate_from_points([Camera(c.name, c.size, c.matrix, c.dist) for c in truth], scene)
+    for est, true in zip(res.rig, truth):
+        assert np.linalg.norm(est.center - true.center) < 0.03
+    assert res.check_mm < 10
+
+
+def test_scene_points_need_four_per_camera(rng):
+    cam = _rig_truth()[1]
+    pts = {f"q{i}": (float(i), 0.0, 0.0) for i in range(4)}
+    scene = ScenePoints(points=pts, pixels={"c2": {"q0": (1, 2), "q1": (3, 4), "q2": None, "q3": None}})
+    with pytest.raises(CalibrationError, match=r"camera 'c2'.*2 point"):
+        calibrate_from_points([cam], scene, "scene.yaml")
+
+
+def test_stereo_on_opencv_pairs(left_views):
+    right = detect_views(sorted(CHESS.glob("right*.jpg")), BOARD96)
+    cl = calibrate_intrinsics(left_views.detections, BOARD96, "left", fix_aspect_ratio=True).camera
+    cr = calibrate_intrinsics(right.detections, BOARD96, "right", fix_aspect_ratio=True).camera
+    pairs = [(a, b) for a, b in zip(left_views.frames, right.frames) if a is not None and b is not None]
+    res = calibrate_stereo(cl, cr, pairs, BOARD96)
+    assert res.epipolar_px < 1.0
+    assert 0.02 < res.baseline_m < 0.5
+    assert res.rig["right"].center[0] < 0 or res.rig["right"].center[0] > 0  # a real translation
+
+
+# -------------------------------------------------------------------- formats
+def test_qualisys_convention_puts_lab_points_where_the_images_show_them():
+    rig = read_qualisys(QUALISYS / "Calib.qca.txt")
+    assert rig.names == ["cam01", "cam02", "cam03", "cam04"]
+    assert rig["cam01"].matrix[0, 0] == pytest.approx(107599.671875 / 64)
+    assert rig["cam01"].size == (1088, 1920)
+    np.testing.assert_allclose(rig["cam01"].center, [1.4602, -1.9092, 1.8965], atol=1e-3)
+    scene = load_yaml_model(ScenePoints, QUALISYS / "scene_points.yaml")
+    errors = scene_reprojection(rig, scene)
+    worst = max(max(v.values()) for v in errors.values())
+    # a half turn about the optical axis (the other convention that keeps the floor in front)
+    turned = [replace(c, rvec=cv2.Rodrigues(np.diag([-1.0, -1, 1]) @ c.R)[0].ravel(), tvec=np.diag([-1.0, -1, 1]) @ c.tvec) for c in rig]
+    from gaitcap.camera import CameraRig
+    worst_turned = min(max(v.values()) for v in scene_reprojection(CameraRig(tuple(turned)), scene).values())
+    assert worst < 0.03 * 1920 < worst_turned
+
+
+def test_qualisys_without_cameras(tmp_path):
+    bad = tmp_path / "empty.qca.txt"
+    bad.write_text("<?xml version='1.0'?><calibration><cameras></cameras></calibration>")
+    with pytest.raises(CalibrationError, match=r"empty.qca.txt.*no active <camera>"):
+        read_qualisys(bad)
+
+
+@pytest.mark.parametrize("suffix", ["yml", "xml"])
+def test_opencv_file_round_trip(tmp_path, suffix):
+    cam = read_qualisys(QUALISYS / "Calib.qca.txt")["cam02"]
+    write_opencv_camera(tmp_path / f"cam02.{suffix}", cam, {"avg_reprojection_error": 0.3})
+    back = read_opencv_camera(tmp_path / f"cam02.{suffix}")
+    assert back.name == "cam02" and back.size == cam.size
+    np.testing.assert_allclose(back.matrix, cam.matrix)
+    np.testing.assert_allclose(back.dist, cam.dist)
+    np.testing.assert_allclose(back.center, cam.center, atol=1e-9)
+
+
+def test_toml_round_trip_of_imported_qualisys(tmp_path):
+    rig = read_qualisys(QUALISYS / "Calib.qca.txt")
+    write_calibration(tmp_path / "calibration.toml", rig, {"source": "Calib.qca.txt"})
+    back = read_calibration(tmp_path / "calibration.toml")
+    pts = np.array([[0.0, 0.0, 0.0], [-2.0, 0.3, 0.0]])
+    np.testing.assert_allclose(back.project(pts), rig.project(pts), atol=1e-6)
+
+
+def test_opencv_file_missing_key(tmp_path):
+    text = (CHESS / "left_intrinsics.yml").read_text()
+    bad = tmp_path / "bad.yml"
+    bad.write_text(re.sub(r"distortion_coefficients:.*?\]", "", text, flags=re.S))
+    with pytest.raises(CalibrationError, match=r"bad.yml: missing key 'distortion_coefficients'"):
+        read_opencv_camera(bad)
+
+
+def test_fit_to_frame_size_is_a_centred_crop():
+    cam = read_qualisys(QUALISYS / "Calib.qca.txt")["cam01"]
+    fitted = fit_to_frame_size(cam, (1080, 1920))
+    assert fitted.size == (1080, 1920)
+    p = np.array([[0.0, 0.0, 0.0]])
+    np.testing.assert_allclose(fitted.project(p), cam.project(p) - [4.0, 0.0])
+    with pytest.raises(CalibrationError, match="cam01"):
+        fit_to_frame_size(cam, (540, 960))
+
+
+# ---------------------------------------------------------------------------- CLI
+def _run(*args):
+    return CliRunner().invoke(cli, ["calibrate", *map(str, args)])
+
+
+def test_cli_intrinsics_writes_toml_with_metadata(tmp_path):
+    out = tmp_path / "left.toml"
+    r = _run("intrinsics", *sorted(CHESS.glob("left0*.jpg")), "--board", "9x6", "--square", "25mm", "-o", out)
+    assert r.exit_code == 0, r.output
+    assert "RMS reprojection error" in r.output
+    assert read_calibration(out).names == ["left"]
+    assert read_calibration_metadata(out)["intrinsics_views"]["left"] == 9
+
+
+def test_cli_wrong_board_size_names_the_files(tmp_path):
+    r = _run("intrinsics", CHESS / "left01.jpg", CHESS / "left02.jpg", CHESS / "left03.jpg", "--board", "7x5", "-o", tmp_path / "x.toml")
+    assert r.exit_code == 1
+    assert "only 0 usable view" in r.output and "left02.jpg: checkerboard 7x5" in r.output
+
+
+def test_cli_no_board_in_image(tmp_path):
+    blank = tmp_path / "blank.png"
+    cv2.imwrite(str(blank), np.full((480, 640), 128, np.uint8))
+    r = _run("intrinsics", blank, "-o", tmp_path / "x.toml")
+    assert r.exit_code == 1 and "usable view" in r.output and "blank.png: checkerboard 9x6" in r.output
+
+
+def test_cli_images_of_different_sizes(tmp_path):
+    small = tmp_path / "small.jpg"
+    cv2.imwrite(str(small), cv2.resize(cv2.imread(str(CHESS / "left01.jpg")), (320, 240)))
+    r = _run("intrinsics", CHESS / "left01.jpg", small, "-o", tmp_path / "x.toml")
+    assert r.exit_code == 1 and "small.jpg" in r.output and "differs" in r.output
+
+
+def test_cli_check_missing_key(tmp_path):
+    bad = tmp_path / "calibration.toml"
+    bad.write_text('[cam1]\nname = "cam1"\nsize = [640, 480]\nmatrix = [[500,0,320],[0,500,240],[0,0,1]]\n'
+                   'distortions = [0,0,0,0]\nrotation = [0,0,0]\n')
+    r = _run("check", tmp_path)
+    assert r.exit_code == 1 and "calibration.toml" in r.output and "translation" in r.output
+
+
+def test_cli_import_qualisys_then_check(tmp_path):
+    out = tmp_path / "calibration.toml"
+    assert _run("import-qualisys", QUALISYS / "Calib.qca.txt", "-o", out).exit_code == 0
+    r = _run("check", out)
+    assert r.exit_code == 0, r.output
+    assert "cam01 - cam02: 2.854" in r.output
+    r = _run("import-qualisys", QUALISYS / "Calib.qca.txt", "-o", out)
+    assert r.exit_code == 1 and "--force" in r.output
+
+
+def test_cli_check_flags_poor_calibration(tmp_path):
+    rig = read_qualisys(QUALISYS / "Calib.qca.txt")
+    write_calibration(tmp_path / "calibration.toml", rig, {"error": 3.2, "reprojection_rms_px": {"cam02": 3.2}})
+    r = _run("check", tmp_path)
+    assert r.exit_code == 1 and "cam02" in r.output and "3.20 px" in r.output
+
+
+def test_cli_qualisys_without_cameras(tmp_path):
+    bad = tmp_path / "none.qca.txt"
+    bad.write_text("<calibration><cameras/></calibration>")
+    r = _run("import-qualisys", bad, "-o", tmp_path / "c.toml")
+    assert r.exit_code == 1 and "none.qca.txt" in r.output
+
+
+def test_cli_export_and_reimport(tmp_path):
+    out = tmp_path / "opencv"
+    assert _run("export", QUALISYS / "Calib.qca.txt", "-o", out, "--format", "xml").exit_code == 0
+    r = _run("import-opencv", *sorted(out.glob("*.xml")), "-o", tmp_path / "calibration.toml")
+    assert r.exit_code == 0, r.output
+    back = read_calibration(tmp_path / "calibration.toml")
+    np.testing.assert_allclose(back["cam03"].center, read_qualisys(QUALISYS / "Calib.qca.txt")["cam03"].center, atol=1e-9)
+
+
+def test_cli_extrinsics_from_floor_board(tmp_path):
+    board = Board(9, 6, 0.12)
+    truth = _rig_truth()[:2]
+    session = tmp_path / "s"
+    (session / "extrinsics").mkdir(parents=True)
+    rng = np.random.default_rng(3)
+    for c in truth:
+        cv2.imwrite(str(session / "extrinsics" / f"{c.name}.png"), render_board_view(c, board, rng=rng))
+    from gaitcap.camera import CameraRig
+    write_calibration(session / "calibration.toml", CameraRig(tuple(Camera(c.name, c.size, c.matrix, c.dist) for c in truth)))
+    r = _run("extrinsics", session, "--board", "9x6", "--square", "120mm")
+    assert r.exit_code == 0, r.output
+    rig = read_calibration(session / "calibration.toml")
+    for est, true in zip(rig, truth):
+        assert np.linalg.norm(est.center - true.center) < 0.005
+    meta = read_calibration_metadata(session / "calibration.toml")
+    assert set(meta["reprojection_rms_px"]) == {"c1", "c2"} and meta["check_3d_mm"] >= 0
