@@ -1,0 +1,193 @@
+"""Background models: the empty scene per camera, and whether it can be trusted.
+
+Two sources:
+
+* a **plate** (an image of the empty scene): used as is; the per-pixel noise comes from frames
+  sampled across the video when they are given (``sigma = 1.4826 * median_t |I_t - B|``), else
+  it is estimated later from the first frame;
+* **frames sampled across the whole video**: ``B = median_t I_t`` per pixel and channel (a
+  walker who crosses the view hides any pixel in a minority of samples, so the median is the
+  empty scene), the same robust per-pixel noise, and a check that the estimate is usable.
+
+The check: a pixel is *ambiguous* when it differs from the median by more than
+``hidden_diff`` grey levels in at least ``hidden_occupancy`` of the samples, i.e. something
+covers it a large part of the time, so the median there may be that something rather than
+the scene. A walk-across leaves few ambiguous pixels; a subject who never leaves the view
+(treadmill, balance trial) leaves a band of them around the body. Above
+``max_ambiguous_fraction`` of the image the background is reported unusable, loudly.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from gaitcap.errors import InputError
+from gaitcap.silhouette.config import BackgroundConfig
+
+log = logging.getLogger(__name__)
+
+_MAD_TO_SIGMA = 1.4826
+_ROW_CHUNK = 64  # rows per chunk for the per-pixel statistics: bounds temporary memory
+
+
+@dataclass(frozen=True)
+class BackgroundReport:
+    """How a background was obtained and whether it is usable.
+
+    Attributes:
+        source: "plate" or "video".
+        samples: number of video frames used (0 for a plate without samples).
+        ambiguous_fraction: fraction of pixels whose background is hidden too often
+            (NaN when not measured, e.g. for a plate).
+        usable: False when the estimate is judged unusable (the masks will be unreliable).
+        message: one line for a person.
+    """
+
+    source: str
+    samples: int
+    ambiguous_fraction: float
+    usable: bool
+    message: str
+
+
+@dataclass(frozen=True)
+class Background:
+    """A background model at the working resolution.
+
+    Attributes:
+        image: (H, W, 3) float32 BGR, grey levels 0-255.
+        noise: (H, W) float32 per-pixel noise sigma in grey levels, or None when unknown yet.
+        report: provenance and usability.
+    """
+
+    image: np.ndarray
+    noise: np.ndarray | None
+    report: BackgroundReport
+
+
+def _check_stack(frames: np.ndarray, what: str) -> np.ndarray:
+    frames = np.asarray(frames)
+    if frames.ndim != 4 or frames.shape[-1] != 3 or frames.shape[0] < 1:
+        raise InputError(f"{what}: expected sampled frames of shape (N, H, W, 3), got {frames.shape}")
+    return frames
+
+
+def global_gain(frame: np.ndarray, background: np.ndarray, stride: int = 4) -> np.ndarray:
+    """Per-channel global brightness ratio frame / background (robust: a median over pixels).
+
+    frame, background: (H, W, 3). Returns (3,) float32. Pixels where the background is very
+    dark are skipped; a person covering a minority of the image does not move the median.
+    """
+    f = frame[::stride, ::stride].reshape(-1, 3).astype(np.float32)
+    b = background[::stride, ::stride].reshape(-1, 3).astype(np.float32)
+    gains = np.ones(3, np.float32)
+    for c in range(3):
+        ok = b[:, c] > 16.0
+        if ok.sum() > 100:
+            gains[c] = np.median(f[ok, c] / b[ok, c])
+    return gains
+
+
+def _robust_noise(
+    frames: np.ndarray, centre: np.ndarray, min_noise: float, gains: np.ndarray | None = None
+) -> np.ndarray:
+    """Per-pixel noise sigma: 1.4826 * median over samples of the channel-mean |I - g * centre|.
+
+    frames: (N, H, W, 3); centre: (H, W, 3); gains: (N, 3) per-sample brightness ratios or
+    None (all 1). Returns (H, W) float32 >= ``min_noise``.
+    """
+    n, h, w, _ = frames.shape
+    g = np.ones((n, 1, 1, 3), np.float32) if gains is None else gains.reshape(n, 1, 1, 3).astype(np.float32)
+    out = np.empty((h, w), np.float32)
+    for r0 in range(0, h, _ROW_CHUNK):
+        chunk = frames[:, r0 : r0 + _ROW_CHUNK].astype(np.float32)
+        dev = np.abs(chunk - g * centre[None, r0 : r0 + _ROW_CHUNK]).mean(axis=3)
+        out[r0 : r0 + _ROW_CHUNK] = _MAD_TO_SIGMA * np.median(dev, axis=0)
+    return np.maximum(out, np.float32(min_noise))
+
+
+def _median_and_ambiguity(frames: np.ndarray, cfg: BackgroundConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Per-pixel median (H, W, 3) float32 and the ambiguous-pixel map (H, W) bool."""
+    n, h, w, _ = frames.shape
+    median = np.empty((h, w, 3), np.float32)
+    ambiguous = np.empty((h, w), bool)
+    for r0 in range(0, h, _ROW_CHUNK):
+        chunk = frames[:, r0 : r0 + _ROW_CHUNK].astype(np.float32)
+        med = np.median(chunk, axis=0)
+        hidden = np.abs(chunk - med[None]).max(axis=3) > cfg.hidden_diff
+        median[r0 : r0 + _ROW_CHUNK] = med
+        ambiguous[r0 : r0 + _ROW_CHUNK] = hidden.mean(axis=0) >= cfg.hidden_occupancy
+    return median, ambiguous
+
+
+def background_from_video_samples(frames: np.ndarray, cfg: BackgroundConfig, what: str = "video") -> Background:
+    """Estimate the empty scene from frames sampled across a whole video.
+
+    Args:
+        frames: (N, H, W, 3) uint8 BGR samples (see :func:`gaitcap.video.sample_frames`).
+        cfg: background parameters.
+        what: name for messages (the video file or camera).
+
+    Returns:
+        The median background with per-pixel noise; ``report.usable`` is False (and a warning
+        is logged) when too many pixels are ambiguous or there are too few samples.
+    """
+    frames = _check_stack(frames, what)
+    n = frames.shape[0]
+    median, ambiguous = _median_and_ambiguity(frames, cfg)
+    noise = _robust_noise(frames, median, cfg.min_noise)
+    frac = float(ambiguous.mean())
+    usable = frac <= cfg.max_ambiguous_fraction and n >= 5
+    if n < 5:
+        message = f"{what}: only {n} frame(s) to estimate the background from; no usable background"
+    elif usable:
+        message = f"{what}: background estimated from {n} frames ({100 * frac:.2f}% ambiguous pixels)"
+    else:
+        message = (
+            f"{what}: no usable background could be estimated: something covers {100 * frac:.1f}% of the image "
+            f"in at least {100 * cfg.hidden_occupancy:.0f}% of {n} sampled frames (limit "
+            f"{100 * cfg.max_ambiguous_fraction:.1f}%); the subject probably never leaves the view. "
+            "Silhouettes will be unreliable: record an empty-scene plate (background/<camera>.png)."
+        )
+    if usable:
+        log.info("%s", message)
+    else:
+        log.warning("%s", message)
+    report = BackgroundReport("video", n, frac, usable, message)
+    return Background(median, noise, report)
+
+
+def background_from_plate(
+    plate: np.ndarray, cfg: BackgroundConfig, frames: np.ndarray | None = None, what: str = "plate"
+) -> Background:
+    """Use an image of the empty scene as the background.
+
+    Args:
+        plate: (H, W, 3) uint8 BGR image of the empty scene.
+        cfg: background parameters.
+        frames: optional (N, H, W, 3) uint8 samples of the video, for the per-pixel noise
+            (each rescaled by its global brightness ratio to the plate first).
+        what: name for messages.
+    """
+    plate = np.asarray(plate)
+    if plate.ndim != 3 or plate.shape[2] != 3:
+        raise InputError(f"{what}: background plate must be a colour image (H, W, 3), got {plate.shape}")
+    image = plate.astype(np.float32)
+    noise = None
+    n = 0
+    if frames is not None:
+        frames = _check_stack(frames, what)
+        if frames.shape[1:3] != plate.shape[:2]:
+            raise InputError(
+                f"{what}: background plate is {plate.shape[1]}x{plate.shape[0]} but the video is "
+                f"{frames.shape[2]}x{frames.shape[1]}"
+            )
+        n = frames.shape[0]
+        gains = np.stack([global_gain(f, image) for f in frames])
+        noise = _robust_noise(frames, image, cfg.min_noise, gains)
+    report = BackgroundReport("plate", n, float("nan"), True, f"{what}: background from the plate")
+    log.info("%s", report.message)
+    return Background(image, noise, report)

@@ -1,0 +1,116 @@
+"""Schema of ``silhouette.yaml``: every parameter of silhouette extraction and its default.
+
+The shipped file ``gaitcap/configs/silhouette.yaml`` documents each key; the defaults live here
+only. Grey levels are on the 0-255 scale of 8-bit video.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Literal
+
+from pydantic import Field, model_validator
+
+from gaitcap.config import Strict, default_config_path, load_yaml_model
+
+
+class BackgroundConfig(Strict):
+    """How the empty scene is obtained and kept up to date."""
+
+    source: Literal["auto", "plate", "video"] = Field(
+        default="auto", description="auto: the session's plate when there is one, else estimated from the video"
+    )
+    samples: int = Field(default=31, ge=5, le=201, description="frames sampled across the video for the median")
+    adapt_rate: float = Field(
+        default=0.03, ge=0.0, le=1.0, description="running-average rate at background pixels (per frame)"
+    )
+    gain_compensation: bool = Field(
+        default=True, description="rescale the background by the frame's global brightness ratio each frame"
+    )
+    min_noise: float = Field(default=2.0, gt=0, description="floor of the per-pixel noise estimate, grey levels")
+    # "no usable background" detection, for backgrounds estimated from the video
+    hidden_diff: float = Field(
+        default=25.0, gt=0, description="grey-level difference from the median that counts as 'background hidden'"
+    )
+    hidden_occupancy: float = Field(
+        default=0.3, gt=0, lt=1, description="a pixel is ambiguous when hidden in at least this fraction of samples"
+    )
+    max_ambiguous_fraction: float = Field(
+        default=0.02, gt=0, lt=1, description="above this fraction of ambiguous pixels the estimate is unusable"
+    )
+
+
+class ForegroundConfig(Strict):
+    """Per-pixel foreground test against the background model."""
+
+    threshold_sigma: float = Field(default=4.0, gt=0, description="foreground when |frame - bg| > k * noise sigma")
+    min_diff: float = Field(default=18.0, ge=0, description="and when |frame - bg| exceeds this many grey levels")
+
+
+class ShadowConfig(Strict):
+    """Cast-shadow suppression: darker than the background, same chromaticity, same texture."""
+
+    enabled: bool = True
+    min_ratio: float = Field(default=0.45, gt=0, lt=1, description="shadow brightness / background brightness, lowest")
+    max_ratio: float = Field(default=0.97, gt=0, le=1, description="shadow brightness / background brightness, highest")
+    max_chroma: float = Field(
+        default=0.06, gt=0, description="largest change of normalised rgb chromaticity inside a shadow"
+    )
+    min_ncc: float = Field(
+        default=0.35, ge=-1, le=1,
+        description="on textured background, least local correlation frame/background inside a shadow",
+    )
+    texture_min_std: float = Field(
+        default=4.0, ge=0, description="background local std (grey levels) above which the texture test applies"
+    )
+    texture_window: int = Field(default=5, ge=3, le=31, description="window (pixels) of the texture test")
+
+    @model_validator(mode="after")
+    def _ratios_ordered(self) -> ShadowConfig:
+        if self.min_ratio >= self.max_ratio:
+            raise ValueError(f"min_ratio ({self.min_ratio}) must be below max_ratio ({self.max_ratio})")
+        return self
+
+
+class CleanupConfig(Strict):
+    """Morphology and component selection on the raw foreground."""
+
+    open_radius: int = Field(default=1, ge=0, le=15, description="opening radius (pixels at working scale)")
+    close_radius: int = Field(default=3, ge=0, le=31, description="closing radius (pixels at working scale)")
+    max_hole_fraction: float = Field(
+        default=0.02, ge=0, le=1, description="fill holes up to this fraction of their component's area"
+    )
+    min_component_fraction: float = Field(
+        default=0.0005, ge=0, lt=1, description="drop components smaller than this fraction of the image"
+    )
+    keep_relative: float = Field(
+        default=0.15, ge=0, le=1, description="keep components at least this fraction of the largest one"
+    )
+
+
+class QualityConfig(Strict):
+    """Per-frame flags."""
+
+    empty_fraction: float = Field(default=0.001, ge=0, lt=1, description="flag 'empty' below this foreground fraction")
+    large_fraction: float = Field(
+        default=0.35, gt=0, le=1, description="flag 'too_large' above this foreground fraction (lighting jump?)"
+    )
+    border_margin: int = Field(default=1, ge=1, description="flag 'border' when the mask reaches this close to the edge")
+
+
+class SilhouetteConfig(Strict):
+    """Schema of ``silhouette.yaml``."""
+
+    scale: float = Field(
+        default=1.0, gt=0.05, le=1.0, description="working resolution / video resolution (masks are returned at full size)"
+    )
+    background: BackgroundConfig = Field(default_factory=BackgroundConfig)
+    foreground: ForegroundConfig = Field(default_factory=ForegroundConfig)
+    shadow: ShadowConfig = Field(default_factory=ShadowConfig)
+    cleanup: CleanupConfig = Field(default_factory=CleanupConfig)
+    quality: QualityConfig = Field(default_factory=QualityConfig)
+
+    @classmethod
+    def load(cls, path: str | Path | None = None) -> SilhouetteConfig:
+        """Read ``path`` (None: the shipped ``silhouette.yaml``)."""
+        return load_yaml_model(cls, path if path is not None else default_config_path("silhouette.yaml"))

@@ -1,0 +1,341 @@
+"""Per-frame silhouette extraction: foreground test, shadow suppression, clean-up, quality.
+
+One :class:`SilhouetteExtractor` per camera. It never opens a video: the caller feeds frames
+it has decoded (``gaitcap.video``), so the tracker can share its decoding. Typical use::
+
+    ex = SilhouetteExtractor(config)
+    ex.fit_background(samples=sample_frames(path, config.background.samples))   # or plate=...
+    for index, frame in VideoReader(path):
+        mask, quality = ex.process(frame)          # (H, W) uint8 0/1, FrameQuality
+    # or: for mask, quality in ex.extract(frames): ...
+
+Per pixel, at the working scale (``config.scale``), with ``B`` the background and ``g`` the
+frame's global per-channel brightness ratio to it (lighting drift and jumps):
+
+1. difference: ``d = sqrt(mean_c (I_c - g_c B_c)^2)``; candidate foreground where
+   ``d > max(k * sigma, min_diff)`` (``sigma``: per-pixel noise of the background model);
+2. shadow (Horprasert-style brightness/chromaticity test): a candidate pixel is a cast shadow
+   when its brightness ratio ``r = sum_c I_c / sum_c g_c B_c`` lies in ``[min_ratio, max_ratio]``,
+   its normalised rgb chromaticity is within ``max_chroma`` of the background's, and, where the
+   background is textured, the frame's local texture correlates with the background's
+   (normalised cross-correlation >= ``min_ncc``: a shadow darkens the floor's texture, a dark
+   trouser leg replaces it);
+3. clean-up: opening, closing, components smaller than ``min_component_fraction`` of the image
+   or than ``keep_relative`` of the largest dropped, holes up to ``max_hole_fraction`` of
+   their component filled;
+4. background adaptation: ``B <- (1 - a) B + a I / g`` where the (dilated) mask and the shadow
+   are off.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from gaitcap.errors import InputError
+from gaitcap.silhouette.background import (
+    Background,
+    BackgroundReport,
+    background_from_plate,
+    background_from_video_samples,
+    global_gain,
+)
+from gaitcap.silhouette.config import SilhouetteConfig
+
+log = logging.getLogger(__name__)
+
+# quality flags (bit field)
+EMPTY = 1
+BORDER = 2
+TOO_LARGE = 4
+NO_BACKGROUND = 8
+FLAG_NAMES = {EMPTY: "empty", BORDER: "border", TOO_LARGE: "too_large", NO_BACKGROUND: "no_background"}
+
+
+def flag_names(flags: int) -> list[str]:
+    """Names of the bits set in ``flags`` (e.g. ``["empty"]``); [] for a good frame."""
+    return [name for bit, name in FLAG_NAMES.items() if flags & bit]
+
+
+@dataclass(frozen=True)
+class FrameQuality:
+    """Per-frame quality record.
+
+    Attributes:
+        index: frame index (0-based, counted by the extractor).
+        fraction: foreground pixels / image pixels, full resolution.
+        shadow_fraction: pixels classified cast shadow / image pixels (working scale).
+        components: number of kept connected components.
+        bbox: (x, y, w, h) of the mask at full resolution, or None when empty.
+        flags: bit field of EMPTY, BORDER, TOO_LARGE, NO_BACKGROUND.
+    """
+
+    index: int
+    fraction: float
+    shadow_fraction: float
+    components: int
+    bbox: tuple[int, int, int, int] | None
+    flags: int
+
+    @property
+    def ok(self) -> bool:
+        return self.flags == 0
+
+    @property
+    def flag_names(self) -> list[str]:
+        return flag_names(self.flags)
+
+
+def _scalar(values: np.ndarray) -> tuple[float, float, float, float]:
+    """Per-channel factors as an OpenCV Scalar (for cv2.multiply on 3-channel images)."""
+    return (float(values[0]), float(values[1]), float(values[2]), 0.0)
+
+
+def _disk(radius: int) -> np.ndarray:
+    return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
+
+
+class SilhouetteExtractor:
+    """Background subtraction with shadow suppression for one camera.
+
+    Args:
+        config: the parameters (``SilhouetteConfig()`` for the defaults).
+        name: camera or file name used in messages.
+    """
+
+    def __init__(self, config: SilhouetteConfig | None = None, name: str = "camera") -> None:
+        self.config = config or SilhouetteConfig()
+        self.name = name
+        self._bg: np.ndarray | None = None  # (h, w, 3) float32 working scale
+        self._thr2: np.ndarray | None = None  # (h, w) float32 squared threshold
+        self._full_size: tuple[int, int] | None = None  # (W, H)
+        self._work_size: tuple[int, int] | None = None  # (w, h)
+        self.report: BackgroundReport | None = None
+        self._count = 0
+        c = self.config.cleanup
+        self._open_k = _disk(c.open_radius) if c.open_radius > 0 else None
+        self._close_k = _disk(c.close_radius) if c.close_radius > 0 else None
+        self._adapt_k = _disk(max(2, c.close_radius))
+
+    # -- background ---------------------------------------------------------------------------
+    def _work(self, image: np.ndarray) -> np.ndarray:
+        if self._work_size is None or (image.shape[1], image.shape[0]) == self._work_size:
+            return image
+        return cv2.resize(image, self._work_size, interpolation=cv2.INTER_AREA)
+
+    def fit_background(self, plate: np.ndarray | None = None, samples: np.ndarray | None = None) -> BackgroundReport:
+        """Build the background model from a plate, from sampled video frames, or both.
+
+        Args:
+            plate: (H, W, 3) uint8 BGR empty-scene image, or None.
+            samples: (N, H, W, 3) uint8 BGR frames spread over the whole video, or None. With a
+                plate they only give the per-pixel noise; without one, the median background.
+
+        Returns:
+            The :class:`BackgroundReport` (also kept as ``self.report``); with ``usable`` False
+            every frame is flagged NO_BACKGROUND.
+        """
+        if plate is None and samples is None:
+            raise InputError(f"{self.name}: no background plate and no video frames to estimate one from")
+        ref = plate if plate is not None else samples[0]  # type: ignore[index]
+        h, w = ref.shape[:2]
+        if plate is not None and samples is not None and samples.shape[1:3] != (h, w):
+            raise InputError(
+                f"{self.name}: background plate is {w}x{h} but the video is {samples.shape[2]}x{samples.shape[1]}"
+            )
+        s = self.config.scale
+        self._full_size = (w, h)
+        self._work_size = (max(8, round(w * s)), max(8, round(h * s)))
+        work_samples = None if samples is None else np.stack([self._work(f) for f in samples])
+        cfg = self.config.background
+        if plate is not None:
+            bg = background_from_plate(self._work(plate), cfg, work_samples, what=self.name)
+        else:
+            bg = background_from_video_samples(work_samples, cfg, what=self.name)  # type: ignore[arg-type]
+        self._set_background(bg)
+        return bg.report
+
+    def _set_background(self, bg: Background) -> None:
+        self._bg = bg.image.copy()
+        self.report = bg.report
+        self._thr2 = None if bg.noise is None else self._threshold2(bg.noise)
+        self._count = 0
+
+    def _threshold2(self, noise: np.ndarray) -> np.ndarray:
+        f = self.config.foreground
+        thr = np.maximum(f.threshold_sigma * noise, np.float32(f.min_diff)).astype(np.float32)
+        return thr * thr
+
+    @property
+    def background(self) -> np.ndarray:
+        """The current background at working scale, (h, w, 3) uint8 BGR."""
+        if self._bg is None:
+            raise InputError(f"{self.name}: fit_background() must be called first")
+        return np.clip(self._bg, 0, 255).astype(np.uint8)
+
+    # -- per frame ----------------------------------------------------------------------------
+    def process(self, frame: np.ndarray) -> tuple[np.ndarray, FrameQuality]:
+        """Silhouette of one frame.
+
+        Args:
+            frame: (H, W, 3) uint8 BGR, the size of the background.
+
+        Returns:
+            ``(mask, quality)``: mask (H, W) uint8 with 1 = person, and its :class:`FrameQuality`.
+        """
+        if self._bg is None or self._full_size is None:
+            raise InputError(f"{self.name}: fit_background() must be called before extracting silhouettes")
+        if frame.ndim != 3 or (frame.shape[1], frame.shape[0]) != self._full_size:
+            raise InputError(
+                f"{self.name}: frame {self._count} is {frame.shape[1]}x{frame.shape[0]}, "
+                f"the background is {self._full_size[0]}x{self._full_size[1]}"
+            )
+        img = self._work(frame).astype(np.float32)
+        gain = global_gain(img, self._bg) if self.config.background.gain_compensation else np.ones(3, np.float32)
+        bg = cv2.multiply(self._bg, _scalar(gain))
+        if self._thr2 is None:  # plate without samples: one global noise level from this frame
+            g = gain if self.config.background.gain_compensation else global_gain(img, self._bg)
+            self._thr2 = self._threshold2(self._global_noise(img, self._bg * g.reshape(1, 1, 3)))
+        candidate = self._candidates(img, bg)
+        shadow = self._shadow(img, bg, candidate) if self.config.shadow.enabled else np.zeros_like(candidate)
+        raw = (candidate & ~shadow).astype(np.uint8) * 255
+        mask_small, n_comp = self._clean(raw)
+        self._adapt(img, gain, mask_small, shadow)
+        mask = self._to_full(mask_small)
+        quality = self._quality(mask, float(shadow.mean()), n_comp)
+        self._count += 1
+        return mask, quality
+
+    def extract(self, frames: Iterable[np.ndarray]) -> Iterator[tuple[np.ndarray, FrameQuality]]:
+        """Lazily apply :meth:`process` to each frame: yields ``(mask, quality)``."""
+        for frame in frames:
+            yield self.process(frame)
+
+    def _global_noise(self, img: np.ndarray, bg: np.ndarray) -> np.ndarray:
+        dev = np.abs(img[::2, ::2] - bg[::2, ::2]).mean(axis=2)
+        sigma = max(1.4826 * float(np.median(dev)), self.config.background.min_noise)
+        log.debug("%s: global noise sigma %.2f grey levels (from the first frame)", self.name, sigma)
+        return np.full(img.shape[:2], sigma, np.float32)
+
+    def _candidates(self, img: np.ndarray, bg: np.ndarray) -> np.ndarray:
+        """(h, w) bool: mean-square channel difference above the per-pixel threshold."""
+        diff = cv2.subtract(img, bg)
+        d2 = cv2.transform(cv2.multiply(diff, diff), np.full((1, 3), 1.0 / 3.0, np.float32))
+        return d2 > self._thr2
+
+    def _shadow(self, img: np.ndarray, bg: np.ndarray, candidate: np.ndarray) -> np.ndarray:
+        """(h, w) bool: candidate pixels explained as cast shadow on the background.
+
+        Computed inside the bounding box of the candidates (plus the texture window) only.
+        """
+        s = self.config.shadow
+        shadow = np.zeros_like(candidate)
+        x, y, w, h = cv2.boundingRect(candidate.view(np.uint8))
+        if w == 0 or h == 0:
+            return shadow
+        m = s.texture_window
+        y0, y1 = max(0, y - m), min(candidate.shape[0], y + h + m)
+        x0, x1 = max(0, x - m), min(candidate.shape[1], x + w + m)
+        img_r, bg_r, cand_r = img[y0:y1, x0:x1], bg[y0:y1, x0:x1], candidate[y0:y1, x0:x1]
+        ones = np.ones((1, 3), np.float32)
+        si = cv2.transform(img_r, ones) + np.float32(1.0)  # sum of channels
+        sb = cv2.transform(bg_r, ones) + np.float32(1.0)
+        ratio = si / sb
+        darker = cand_r & (ratio >= s.min_ratio) & (ratio <= s.max_ratio)
+        # chromaticity only where it matters (candidate pixels in the brightness range)
+        ys, xs = np.nonzero(darker)
+        chroma = np.abs(img_r[ys, xs] / si[ys, xs, None] - bg_r[ys, xs] / sb[ys, xs, None]).max(axis=1)
+        same_colour = np.zeros_like(darker)
+        same_colour[ys, xs] = chroma <= s.max_chroma
+        shadow[y0:y1, x0:x1] = darker & same_colour & self._same_texture(si, sb)
+        return shadow
+
+    def _same_texture(self, si: np.ndarray, sb: np.ndarray) -> np.ndarray:
+        """(h, w) bool: the frame keeps the background's local texture (or there is none).
+
+        Normalised cross-correlation of channel sums over a box window; where the background
+        is flat (local std below ``texture_min_std``) the test cannot tell and passes.
+        """
+        s = self.config.shadow
+        k = (s.texture_window, s.texture_window)
+        mi, mb = cv2.blur(si, k), cv2.blur(sb, k)
+        vi = cv2.blur(si * si, k) - mi * mi
+        vb = cv2.blur(sb * sb, k) - mb * mb
+        cov = cv2.blur(si * sb, k) - mi * mb
+        ncc = cov / np.sqrt(np.maximum(vi * vb, 1e-6))
+        flat = vb < (3.0 * s.texture_min_std) ** 2  # channel sums: 3x the grey-level std
+        return flat | (ncc >= s.min_ncc)
+
+    def _clean(self, raw: np.ndarray) -> tuple[np.ndarray, int]:
+        """Morphology, component selection and hole filling; (h, w) uint8 0/255 -> same, count."""
+        c = self.config.cleanup
+        mask = raw
+        if self._open_k is not None:
+            mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, self._open_k)
+        if self._close_k is not None:
+            mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, self._close_k)
+        n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+        if n <= 1:
+            return np.zeros_like(mask), 0
+        areas = stats[1:, cv2.CC_STAT_AREA]
+        min_area = max(c.min_component_fraction * mask.size, c.keep_relative * areas.max())
+        keep = np.flatnonzero(areas >= min_area) + 1
+        lut = np.zeros(n, np.uint8)
+        lut[keep] = 255
+        mask = lut[labels]
+        if c.max_hole_fraction > 0:
+            mask = self._fill_holes(mask, c.max_hole_fraction)
+        return mask, int(keep.size)
+
+    @staticmethod
+    def _fill_holes(mask: np.ndarray, max_fraction: float) -> np.ndarray:
+        contours, hierarchy = cv2.findContours(mask, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_SIMPLE)
+        if hierarchy is None:
+            return mask
+        hierarchy = hierarchy[0]
+        out = mask.copy()
+        for i, (_, _, _, parent) in enumerate(hierarchy):
+            if parent < 0:
+                continue  # an outer contour
+            if cv2.contourArea(contours[i]) <= max_fraction * cv2.contourArea(contours[parent]):
+                cv2.drawContours(out, contours, i, 255, thickness=cv2.FILLED)
+        return out
+
+    def _adapt(self, img: np.ndarray, gain: np.ndarray, mask: np.ndarray, shadow: np.ndarray) -> None:
+        rate = self.config.background.adapt_rate
+        if rate <= 0:
+            return
+        busy = cv2.dilate(mask, self._adapt_k) > 0
+        still = (~busy & ~shadow).astype(np.uint8)
+        target = cv2.multiply(img, _scalar(1.0 / np.maximum(gain, 1e-3)))
+        cv2.accumulateWeighted(target, self._bg, rate, mask=still)
+
+    def _to_full(self, mask_small: np.ndarray) -> np.ndarray:
+        full = self._full_size
+        if full is not None and (mask_small.shape[1], mask_small.shape[0]) != full:
+            mask_small = cv2.resize(mask_small, full, interpolation=cv2.INTER_LINEAR)
+        return (mask_small > 127).astype(np.uint8)
+
+    def _quality(self, mask: np.ndarray, shadow_fraction: float, n_comp: int) -> FrameQuality:
+        q = self.config.quality
+        fraction = float(cv2.countNonZero(mask)) / mask.size
+        flags = 0
+        bbox = None
+        if fraction < q.empty_fraction:
+            flags |= EMPTY
+        if fraction > q.large_fraction:
+            flags |= TOO_LARGE
+        if fraction > 0:
+            x, y, w, h = cv2.boundingRect(mask)
+            bbox = (int(x), int(y), int(w), int(h))
+            m = q.border_margin
+            H, W = mask.shape
+            if x < m or y < m or x + w > W - m or y + h > H - m:
+                flags |= BORDER
+        if self.report is not None and not self.report.usable:
+            flags |= NO_BACKGROUND
+        return FrameQuality(self._count, fraction, shadow_fraction, n_comp, bbox, flags)

@@ -1,0 +1,248 @@
+"""The silhouette stage over whole videos: background, masks, quality, outputs.
+
+Outputs under ``OUT``::
+
+    OUT/silhouettes.h5                          masks + quality (gaitcap.io.silhouettes_h5)
+    OUT/silhouettes_quality.csv                 camera, frame, time_s, fraction, ..., flags
+    OUT/silhouettes/<camera>/<frame:06d>.png    with ``png=True`` (0/255 masks)
+    OUT/overlay/<camera>.mp4                    with ``overlay=True``
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import logging
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import cv2
+import numpy as np
+import yaml
+
+from gaitcap import __version__
+from gaitcap.errors import InputError, OutputError
+from gaitcap.io.atomic import atomic_path
+from gaitcap.io.silhouettes_h5 import SilhouetteWriter
+from gaitcap.io.video_out import VideoWriter
+from gaitcap.session import IMAGE_EXTENSIONS, VIDEO_EXTENSIONS, Session
+from gaitcap.silhouette.background import BackgroundReport
+from gaitcap.silhouette.config import SilhouetteConfig
+from gaitcap.silhouette.extract import FLAG_NAMES, FrameQuality, SilhouetteExtractor, flag_names
+from gaitcap.silhouette.overlay import draw_overlay
+from gaitcap.video import VideoReader, sample_frames
+
+log = logging.getLogger(__name__)
+
+H5_NAME = "silhouettes.h5"
+CSV_NAME = "silhouettes_quality.csv"
+
+
+@dataclass(frozen=True)
+class Source:
+    """One camera's input: its video and optional empty-scene plate."""
+
+    camera: str
+    video: Path
+    plate: Path | None = None
+
+
+@dataclass
+class CameraSummary:
+    """What the stage did for one camera."""
+
+    camera: str
+    frames: int
+    background: BackgroundReport
+    mean_fraction: float
+    flag_counts: dict[str, int] = field(default_factory=dict)
+
+
+def sources_from_session(root: str | Path) -> list[Source]:
+    """One :class:`Source` per camera of a session folder (plates from ``background/``)."""
+    session = Session.open(root)
+    return [Source(cam, session.videos[cam], session.backgrounds.get(cam)) for cam in session.camera_names]
+
+
+def sources_from_videos(paths: Sequence[str | Path]) -> list[Source]:
+    """Sources from video files and/or folders of videos; cameras are named after the file stems."""
+    sources: list[Source] = []
+    for p in map(Path, paths):
+        if p.is_dir():
+            found = sorted(q for q in p.iterdir() if q.suffix.lower() in VIDEO_EXTENSIONS)
+            if not found:
+                raise InputError(f"{p}: no video file ({', '.join(VIDEO_EXTENSIONS)}) in this folder")
+            sources += [Source(q.stem, q) for q in found]
+        elif p.exists():
+            sources.append(Source(p.stem, p))
+        else:
+            raise InputError(f"{p}: video not found")
+    names = [s.camera for s in sources]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise InputError(f"several videos would be named {', '.join(dup)}: rename them or pass them separately")
+    return sources
+
+
+def read_plate(path: Path) -> np.ndarray:
+    """Read a background plate as (H, W, 3) uint8 BGR."""
+    if path.suffix.lower() not in IMAGE_EXTENSIONS:
+        raise InputError(f"{path}: background plate must be one of {', '.join(IMAGE_EXTENSIONS)}")
+    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if img is None:
+        raise InputError(f"{path}: cannot read the background plate (missing or corrupt image)")
+    return img
+
+
+def prepare_extractor(source: Source, config: SilhouetteConfig) -> tuple[SilhouetteExtractor, float]:
+    """Probe the video, fit the background (plate and/or samples). Returns (extractor, fps)."""
+    with VideoReader(source.video) as video:
+        info = video.info
+    bcfg = config.background
+    use_plate = source.plate is not None and bcfg.source in ("auto", "plate")
+    if bcfg.source == "plate" and source.plate is None:
+        raise InputError(f"{source.camera}: background.source is 'plate' but there is no plate for this camera")
+    plate = None
+    if use_plate:
+        plate = read_plate(source.plate)  # type: ignore[arg-type]
+        if plate.shape[:2] != (info.height, info.width):
+            raise InputError(
+                f"{source.plate}: background plate is {plate.shape[1]}x{plate.shape[0]} but the video "
+                f"{source.video.name} is {info.width}x{info.height}"
+            )
+    samples = sample_frames(source.video, bcfg.samples)
+    extractor = SilhouetteExtractor(config, name=source.camera)
+    extractor.fit_background(plate=plate, samples=samples)
+    return extractor, info.fps
+
+
+def _check_outputs(out: Path, force: bool) -> None:
+    targets = [out / H5_NAME, out / CSV_NAME]
+    existing = [str(t) for t in targets if t.exists()]
+    if existing and not force:
+        raise OutputError(f"{existing[0]}: exists already (use --force to overwrite)")
+
+
+def run_silhouettes(
+    sources: Sequence[Source],
+    out: str | Path,
+    config: SilhouetteConfig | None = None,
+    png: bool = False,
+    overlay: bool = False,
+    force: bool = False,
+    max_frames: int | None = None,
+    progress: Callable[[str, int], None] | None = None,
+) -> list[CameraSummary]:
+    """Extract silhouettes of every source, one camera after the other, streaming the frames.
+
+    Args:
+        sources: the cameras (see :func:`sources_from_session`, :func:`sources_from_videos`).
+        out: output folder.
+        config: parameters (None: the shipped defaults).
+        png: also write one PNG per mask.
+        overlay: also write an overlay video per camera.
+        force: overwrite existing outputs.
+        max_frames: stop each camera after this many frames (None: whole video).
+        progress: called as ``progress(camera, frame_index)`` after each frame.
+
+    Returns:
+        One :class:`CameraSummary` per camera. Unusable backgrounds are logged as warnings and
+        every frame of that camera carries the ``no_background`` flag.
+    """
+    config = config or SilhouetteConfig.load()
+    out = Path(out)
+    if not sources:
+        raise InputError("no video to process")
+    _check_outputs(out, force)
+    attrs = {"config": yaml.safe_dump(config.model_dump(), sort_keys=False), "gaitcap_version": __version__}
+    attrs.update({f"flag_{name}": bit for bit, name in FLAG_NAMES.items()})
+    # prepare every camera first: bad input fails before anything is written
+    prepared = [(s, *prepare_extractor(s, config)) for s in sources]
+    summaries = []
+    with atomic_path(out / CSV_NAME) as csv_tmp, csv_tmp.open("w", newline="") as fh, SilhouetteWriter(
+        out / H5_NAME, attrs
+    ) as writer:
+        table = csv.writer(fh)
+        table.writerow(["camera", "frame", "time_s", "fraction", "shadow_fraction", "components", "flags"])
+        for source, extractor, fps in prepared:
+            summaries.append(
+                _run_camera(source, extractor, fps, writer, table, out, png, overlay, max_frames, progress)
+            )
+    return summaries
+
+
+def _run_camera(
+    source: Source,
+    extractor: SilhouetteExtractor,
+    fps: float,
+    writer: SilhouetteWriter,
+    table: csv.writer,  # type: ignore[valid-type]
+    out: Path,
+    png: bool,
+    overlay: bool,
+    max_frames: int | None,
+    progress: Callable[[str, int], None] | None,
+) -> CameraSummary:
+    report = extractor.report
+    if report is None:
+        raise InputError(f"{source.camera}: the background was not fitted")
+    cam = source.camera
+    with VideoReader(source.video, stop=max_frames) as video:
+        w, h = video.info.size
+        writer.add_camera(
+            cam, w, h, extractor.background,
+            {
+                "fps": fps, "video": str(source.video), "background_source": report.source,
+                "background_usable": report.usable, "background_message": report.message,
+                "ambiguous_fraction": report.ambiguous_fraction,
+            },
+        )
+        png_dir = out / "silhouettes" / cam
+        if png:
+            png_dir.mkdir(parents=True, exist_ok=True)
+        overlay_cm = VideoWriter(out / "overlay" / f"{cam}.mp4", fps, (w, h)) if overlay else contextlib.nullcontext()
+        with overlay_cm as ov:
+            fractions = []
+            counts = dict.fromkeys(FLAG_NAMES.values(), 0)
+            for index, frame in video:
+                mask, q = extractor.process(frame)
+                writer.append(cam, mask, _quality_row(q))
+                table.writerow(
+                    [cam, index, f"{index / fps:.4f}" if fps else "", f"{q.fraction:.6f}",
+                     f"{q.shadow_fraction:.6f}", q.components, "|".join(q.flag_names)]
+                )
+                if png and not cv2.imwrite(str(png_dir / f"{index:06d}.png"), mask * 255):
+                    raise OutputError(f"{png_dir}: cannot write PNG masks")
+                if ov is not None:
+                    ov.write(draw_overlay(frame, mask, q))
+                fractions.append(q.fraction)
+                for name in q.flag_names:
+                    counts[name] += 1
+                if progress is not None:
+                    progress(cam, index)
+    if not fractions:
+        raise InputError(f"{source.video}: no frame decoded")
+    return CameraSummary(cam, len(fractions), report, float(np.mean(fractions)), counts)
+
+
+def _quality_row(q: FrameQuality) -> dict[str, object]:
+    return {
+        "fraction": q.fraction,
+        "shadow_fraction": q.shadow_fraction,
+        "components": q.components,
+        "flags": q.flags,
+        "bbox": q.bbox if q.bbox is not None else (-1, -1, -1, -1),
+    }
+
+
+__all__ = [
+    "CameraSummary",
+    "Source",
+    "flag_names",
+    "prepare_extractor",
+    "read_plate",
+    "run_silhouettes",
+    "sources_from_session",
+    "sources_from_videos",
+]

@@ -1,0 +1,171 @@
+from __future__ import annotations
+
+import itertools
+import logging
+
+import numpy as np
+import pytest
+from silhouette_scene import iou, sway_in_place, walk_across
+
+from gaitcap.config import model_from_mapping
+from gaitcap.errors import ConfigError, InputError
+from gaitcap.silhouette import SilhouetteConfig, SilhouetteExtractor
+from gaitcap.silhouette.extract import BORDER, EMPTY, NO_BACKGROUND, TOO_LARGE
+
+
+@pytest.fixture(scope="module")
+def scene():
+    # dark trousers on a grey textured floor next to a soft cast shadow, noise, 8% drift
+    return walk_across(200, 150, 40, seed=3)
+
+
+def _mean_iou(extractor, scene, min_area=300):
+    ious = []
+    for k, (mask, _) in enumerate(extractor.extract(scene.frames)):
+        if scene.masks[k].sum() >= min_area:
+            ious.append(iou(mask, scene.masks[k]))
+    return float(np.mean(ious))
+
+
+def _config(**sections) -> SilhouetteConfig:
+    return model_from_mapping(SilhouetteConfig, sections, "test")
+
+
+def test_shipped_yaml_equals_schema_defaults():
+    assert SilhouetteConfig.load() == SilhouetteConfig()
+
+
+def test_config_rejects_unknown_key_with_suggestion():
+    with pytest.raises(ConfigError, match=r"shadow\.min_ration: unknown key \(did you mean 'min_ratio'\?\)"):
+        _config(shadow={"min_ration": 0.4})
+
+
+def test_config_rejects_inverted_shadow_ratios():
+    with pytest.raises(ConfigError, match="min_ratio"):
+        _config(shadow={"min_ratio": 0.9, "max_ratio": 0.5})
+
+
+def test_masks_match_truth_with_plate(scene):
+    ex = SilhouetteExtractor(SilhouetteConfig())
+    report = ex.fit_background(plate=scene.plate, samples=scene.frames[::4])
+    assert report.source == "plate" and report.usable
+    assert _mean_iou(ex, scene) >= 0.93
+
+
+def test_masks_match_truth_with_background_from_video(scene):
+    ex = SilhouetteExtractor(SilhouetteConfig())
+    report = ex.fit_background(samples=scene.frames[::2])
+    assert report.source == "video" and report.usable
+    assert _mean_iou(ex, scene) >= 0.93
+
+
+def test_shadow_suppression_removes_the_shadow_not_the_trousers(scene):
+    with_shadow = SilhouetteExtractor(SilhouetteConfig())
+    without = SilhouetteExtractor(_config(shadow={"enabled": False}))
+    for ex in (with_shadow, without):
+        ex.fit_background(plate=scene.plate)
+    k = 20
+    on, q_on = with_shadow.process(scene.frames[k])
+    off, q_off = without.process(scene.frames[k])
+    truth = scene.masks[k].astype(bool)
+    trousers = truth & (scene.frames[k].mean(axis=2) < 70)  # the dark legs
+    assert trousers.sum() > 200
+    assert on[trousers].mean() >= 0.95  # dark trousers kept although darker than the floor
+    assert off[~truth].sum() > 3 * max(on[~truth].sum(), 1)  # the shadow is what "off" adds
+    assert q_on.shadow_fraction > 0 and q_off.shadow_fraction == 0
+    assert iou(on, truth) > iou(off, truth) + 0.1
+
+
+def test_empty_scene_is_flagged_empty(scene):
+    ex = SilhouetteExtractor(SilhouetteConfig())
+    ex.fit_background(plate=scene.plate)
+    rng = np.random.default_rng(1)
+    frame = np.clip(scene.plate + rng.normal(0, 3, scene.plate.shape), 0, 255).astype(np.uint8)
+    mask, q = ex.process(frame)
+    assert mask.sum() == 0 and q.flags & EMPTY and q.bbox is None
+
+
+def test_figure_at_the_edge_is_flagged_border(scene):
+    ex = SilhouetteExtractor(SilhouetteConfig())
+    ex.fit_background(plate=scene.plate)
+    flags = [q.flags for _, q in ex.extract(scene.frames)]
+    truth = scene.masks
+    at_edge = [k for k in range(len(truth)) if truth[k].sum() > 100 and (truth[k][:, 0].any() or truth[k][:, -1].any())]
+    inside = [k for k in range(len(truth)) if truth[k].sum() > 100 and not (truth[k][:, :3].any() or truth[k][:, -3:].any())]
+    assert len(at_edge) >= 2 and len(inside) >= 10
+    assert all(flags[k] & BORDER for k in at_edge)
+    assert not any(flags[k] & BORDER for k in inside)
+
+
+def test_lighting_jump_compensated_or_flagged(scene):
+    jump = np.clip(scene.frames[20].astype(np.float32) * 1.35, 0, 255).astype(np.uint8)
+    ex = SilhouetteExtractor(SilhouetteConfig())
+    ex.fit_background(plate=scene.plate)
+    mask, q = ex.process(jump)
+    assert not q.flags & TOO_LARGE and iou(mask, scene.masks[20]) > 0.85
+    naive = SilhouetteExtractor(_config(background={"gain_compensation": False}))
+    naive.fit_background(plate=scene.plate)
+    _, q = naive.process(jump)
+    assert q.flags & TOO_LARGE
+
+
+def test_no_usable_background_when_subject_never_leaves(caplog):
+    sway = sway_in_place(200, 150, 40, seed=5)
+    ex = SilhouetteExtractor(SilhouetteConfig())
+    with caplog.at_level(logging.WARNING, logger="gaitcap"):
+        report = ex.fit_background(samples=sway.frames)
+    assert not report.usable
+    assert "no usable background" in caplog.text
+    _, q = ex.process(sway.frames[0])
+    assert q.flags & NO_BACKGROUND
+
+
+def test_usable_background_on_a_walk_across(scene, caplog):
+    ex = SilhouetteExtractor(SilhouetteConfig())
+    with caplog.at_level(logging.WARNING, logger="gaitcap"):
+        report = ex.fit_background(samples=scene.frames)
+    assert report.usable and report.ambiguous_fraction < 0.02
+    assert "no usable background" not in caplog.text
+
+
+def test_small_holes_filled_large_gaps_kept():
+    plate = np.full((120, 160, 3), 128, np.uint8)
+    frame = plate.copy()
+    frame[20:100, 40:120] = 30  # a dark block ...
+    frame[55:59, 60:64] = 128  # ... with a 4x4 hole (0.25% of the block)
+    frame[30:90, 95:110] = 128  # ... and a large notch-like hole (14%)
+    ex = SilhouetteExtractor(SilhouetteConfig())
+    ex.fit_background(plate=plate)
+    mask, _ = ex.process(frame)
+    assert mask[56, 61] == 1
+    assert mask[60, 102] == 0
+
+
+def test_extract_is_lazy(scene):
+    ex = SilhouetteExtractor(SilhouetteConfig())
+    ex.fit_background(plate=scene.plate)
+    endless = itertools.cycle(scene.frames[:3])  # never ends: extract must not collect it
+    out = list(itertools.islice(ex.extract(endless), 5))
+    assert [q.index for _, q in out] == [0, 1, 2, 3, 4]
+    assert out[0][0].shape == scene.frames[0].shape[:2] and out[0][0].dtype == np.uint8
+
+
+def test_working_scale_returns_full_size_masks():
+    scene = walk_across(320, 240, 24, seed=4)
+    ex = SilhouetteExtractor(_config(scale=0.5))
+    ex.fit_background(plate=scene.plate, samples=scene.frames[::4])
+    assert ex.background.shape == (120, 160, 3)
+    assert _mean_iou(ex, scene, min_area=800) >= 0.85
+
+
+def test_errors_name_the_camera(scene):
+    ex = SilhouetteExtractor(SilhouetteConfig(), name="camX")
+    with pytest.raises(InputError, match="camX.*fit_background"):
+        ex.process(scene.frames[0])
+    with pytest.raises(InputError, match="camX: no background plate"):
+        ex.fit_background()
+    ex.fit_background(plate=scene.plate)
+    with pytest.raises(InputError, match="camX: frame 0 is 100x75"):
+        ex.process(scene.frames[0][::2, ::2])
+    with pytest.raises(InputError, match="plate is 200x150 but the video is 100x75"):
+        ex.fit_background(plate=scene.plate, samples=scene.frames[:5, ::2, ::2])

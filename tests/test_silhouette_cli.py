@@ -1,0 +1,120 @@
+from __future__ import annotations
+
+import csv
+
+import cv2
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from silhouette_scene import iou, walk_across, write_video
+
+from gaitcap.camera import Camera, CameraRig
+from gaitcap.cli.main import cli
+from gaitcap.io.calibration_toml import write_calibration
+from gaitcap.io.silhouettes_h5 import read_cameras, read_mask_attrs, read_masks, read_quality
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return walk_across(160, 120, 24, seed=7)
+
+
+@pytest.fixture
+def session(tmp_path, scene):
+    """A 2-camera session (the same clip twice) with background plates."""
+    root = tmp_path / "session"
+    (root / "videos").mkdir(parents=True)
+    (root / "background").mkdir()
+    cams = [
+        Camera.look_at(name, [x, -4.0, 1.2], [0.0, 0.0, 0.9], size=(160, 120), focal_px=150.0)
+        for name, x in (("cam0", -1.0), ("cam1", 1.0))
+    ]
+    write_calibration(root / "calibration.toml", CameraRig(tuple(cams)))
+    for cam in ("cam0", "cam1"):
+        write_video(root / "videos" / f"{cam}.avi", scene.frames)
+        cv2.imwrite(str(root / "background" / f"{cam}.png"), scene.plate)
+    return root
+
+
+def _run(*args):
+    return CliRunner().invoke(cli, ["silhouettes", *map(str, args)])
+
+
+def test_session_outputs_masks_quality_png_and_overlay(session, scene, tmp_path):
+    out = tmp_path / "out"
+    result = _run(session, "-o", out, "--png", "--overlay")
+    assert result.exit_code == 0, result.output
+    h5 = out / "silhouettes.h5"
+    assert read_cameras(h5) == ["cam0", "cam1"]
+    masks = read_masks(h5, "cam1")
+    assert masks.shape == (24, 120, 160) and masks.dtype == np.uint8 and set(np.unique(masks)) <= {0, 1}
+    visible = [k for k in range(24) if scene.masks[k].sum() > 300]
+    assert np.mean([iou(masks[k], scene.masks[k]) for k in visible]) > 0.85  # MJPEG-compressed input
+    q = read_quality(h5, "cam0")
+    assert q["fraction"].shape == (24,) and q["bbox"].shape == (24, 4)
+    np.testing.assert_allclose(q["fraction"], read_masks(h5, "cam0").mean(axis=(1, 2)), atol=1e-6)
+    assert read_mask_attrs(h5, "cam0")["background_source"] == "plate"
+    rows = list(csv.DictReader((out / "silhouettes_quality.csv").open()))
+    assert len(rows) == 48 and rows[0]["camera"] == "cam0" and rows[0]["time_s"] == "0.0000"
+    pngs = sorted((out / "silhouettes" / "cam1").glob("*.png"))
+    assert len(pngs) == 24 and pngs[5].name == "000005.png"
+    np.testing.assert_array_equal(cv2.imread(str(pngs[5]), cv2.IMREAD_GRAYSCALE) // 255, masks[5])
+    assert cv2.VideoCapture(str(out / "overlay" / "cam0.mp4")).get(cv2.CAP_PROP_FRAME_COUNT) == 24
+    assert "mean foreground" in result.output
+
+
+def test_plain_video_without_session(tmp_path, scene):
+    video = write_video(tmp_path / "walk.avi", scene.frames)
+    out = tmp_path / "out"
+    result = _run("--video", video, "-o", out, "--max-frames", "10", "--no-shadow")
+    assert result.exit_code == 0, result.output
+    assert read_masks(out / "silhouettes.h5", "walk").shape == (10, 120, 160)
+    assert read_mask_attrs(out / "silhouettes.h5", "walk")["background_source"] == "video"
+
+
+def test_existing_output_needs_force(session, tmp_path):
+    out = tmp_path / "out"
+    assert _run(session, "-o", out, "--max-frames", "2").exit_code == 0
+    result = _run(session, "-o", out, "--max-frames", "2")
+    assert result.exit_code == 1 and "--force" in result.output
+    assert _run(session, "-o", out, "--max-frames", "2", "--force").exit_code == 0
+
+
+def test_corrupt_video_is_one_clear_error(session, tmp_path):
+    (session / "videos" / "cam1.avi").write_bytes(b"RIFF\x00\x00\x00\x00AVI garbage" * 50)
+    result = _run(session, "-o", tmp_path / "out")
+    assert result.exit_code == 1
+    assert "cam1.avi" in result.output and "Traceback" not in result.output
+    assert not (tmp_path / "out" / "silhouettes.h5").exists()
+
+
+def test_zero_frame_video_is_one_clear_error(tmp_path):
+    empty = tmp_path / "empty.avi"
+    cv2.VideoWriter(str(empty), cv2.VideoWriter_fourcc(*"MJPG"), 25.0, (64, 48)).release()
+    result = _run("--video", empty, "-o", tmp_path / "out")
+    assert result.exit_code == 1 and "empty.avi" in result.output and "no decodable frame" in result.output
+
+
+def test_plate_of_another_size_is_one_clear_error(session, scene, tmp_path):
+    cv2.imwrite(str(session / "background" / "cam0.png"), cv2.resize(scene.plate, (80, 60)))
+    result = _run(session, "-o", tmp_path / "out")
+    assert result.exit_code == 1
+    assert "cam0.png" in result.output and "80x60" in result.output and "160x120" in result.output
+
+
+def test_unreadable_plate_is_one_clear_error(session, tmp_path):
+    (session / "background" / "cam0.png").write_bytes(b"not a png")
+    result = _run(session, "-o", tmp_path / "out")
+    assert result.exit_code == 1 and "cam0.png" in result.output
+
+
+def test_bad_config_key_is_one_clear_error(session, tmp_path):
+    cfg = tmp_path / "s.yaml"
+    cfg.write_text("foreground:\n  treshold_sigma: 3\n")
+    result = _run(session, "-o", tmp_path / "out", "-c", cfg)
+    assert result.exit_code == 1 and "did you mean 'threshold_sigma'" in result.output
+
+
+def test_session_and_video_are_exclusive(session, tmp_path):
+    result = _run(session, "--video", session / "videos" / "cam0.avi", "-o", tmp_path / "out")
+    assert result.exit_code == 2
