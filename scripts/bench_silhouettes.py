@@ -23,7 +23,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 
 from gaitcap.config import model_from_mapping  # noqa: E402
-from gaitcap.io.video_out import VideoWriter  # noqa: E402
+from gaitcap.io.video_write import AtomicVideoWriter as VideoWriter  # noqa: E402
 from gaitcap.silhouette import SilhouetteConfig, SilhouetteExtractor  # noqa: E402
 from gaitcap.video import VideoReader  # noqa: E402
 

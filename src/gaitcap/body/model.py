@@ -85,22 +85,8 @@ class BodyModel:
         self.height_m = float(height_m if height_m is not None else spec.height_m)
         if not (0.5 < self.height_m < 2.6):
             raise ConfigError(f"subject height {self.height_m} m is outside 0.5-2.6 m")
-        scales = dict(scales or {})
-        unknown = set(scales) - set(spec.segments)
-        if unknown:
-            raise ConfigError(f"scales: unknown segments {', '.join(sorted(unknown))}")
-        self.scales = {n: np.asarray(scales.get(n, (1.0, 1.0, 1.0)), dtype=np.float64) for n in spec.segments}
-        for n, s in self.scales.items():
-            if s.shape != (3,) or not np.all(np.isfinite(s)) or np.any(s <= 0):
-                raise ConfigError(f"scales.{n}: must be three positive numbers")
-        shifts = dict(shifts or {})
-        unknown = set(shifts) - set(spec.segments)
-        if unknown:
-            raise ConfigError(f"shifts: unknown segments {', '.join(sorted(unknown))}")
-        self.shifts = {n: np.asarray(shifts.get(n, (0.0, 0.0, 0.0)), dtype=np.float64) for n in spec.segments}
-        for n, s in self.shifts.items():
-            if s.shape != (3,) or not np.all(np.isfinite(s)):
-                raise ConfigError(f"shifts.{n}: must be three finite numbers")
+        self.scales = _per_segment(spec, "scales", scales, 1.0, positive=True)
+        self.shifts = _per_segment(spec, "shifts", shifts, 0.0, positive=False)
         self._build()
 
     # ------------------------------------------------------------------ build
@@ -317,6 +303,21 @@ class BodyModel:
         if q.ndim != 2 or q.shape[1] != self.n_dofs:
             raise ValueError(f"poses must have shape (N, {self.n_dofs}), got {q.shape}")
         return q
+
+
+def _per_segment(
+    spec: BodySpec, what: str, values: Mapping[str, Sequence[float]] | None, default: float, positive: bool
+) -> dict[str, np.ndarray]:
+    """Validated per-segment 3-vectors (scales or shifts), ``default`` for segments not given."""
+    values = dict(values or {})
+    unknown = set(values) - set(spec.segments)
+    if unknown:
+        raise ConfigError(f"{what}: unknown segments {', '.join(sorted(unknown))}")
+    out = {n: np.asarray(values.get(n, (default,) * 3), dtype=np.float64) for n in spec.segments}
+    for n, v in out.items():
+        if v.shape != (3,) or not np.all(np.isfinite(v)) or (positive and np.any(v <= 0)):
+            raise ConfigError(f"{what}.{n}: must be three {'positive' if positive else 'finite'} numbers")
+    return out
 
 
 def _across_scale(axis: np.ndarray, scale: np.ndarray) -> float:

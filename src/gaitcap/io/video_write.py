@@ -2,8 +2,7 @@
 
 from __future__ import annotations
 
-import os
-import tempfile
+import contextlib
 from pathlib import Path
 from types import TracebackType
 
@@ -11,38 +10,42 @@ import cv2
 import numpy as np
 
 from gaitcap.errors import OutputError
-from gaitcap.io.atomic import default_file_mode
+from gaitcap.io.atomic import atomic_path
 
 #: codec name -> (fourcc, file extension)
 CODECS: dict[str, tuple[str, str]] = {"mp4v": ("mp4v", ".mp4"), "ffv1": ("FFV1", ".mkv"), "mjpg": ("MJPG", ".avi")}
+_CODEC_OF_EXTENSION = {ext: name for name, (_, ext) in CODECS.items()}
 
 
 class AtomicVideoWriter:
-    """A ``cv2.VideoWriter`` that writes to a temporary file and renames it on a clean close.
+    """A ``cv2.VideoWriter`` writing to a temporary name that is renamed on a clean close.
 
-    Use as a context manager; on an exception the partial file is removed.
+    ``codec`` defaults to the one of the extension (.mp4: mp4v, .mkv: ffv1, .avi: mjpg). Use as a
+    context manager; on an exception the partial file is removed and the target left untouched.
     """
 
-    def __init__(self, path: str | Path, fps: float, size: tuple[int, int], codec: str = "mp4v") -> None:
-        if codec not in CODECS:
-            raise OutputError(f"unknown codec {codec!r} (choose from {', '.join(CODECS)})")
-        fourcc, ext = CODECS[codec]
+    def __init__(self, path: str | Path, fps: float, size: tuple[int, int], codec: str | None = None) -> None:
         self.path = Path(path)
+        codec = codec or _CODEC_OF_EXTENSION.get(self.path.suffix.lower())
+        if codec not in CODECS:
+            raise OutputError(
+                f"{self.path}: unknown codec or video extension (codecs: {', '.join(CODECS)}; "
+                f"extensions: {', '.join(_CODEC_OF_EXTENSION)})"
+            )
+        fourcc, ext = CODECS[codec]
         if self.path.suffix.lower() != ext:
             raise OutputError(f"{self.path}: codec {codec} writes {ext} files")
         self.size = size
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{self.path.stem}.", suffix=f".part{ext}", dir=self.path.parent)
-        os.close(fd)
-        self._tmp = Path(tmp)
-        self._writer = cv2.VideoWriter(str(self._tmp), cv2.VideoWriter_fourcc(*fourcc), float(fps), size)
-        if not self._writer.isOpened():
-            self._tmp.unlink(missing_ok=True)
-            raise OutputError(f"{self.path}: OpenCV cannot open a {codec} video writer")
         self.frames = 0
+        self._stack = contextlib.ExitStack()
+        tmp = self._stack.enter_context(atomic_path(self.path, suffix=".part" + ext))
+        self._writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*fourcc), float(fps or 25.0), size)
+        if not self._writer.isOpened():
+            self._stack.close()
+            raise OutputError(f"{self.path}: OpenCV cannot open a {codec} video writer")
 
     def write(self, frame: np.ndarray) -> None:
-        """Append one BGR uint8 frame of shape (h, w, 3)."""
+        """Append one BGR uint8 frame of shape (h, w, 3) of the writer's size."""
         if frame.shape[:2] != (self.size[1], self.size[0]) or frame.dtype != np.uint8:
             raise OutputError(f"{self.path}: frame {frame.shape} {frame.dtype} does not match {self.size} uint8")
         self._writer.write(frame)
@@ -55,8 +58,4 @@ class AtomicVideoWriter:
         self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
     ) -> None:
         self._writer.release()
-        if exc_type is None:
-            os.chmod(self._tmp, default_file_mode())
-            os.replace(self._tmp, self.path)
-        else:
-            self._tmp.unlink(missing_ok=True)
+        self._stack.__exit__(exc_type, exc, tb)

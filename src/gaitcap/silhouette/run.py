@@ -25,7 +25,7 @@ from gaitcap import __version__
 from gaitcap.errors import InputError, OutputError
 from gaitcap.io.atomic import atomic_path
 from gaitcap.io.silhouettes_h5 import SilhouetteWriter
-from gaitcap.io.video_out import VideoWriter
+from gaitcap.io.video_write import AtomicVideoWriter as VideoWriter
 from gaitcap.session import IMAGE_EXTENSIONS, VIDEO_EXTENSIONS, Session
 from gaitcap.silhouette.background import BackgroundReport
 from gaitcap.silhouette.config import SilhouetteConfig

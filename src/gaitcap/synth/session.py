@@ -191,7 +191,7 @@ def _write_session(
                     masks[cam.name][t] = mask
         except BaseException as e:
             for wr in writers:
-                wr.__exit__(type(e), e, None)
+                wr.__exit__(type(e), e, e.__traceback__)
             raise
         for wr in writers:
             wr.__exit__(None, None, None)
