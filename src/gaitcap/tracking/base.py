@@ -1,0 +1,74 @@
+"""What every tracker shares: the model, the likelihood, the search intervals, the estimate."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from gaitcap.body.model import BodyModel
+from gaitcap.tracking.config import Layer, TrackingConfig
+from gaitcap.tracking.likelihood import SilhouetteLikelihood
+from gaitcap.tracking.observation import Observation
+
+
+@dataclass
+class Estimate:
+    """One frame's result."""
+
+    q: np.ndarray  # (D,) pose
+    points: np.ndarray  # (P, 3) metres
+    uncertainty: np.ndarray  # (P,) metres: spread of the weighted particles
+    log_likelihood: float
+    fit: float  # 1 - xor/|S|, mean over cameras
+    evaluations: int  # particles scored this frame
+
+
+def weighted_spread(points: np.ndarray, W: np.ndarray) -> np.ndarray:
+    """Per-point variance (sum over x, y, z) of weighted samples: points (N, P, 3), W (N,) -> (P,)."""
+    mean = np.einsum("n,npi->pi", W, points)
+    d = points - mean
+    return np.einsum("n,npi->p", W, d * d)
+
+
+class Tracker:
+    """Base class: holds the estimate of the previous frame (there is no dynamic model)."""
+
+    name = "tracker"
+
+    def __init__(self, model: BodyModel, likelihood: SilhouetteLikelihood, config: TrackingConfig,
+                 rng: np.random.Generator) -> None:  # fmt: skip
+        self.model = model
+        self.likelihood = likelihood
+        self.config = config
+        self.rng = rng
+        self.half_width = config.half_widths(model)
+        self.q = model.neutral_pose()
+
+    def start(self, q0: np.ndarray) -> None:
+        """Set the previous estimate (after initialisation or recovery)."""
+        self.q = self.model.clip(np.asarray(q0, float)[None])[0]
+
+    def step(self, obs: Observation) -> Estimate:
+        raise NotImplementedError
+
+    # ---------------------------------------------------------------- shared steps
+    def grid_offsets(self, n: int, dofs: np.ndarray, layer: Layer, widen: float = 1.0) -> np.ndarray:
+        """IPF diffusion: offsets (n, len(dofs)) drawn on each DOF's discretised interval.
+
+        The interval [-h, h] (h: the DOF's half-width x shrink x widen) is cut into steps of
+        ``layer.step_deg`` (``step_m`` for translations); each offset is a whole number of steps.
+        """
+        rot = self.model.is_rotation[dofs]
+        step = np.where(rot, np.radians(layer.step_deg), layer.step_m)
+        h = self.half_width[dofs] * layer.shrink * widen
+        m = np.maximum(1, np.floor(h / step + 1e-9)).astype(int)
+        k = self.rng.integers(-m, m + 1, size=(n, len(dofs)))
+        return k * step
+
+    def full_fit(self, obs: Observation, q: np.ndarray) -> tuple[float, float]:
+        """(log-likelihood, fit) of one pose against the full silhouettes."""
+        A, B, r = self.model.capsules(q[None])
+        ll = float(self.likelihood.log_likelihood(obs, A, B, r)[0])
+        fit = float(self.likelihood.fit(obs, A, B, r)[0])
+        return ll, fit
