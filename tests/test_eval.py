@@ -91,6 +91,12 @@ def test_nan_frames_are_flagged_and_excluded(truth):
     assert ev.n_flagged == 7
     assert ev.mpjpe_mm == pytest.approx(10.0, abs=1e-6)
     assert ev.to_dict()["frames"] == {"compared": truth.n_frames - 7, "total": truth.n_frames, "flagged": 7, "reference_missing": 0}
+    json.dumps(ev.to_dict(), allow_nan=False)  # strict JSON: NaN became null
+
+
+def test_nothing_tracked(truth):
+    with pytest.raises(InputError, match=r"OUT has no tracked point at all \(every frame is NaN\)"):
+        evaluate(tracked(truth, np.full_like(truth.points, np.nan)), truth)
 
 
 def test_untracked_point_is_dropped_with_a_note(truth):
