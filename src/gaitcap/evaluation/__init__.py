@@ -1,0 +1,11 @@
+"""``gaitcap eval``: accuracy of a tracking output against a synthetic truth or another run.
+
+- :mod:`gaitcap.evaluation.metrics`: pure error measures (positions, swaps, angles, event matching);
+- :mod:`gaitcap.evaluation.compare`: alignment and the whole comparison (:func:`evaluate`),
+  thresholds;
+- :mod:`gaitcap.evaluation.report`: reading the inputs, ``eval.json`` and the printed table.
+"""
+
+from gaitcap.evaluation.compare import Evaluation, Thresholds, check_thresholds, evaluate
+
+__all__ = ["Evaluation", "Thresholds", "check_thresholds", "evaluate"]

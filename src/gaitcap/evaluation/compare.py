@@ -1,0 +1,349 @@
+"""Compare a tracked trajectory with a reference (a synthetic truth or another run).
+
+Steps, each a small function:
+
+1. :func:`align`: the frames both trajectories cover (matched by time; the reference is resampled
+   first if its rate differs), the points both have. A point OUT never tracked (NaN throughout) is
+   dropped with a note. A frame where OUT has any NaN among the kept points is *flagged* and
+   excluded from every position and angle statistic (and counted).
+2. positions: MPJPE over all points, the lower limb (hips, knees, ankles), heel/toe, and per point.
+3. left/right swaps: frames where exchanging OUT's left and right leg points fits better.
+4. joint angles (:func:`gaitcap.gait.angles.joint_angles`, both in the reference's walking
+   direction): RMSE per angle and side.
+5. gait events detected on OUT (:func:`gaitcap.gait.analysis.analyse`) against the reference's
+   recorded events (a truth from ``gaitcap synth`` carries the motion file's events) or, when it
+   has none, the events detected on the reference; plus the *method baseline*: events detected on
+   the reference itself against its recorded events (what the event detector alone costs).
+6. gait parameters of OUT against the reference's (computed with the recorded events when there
+   are some).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from gaitcap.errors import InputError
+from gaitcap.evaluation.metrics import (
+    angle_rmse_deg,
+    event_error_summary,
+    group_errors,
+    match_events,
+    point_distances_mm,
+    runs,
+    swap_mask,
+)
+from gaitcap.gait.analysis import GaitAnalysis, analyse
+from gaitcap.gait.angles import ANGLE_NAMES, joint_angles
+from gaitcap.gait.options import GaitOptions
+from gaitcap.gait.parameters import OVERALL_KEYS, GaitParameters, compute_parameters
+from gaitcap.trajectory import FOOT, LOWER_LIMB, SIDES, GaitEvent, Trajectory, side_suffix
+
+log = logging.getLogger(__name__)
+
+#: the angles the ``--max-angle-rmse-deg`` threshold applies to (both sides); the others (pelvis,
+#: hip ab/adduction and rotation) are reported only: from joint centres they are poorly determined
+CHECKED_ANGLES: tuple[str, ...] = ("hip_flexion", "knee_flexion", "ankle_dorsiflexion")
+#: a detected event further than this from every reference event of its side and kind is "extra"
+MAX_MATCH_S = 0.25
+
+
+@dataclass(frozen=True)
+class Thresholds:
+    """Limits that make ``gaitcap eval`` exit with code 1 (None: not checked)."""
+
+    max_mpjpe_mm: float | None = None
+    max_angle_rmse_deg: float | None = None
+    max_event_error_frames: float | None = None
+
+
+@dataclass(frozen=True)
+class Aligned:
+    """Two trajectories on common frames and points.
+
+    Attributes:
+        names: the P common points.
+        est, ref: positions (F, P, 3), metres; ``est`` keeps its NaNs.
+        times: (F,) seconds on OUT's time axis.
+        rate_hz: the common rate.
+        flagged: (F,) OUT has a NaN among the points.
+        ref_missing: (F,) the reference has a NaN (excluded too, counted apart).
+        dropped: points OUT never tracked.
+    """
+
+    names: tuple[str, ...]
+    est: np.ndarray
+    ref: np.ndarray
+    times: np.ndarray
+    rate_hz: float
+    flagged: np.ndarray
+    ref_missing: np.ndarray
+    dropped: tuple[str, ...] = ()
+
+    @property
+    def valid(self) -> np.ndarray:
+        return ~self.flagged & ~self.ref_missing
+
+    def trajectory(self, which: str, mask_invalid: bool = False) -> Trajectory:
+        pts = (self.est if which == "est" else self.ref).copy()
+        if mask_invalid:
+            pts[~self.valid] = np.nan
+        return Trajectory(self.names, pts, self.rate_hz, float(self.times[0]))
+
+
+def align(out: Trajectory, ref: Trajectory) -> Aligned:
+    """Common frames (by time) and points of ``out`` and ``ref`` (see the module docstring).
+
+    Raises:
+        InputError: no common point, or no common frame.
+    """
+    if not math.isclose(out.rate_hz, ref.rate_hz, rel_tol=1e-6):
+        log.info("resampling the reference from %g Hz to %g Hz", ref.rate_hz, out.rate_hz)
+        ref = ref.resample(out.rate_hz)
+    names = [n for n in out.names if n in ref.names]
+    if not names:
+        raise InputError(f"no point in common (OUT: {', '.join(out.names)}; reference: {', '.join(ref.names)})")
+    dropped = tuple(n for n in names if not np.isfinite(out.point(n)).any())
+    names = [n for n in names if n not in dropped]
+    if not names:
+        raise InputError("OUT has no tracked point at all (every frame is NaN)")
+    j = np.rint((out.times() - ref.t0_s) * out.rate_hz).astype(int)
+    keep = (j >= 0) & (j < ref.n_frames)
+    if not keep.any():
+        raise InputError(
+            f"no frame in common: OUT covers {out.times()[0]:.3f}-{out.times()[-1]:.3f} s, "
+            f"the reference {ref.times()[0]:.3f}-{ref.times()[-1]:.3f} s"
+        )
+    est = out.subset(names).points[keep]
+    refp = ref.subset(names).points[j[keep]]
+    return Aligned(
+        names=tuple(names), est=est, ref=refp, times=out.times()[keep], rate_hz=out.rate_hz,
+        flagged=~np.isfinite(est).all(axis=(1, 2)), ref_missing=~np.isfinite(refp).all(axis=(1, 2)),
+        dropped=dropped,
+    )  # fmt: skip
+
+
+@dataclass
+class Evaluation:
+    """Everything ``gaitcap eval`` reports; :meth:`to_dict` is ``eval.json``."""
+
+    out_source: str
+    reference_source: str
+    rate_hz: float
+    n_frames: int
+    n_flagged: int
+    n_reference_missing: int
+    points: list[str]
+    positions: dict[str, dict[str, float] | None]
+    per_point_mm: dict[str, float]
+    swaps: dict[str, Any]
+    angles_rmse_deg: dict[str, float]
+    events: dict[str, Any]
+    events_baseline: dict[str, Any] | None
+    parameters: dict[str, Any]
+    notes: list[str] = field(default_factory=list)
+    failures: list[str] = field(default_factory=list)
+
+    @property
+    def mpjpe_mm(self) -> float:
+        return (self.positions.get("all") or {}).get("mpjpe_mm", math.nan)
+
+    def max_checked_angle_rmse(self) -> tuple[str, float]:
+        """The worst of :data:`CHECKED_ANGLES` (name with side suffix, RMSE degrees)."""
+        vals = {k: v for k, v in self.angles_rmse_deg.items() if k.rsplit("_", 1)[0] in CHECKED_ANGLES}
+        finite = {k: v for k, v in vals.items() if math.isfinite(v)}
+        if not finite:
+            return "", math.nan
+        k = max(finite, key=finite.__getitem__)
+        return k, finite[k]
+
+    def to_dict(self) -> dict[str, Any]:
+        name, worst = self.max_checked_angle_rmse()
+        doc = {
+            "out": self.out_source,
+            "reference": self.reference_source,
+            "rate_hz": self.rate_hz,
+            "frames": {"compared": self.n_frames - self.n_flagged - self.n_reference_missing, "total": self.n_frames,
+                       "flagged": self.n_flagged, "reference_missing": self.n_reference_missing},
+            "points": self.points,
+            "positions_mm": self.positions,
+            "per_point_mm": self.per_point_mm,
+            "left_right_swaps": self.swaps,
+            "angles_rmse_deg": self.angles_rmse_deg,
+            "checked_angles": {"names": list(CHECKED_ANGLES), "worst": name, "worst_rmse_deg": worst},
+            "events": self.events,
+            "events_method_baseline": self.events_baseline,
+            "parameters": self.parameters,
+            "notes": self.notes,
+            "thresholds_failed": self.failures,
+            "passed": not self.failures,
+        }  # fmt: skip
+        return _clean(doc)
+
+
+def _clean(obj: Any) -> Any:
+    """NaN/inf -> None, numpy scalars -> Python (for JSON)."""
+    if isinstance(obj, dict):
+        return {str(k): _clean(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_clean(v) for v in obj]
+    if isinstance(obj, np.generic):
+        obj = obj.item()
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    return obj
+
+
+# ------------------------------------------------------------------------------ sections
+def _positions(a: Aligned) -> tuple[dict[str, dict[str, float] | None], dict[str, float], dict[str, Any]]:
+    dist = point_distances_mm(a.est[a.valid], a.ref[a.valid])
+    groups = {"all": a.names, "lower_limb": LOWER_LIMB, "heel_toe": FOOT}
+    positions = {g: group_errors(dist, a.names, members) for g, members in groups.items()}
+    per_point = {n: (float(dist[:, i].mean()) if len(dist) else math.nan) for i, n in enumerate(a.names)}
+    swapped = swap_mask(a.est, a.ref, list(a.names)) & a.valid
+    n_valid = int(a.valid.sum())
+    swaps = {
+        "n_frames": int(swapped.sum()),
+        "fraction": float(swapped.sum() / n_valid) if n_valid else math.nan,
+        "runs": [[int(s), int(e)] for s, e in runs(swapped)],  # OUT frame ranges [start, stop) of the compared span
+    }
+    return positions, per_point, swaps
+
+
+def _angles(a: Aligned, ref_analysis: GaitAnalysis | None, notes: list[str]) -> dict[str, float]:
+    if ref_analysis is None:
+        return {}
+    try:
+        est_angles, _ = joint_angles(a.trajectory("est", mask_invalid=True), ref_analysis.direction)
+        ref_angles, _ = joint_angles(a.trajectory("ref"), ref_analysis.direction)
+    except InputError as e:
+        notes.append(f"joint angles not compared: {e}")
+        return {}
+    return {f"{n}{side_suffix(s)}": angle_rmse_deg(est_angles[f"{n}{side_suffix(s)}"], ref_angles[f"{n}{side_suffix(s)}"])[0]
+            for n in ANGLE_NAMES for s in SIDES}  # fmt: skip
+
+
+def _event_section(detected: list[GaitEvent], reference: list[GaitEvent], rate_hz: float, label: str) -> dict[str, Any]:
+    matches, missed, extra = match_events(detected, reference, MAX_MATCH_S)
+    return {
+        "reference_events": label,
+        "n_reference": len(reference),
+        "n_detected": len(detected),
+        "n_matched": len(matches),
+        "n_missed": len(missed),
+        "n_extra": len(extra),
+        **event_error_summary(matches, rate_hz),
+        "matches": [
+            {"side": m.side, "event": m.event, "reference_s": round(m.reference_s, 6), "detected_s": round(m.detected_s, 6),
+             "error_ms": 1000 * m.error_s, "error_frames": m.error_s * rate_hz}
+            for m in matches
+        ],  # fmt: skip
+        "missed": [{"side": e.side, "event": e.event, "time_s": e.time_s} for e in missed],
+        "extra": [{"side": e.side, "event": e.event, "time_s": e.time_s} for e in extra],
+    }
+
+
+def _parameters(out_p: GaitParameters | None, ref_p: GaitParameters | None) -> dict[str, Any]:
+    doc: dict[str, Any] = {
+        "out_status": out_p.status if out_p else "not computed",
+        "reference_status": ref_p.status if ref_p else "not computed",
+        "values": {},
+    }
+    if out_p is None or ref_p is None:
+        return doc
+    for key in OVERALL_KEYS:
+        r, o = ref_p.overall.get(key, math.nan), out_p.overall.get(key, math.nan)
+        diff = o - r
+        doc["values"][key] = {"reference": r, "out": o, "diff": diff,
+                              "diff_pct": 100.0 * diff / abs(r) if math.isfinite(r) and r != 0 else math.nan}  # fmt: skip
+    return doc
+
+
+def _analyse(traj: Trajectory, what: str, options: GaitOptions | None, notes: list[str]) -> GaitAnalysis | None:
+    try:
+        return analyse(traj, options)
+    except InputError as e:
+        notes.append(f"gait analysis of {what} failed: {e}")
+        return None
+
+
+def evaluate(
+    out: Trajectory,
+    reference: Trajectory,
+    *,
+    options: GaitOptions | None = None,
+    out_source: str = "",
+    reference_source: str = "",
+) -> Evaluation:
+    """Compare ``out`` with ``reference`` (see the module docstring).
+
+    Args:
+        out: the tracked trajectory (NaN frames are flagged).
+        reference: the truth or another run; its ``events`` are used as the recorded events.
+        options: gait analysis options for event detection on both.
+
+    Raises:
+        InputError: no common point or frame.
+    """
+    a = align(out, reference)
+    notes = [f"point never tracked in OUT, not compared: {n}" for n in a.dropped]
+    positions, per_point, swaps = _positions(a)
+
+    t_lo, t_hi = float(a.times[0]), float(a.times[-1])
+    recorded = [e for e in reference.events if t_lo - 1e-9 <= e.time_s <= t_hi + 1e-9]
+    ref_traj = replace(a.trajectory("ref"), events=tuple(recorded))
+    ref_analysis = _analyse(ref_traj, "the reference", options, notes)
+    out_analysis = _analyse(a.trajectory("est"), "OUT", options, notes)
+    angles = _angles(a, ref_analysis, notes)
+
+    events: dict[str, Any] = {}
+    baseline = None
+    ref_params = None
+    if ref_analysis is not None:
+        if recorded:
+            reference_events, label = recorded, "recorded in the reference"
+            baseline = _event_section(ref_analysis.events, recorded, a.rate_hz, label)
+            ref_params = compute_parameters(ref_traj, recorded, ref_analysis.direction)
+        else:
+            reference_events, label = ref_analysis.events, "detected on the reference"
+            ref_params = ref_analysis.parameters
+        if out_analysis is not None:
+            events = _event_section(out_analysis.events, reference_events, a.rate_hz, label)
+    parameters = _parameters(out_analysis.parameters if out_analysis else None, ref_params)
+    return Evaluation(
+        out_source=out_source, reference_source=reference_source, rate_hz=a.rate_hz,
+        n_frames=len(a.times), n_flagged=int(a.flagged.sum()), n_reference_missing=int((a.ref_missing & ~a.flagged).sum()),
+        points=list(a.names), positions=positions, per_point_mm=per_point, swaps=swaps, angles_rmse_deg=angles,
+        events=events, events_baseline=baseline, parameters=parameters, notes=notes,
+    )  # fmt: skip
+
+
+def check_thresholds(ev: Evaluation, limits: Thresholds) -> list[str]:
+    """The thresholds ``ev`` exceeds, one sentence each (empty: all passed).
+
+    A checked value that is not available (every frame flagged, no event matched) fails.
+    """
+    failures = []
+    if limits.max_mpjpe_mm is not None:
+        v = ev.mpjpe_mm
+        if not math.isfinite(v):
+            failures.append("MPJPE not available (no frame compared)")
+        elif v > limits.max_mpjpe_mm:
+            failures.append(f"MPJPE {v:.1f} mm > {limits.max_mpjpe_mm:g} mm")
+    if limits.max_angle_rmse_deg is not None:
+        name, v = ev.max_checked_angle_rmse()
+        if not math.isfinite(v):
+            failures.append("joint-angle RMSE not available")
+        elif v > limits.max_angle_rmse_deg:
+            failures.append(f"{name} RMSE {v:.1f} deg > {limits.max_angle_rmse_deg:g} deg")
+    if limits.max_event_error_frames is not None:
+        v = ev.events.get("max_abs_frames", math.nan) if ev.events else math.nan
+        if not ev.events or not ev.events.get("n_matched"):
+            failures.append("event timing not available (no detected event matched a reference event)")
+        elif v > limits.max_event_error_frames:
+            failures.append(f"event timing error {v:.2f} frames > {limits.max_event_error_frames:g} frames")
+    return failures

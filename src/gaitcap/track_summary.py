@@ -1,0 +1,94 @@
+"""``track.json``: the summary of one session's tracking run, and the "finished" test.
+
+A tracking output folder ``OUT`` is *finished* when ``OUT/track.json`` exists and says
+``"status": "ok"``; ``track.json`` is written last, so a run killed half-way leaves an unfinished
+folder that the next run redoes.
+
+```json
+{"status": "ok", "n_frames": 56, "n_flagged": 0, "seconds": 12.3, "gaitcap_version": "0.1.0",
+ "session": "sessions/walk01", "message": ""}
+```
+
+:class:`TrackSummary` is the contract between ``gaitcap.pipeline.run_track`` (one session) and
+``gaitcap.batch`` (many); the pipeline may re-export it.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from gaitcap import __version__
+from gaitcap.io.atomic import write_text_atomic
+
+log = logging.getLogger(__name__)
+
+TRACK_JSON = "track.json"
+STATUS_OK = "ok"
+STATUS_FAILED = "failed"
+STATUS_SKIPPED = "skipped"
+STATUSES = (STATUS_OK, STATUS_FAILED, STATUS_SKIPPED)
+
+
+@dataclass
+class TrackSummary:
+    """What one session's tracking run did.
+
+    Attributes:
+        session: the session folder.
+        out: the output folder.
+        status: ``"ok"``, ``"failed"`` or ``"skipped"`` (finished before, not redone).
+        n_frames: frames tracked.
+        n_flagged: frames flagged as unreliable (NaN in the trajectories).
+        seconds: wall-clock time of the run.
+        message: the error for a failed run, a note otherwise.
+    """
+
+    session: Path
+    out: Path
+    status: str
+    n_frames: int
+    n_flagged: int
+    seconds: float
+    message: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``track.json`` document."""
+        return {
+            "status": self.status,
+            "n_frames": int(self.n_frames),
+            "n_flagged": int(self.n_flagged),
+            "seconds": round(float(self.seconds), 3),
+            "gaitcap_version": __version__,
+            "session": str(self.session),
+            "message": self.message,
+        }
+
+
+def write_track_json(summary: TrackSummary) -> Path:
+    """Write ``summary.out/track.json`` atomically (the last output of a run)."""
+    path = Path(summary.out) / TRACK_JSON
+    write_text_atomic(path, json.dumps(summary.to_dict(), indent=2) + "\n")
+    return path
+
+
+def read_track_json(out: str | Path) -> dict[str, Any] | None:
+    """The ``track.json`` document of ``out``, or None when absent or unreadable (logged)."""
+    path = Path(out) / TRACK_JSON
+    if not path.is_file():
+        return None
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        log.warning("%s: unreadable (%s); the session will be redone", path, e)
+        return None
+    return data if isinstance(data, dict) else None
+
+
+def is_finished(out: str | Path) -> bool:
+    """True when ``out/track.json`` records a successful run."""
+    data = read_track_json(out)
+    return data is not None and data.get("status") == STATUS_OK

@@ -1,0 +1,187 @@
+"""Bad input, each with the message the user sees (the ``track`` command is tested by the lead;
+here: Session.open, check_session_videos, gaitcap.video, configs, eval outputs, batch, writers)."""
+
+from __future__ import annotations
+
+import errno
+import os
+from pathlib import Path
+
+import cv2
+import h5py
+import numpy as np
+import pytest
+from session_factory import make_session
+
+from gaitcap.config import load_yaml_model
+from gaitcap.errors import CalibrationError, ConfigError, InputError, OutputError
+from gaitcap.gait.options import GaitOptions
+from gaitcap.io.atomic import write_text_atomic
+from gaitcap.io.trajectories_h5 import write_trajectory
+from gaitcap.session import Session
+from gaitcap.session_check import check_session_videos
+from gaitcap.trajectory import POINT_NAMES, Trajectory
+from gaitcap.video import VideoReader
+
+
+def message(excinfo: pytest.ExceptionInfo) -> str:
+    return str(excinfo.value)
+
+
+# ------------------------------------------------------------------------------- videos
+def test_corrupt_video(tmp_path):
+    root = make_session(tmp_path / "s")
+    (root / "videos" / "cam1.avi").write_bytes(np.random.default_rng(0).integers(0, 256, 5000, dtype=np.uint8).tobytes())
+    with pytest.raises(InputError) as e:
+        check_session_videos(Session.open(root))
+    assert message(e) == f"{root / 'videos' / 'cam1.avi'}: cannot open as a video (unreadable, corrupt or unsupported format)"
+
+
+def test_truncated_video_reads_what_decodes_and_warns(tmp_path, caplog):
+    root = make_session(tmp_path / "s", frames={"cam0": 30})
+    video = root / "videos" / "cam0.avi"
+    video.write_bytes(video.read_bytes()[: video.stat().st_size // 2])
+    with VideoReader(video) as reader:
+        n = sum(1 for _ in reader)
+    assert 0 < n < 30
+    assert f"{video}: decoding stopped at frame {n} of 30 declared (truncated or corrupt file?)" in caplog.text
+
+
+def test_zero_frame_video(tmp_path):
+    root = make_session(tmp_path / "s")
+    path = root / "videos" / "cam1.avi"
+    cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"MJPG"), 25.0, (96, 64)).release()
+    with pytest.raises(InputError) as e:
+        check_session_videos(Session.open(root))
+    assert message(e) == f"{path}: the video has no decodable frame (empty or corrupt)"
+
+
+def test_frame_count_mismatch_is_a_warning_and_rate_mismatch_an_error(tmp_path, caplog):
+    counts = check_session_videos(Session.open(make_session(tmp_path / "a", frames={"cam0": 20, "cam1": 17})))
+    assert counts.n_frames == 17
+    (record,) = [r for r in caplog.records if "different lengths" in r.getMessage()]
+    assert record.levelname == "WARNING"
+    assert record.getMessage() == "videos of different lengths (cam0 20, cam1 17 frames); using the 17 frames common to all cameras"
+    with pytest.raises(InputError) as e:
+        check_session_videos(Session.open(make_session(tmp_path / "b", fps={"cam1": 30.0})))
+    assert message(e) == ("the cameras' frame rates differ: cam0 25 fps, cam1 30 fps; "
+                          "re-encode the videos at one rate (or allow the mismatch)")  # fmt: skip
+
+
+# -------------------------------------------------------------------- session folder
+def test_camera_without_a_video(tmp_path):
+    root = make_session(tmp_path / "s")
+    (root / "videos" / "cam1.avi").rename(root / "videos" / "camera1.avi")
+    with pytest.raises(InputError) as e:
+        Session.open(root)
+    assert message(e) == f"{root / 'videos'}: no video for camera 'cam1' from calibration.toml (files: cam0.avi, camera1.avi)"
+
+
+def test_malformed_calibration_toml(tmp_path):
+    root = make_session(tmp_path / "s")
+    (root / "calibration.toml").write_text("[cam0]\nsize = [96, 64\n")
+    with pytest.raises(CalibrationError) as e:
+        Session.open(root)
+    assert message(e) == f"{root / 'calibration.toml'}: not valid TOML: Unclosed array (at end of document)"
+
+
+def test_calibration_missing_a_key(tmp_path):
+    root = make_session(tmp_path / "s")
+    toml = root / "calibration.toml"
+    toml.write_text(toml.read_text().replace("matrix", "matrx"))
+    with pytest.raises(CalibrationError) as e:
+        Session.open(root)
+    assert message(e) == f"{toml}: camera 'cam0': missing key 'matrix'"
+
+
+@pytest.mark.parametrize(
+    ("yaml_text", "expected"),
+    [
+        ("subjet: {height_m: 1.7}\n", "subjet: unknown key (did you mean 'subject'?)"),
+        ("subject: {heigth_m: 1.7}\n", "subject.heigth_m: unknown key (did you mean 'height_m'?)"),
+        ("subject: {height_m: tall}\n", "subject.height_m: Input should be a valid number, unable to parse string as a number"),
+        ("subject: {height_m: 172}\n", "subject.height_m: Input should be less than 2.6"),
+    ],
+)
+def test_session_yaml_errors(tmp_path, yaml_text, expected):
+    root = make_session(tmp_path / "s", session_yaml=yaml_text)
+    with pytest.raises(ConfigError) as e:
+        Session.open(root)
+    assert message(e) == f"{root / 'session.yaml'}: {expected}"
+
+
+def test_unknown_gait_option_suggests_the_key(tmp_path):
+    path = tmp_path / "gait.yaml"
+    path.write_text("lowpass_hz: 6\nmin_promincence: 0.3\nrefine: maybe\n")
+    with pytest.raises(ConfigError) as e:
+        load_yaml_model(GaitOptions, path)
+    assert message(e).splitlines() == [
+        f"{path}: refine: Input should be a valid boolean, unable to interpret input",
+        f"{path}: min_promincence: unknown key (did you mean 'min_prominence'?)",
+    ]
+
+
+# ------------------------------------------------------------------------------ outputs
+def small_trajectory() -> Trajectory:
+    pts = np.random.default_rng(3).normal(0, 1, (5, len(POINT_NAMES), 3))
+    return Trajectory(POINT_NAMES, pts, 25.0)
+
+
+def test_output_under_a_file_is_refused(tmp_path):
+    blocker = tmp_path / "results"
+    blocker.write_text("a file, not a folder")
+    with pytest.raises(OutputError) as e:
+        write_trajectory(blocker / "OUT" / "trajectories.h5", small_trajectory())
+    assert message(e) == f"{blocker / 'OUT' / 'trajectories.h5'}: cannot write here (Not a directory)"
+
+
+def test_read_only_output_folder(tmp_path):
+    folder = tmp_path / "ro"
+    folder.mkdir()
+    folder.chmod(0o555)
+    try:
+        if os.access(folder, os.W_OK):
+            pytest.skip("chmod has no effect (running as root)")
+        with pytest.raises(OutputError) as e:
+            write_text_atomic(folder / "eval.json", "{}")
+    finally:
+        folder.chmod(0o755)
+    assert message(e) == f"{folder / 'eval.json'}: cannot write here (Permission denied)"
+
+
+def _leftovers(folder: Path) -> list[str]:
+    return sorted(p.name for p in folder.iterdir())
+
+
+def test_disk_full_while_writing_text_leaves_the_old_file(tmp_path, monkeypatch):
+    target = tmp_path / "eval.json"
+    target.write_text('{"old": true}')
+    real_write_text = Path.write_text
+
+    def full(self: Path, data: str, *args, **kwargs) -> int:
+        real_write_text(self, data[: len(data) // 2], *args, **kwargs)  # part written, then the disk is full
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(self))
+
+    monkeypatch.setattr(Path, "write_text", full)
+    with pytest.raises(OutputError) as e:
+        write_text_atomic(target, '{"new": true, "padding": "' + "x" * 1000 + '"}')
+    monkeypatch.undo()
+    assert message(e) == f"{target}: write failed (No space left on device)"
+    assert _leftovers(tmp_path) == ["eval.json"]
+    assert target.read_text() == '{"old": true}'
+
+
+def test_disk_full_while_writing_hdf5_leaves_no_partial_file(tmp_path, monkeypatch):
+    real = h5py.Group.create_dataset
+
+    def full(self, name, *args, **kwargs):
+        if name == "times":  # /points is written, then the disk is full
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        return real(self, name, *args, **kwargs)
+
+    monkeypatch.setattr(h5py.Group, "create_dataset", full)
+    out = tmp_path / "OUT"
+    with pytest.raises(OutputError) as e:
+        write_trajectory(out / "trajectories.h5", small_trajectory())
+    assert message(e) == f"{out / 'trajectories.h5'}: write failed (No space left on device)"
+    assert _leftovers(out) == []

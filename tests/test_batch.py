@@ -1,0 +1,185 @@
+from __future__ import annotations
+
+import json
+import logging
+import os
+from pathlib import Path
+
+import pytest
+from batch_tasks import N_FRAMES, fake_track
+
+from gaitcap.batch import any_failed, find_sessions, format_summary, run_batch
+from gaitcap.errors import ConfigError, InputError, OutputError
+from gaitcap.track_summary import TRACK_JSON, is_finished
+
+
+def make_sessions(root: Path, names: list[str], fail: tuple[str, ...] = (), crash: tuple[str, ...] = ()) -> list[Path]:
+    out = []
+    for name in names:
+        s = root / name
+        s.mkdir(parents=True)
+        (s / "calibration.toml").write_text("# not read by the fake task\n")
+        if name in fail:
+            (s / "FAIL").touch()
+        if name in crash:
+            (s / "CRASH").touch()
+        out.append(s)
+    return out
+
+
+def test_find_sessions_sub_folders_sorted_or_the_folder_itself(tmp_path):
+    make_sessions(tmp_path / "all", ["walk02", "walk01"])
+    (tmp_path / "all" / "notes").mkdir()
+    assert [p.name for p in find_sessions(tmp_path / "all")] == ["walk01", "walk02"]
+    assert find_sessions(tmp_path / "all" / "walk02") == [tmp_path / "all" / "walk02"]
+
+
+def test_find_sessions_errors_name_the_folder(tmp_path):
+    with pytest.raises(InputError, match="nope: folder not found"):
+        find_sessions(tmp_path / "nope")
+    (tmp_path / "empty" / "sub").mkdir(parents=True)
+    with pytest.raises(InputError, match=r"empty: no session found .*calibration.toml"):
+        find_sessions(tmp_path / "empty")
+
+
+def test_a_failed_session_does_not_stop_the_others(tmp_path):
+    sessions = make_sessions(tmp_path / "in", ["a", "b", "c", "d"], fail=("b",), crash=("c",))
+    res = run_batch(sessions, tmp_path / "out", task=fake_track)
+    assert [s.status for s in res] == ["ok", "failed", "failed", "ok"]
+    assert "never in view" in res[1].message
+    assert res[2].message == "ZeroDivisionError: division by zero"
+    assert any_failed(res)
+    for name in "ad":
+        assert is_finished(tmp_path / "out" / name)
+        assert res["abcd".index(name)].n_frames == N_FRAMES
+    for name in "bc":
+        assert not (tmp_path / "out" / name / TRACK_JSON).exists()
+    # one log per session; a failure's log has the message and the traceback
+    log_b = (tmp_path / "out" / "b" / "track.log").read_text()
+    assert "fake tracking of b" in log_b and "never in view" in log_b and "Traceback" in log_b
+    log_a = (tmp_path / "out" / "a" / "track.log").read_text()
+    assert "fake tracking of a" in log_a and "of b" not in log_a
+
+
+def test_finished_sessions_are_skipped_unless_force(tmp_path):
+    sessions = make_sessions(tmp_path / "in", ["a", "b"], fail=("b",))
+    run_batch(sessions, tmp_path / "out", task=fake_track)
+    (sessions[1] / "FAIL").unlink()
+    again = run_batch(sessions, tmp_path / "out", task=fake_track)
+    assert [s.status for s in again] == ["skipped", "ok"]  # the failed one is redone
+    assert "use --force" in again[0].message
+    forced = run_batch(sessions, tmp_path / "out", task=fake_track, force=True)
+    assert [s.status for s in forced] == ["ok", "ok"]
+    assert not any_failed(forced)
+
+
+def test_unreadable_track_json_means_not_finished(tmp_path, caplog):
+    sessions = make_sessions(tmp_path / "in", ["a"])
+    out = tmp_path / "out" / "a"
+    out.mkdir(parents=True)
+    (out / TRACK_JSON).write_text("{ half written")
+    res = run_batch(sessions, tmp_path / "out", task=fake_track)
+    assert res[0].status == "ok"
+    assert "track.json: unreadable" in caplog.text
+
+
+def test_task_options_reach_the_task_and_progress_is_off_in_parallel(tmp_path):
+    sessions = make_sessions(tmp_path / "in", ["a"])
+    run_batch(sessions, tmp_path / "out", task=fake_track, tracker="factored_ipf")
+    log_a = (tmp_path / "out" / "a" / "track.log").read_text()
+    assert "tracker=factored_ipf, progress=True" in log_a
+
+
+def test_parallel_processes(tmp_path):
+    sessions = make_sessions(tmp_path / "in", ["a", "b", "c"], fail=("c",))
+    res = run_batch(sessions, tmp_path / "out", task=fake_track, jobs=2)
+    assert [s.status for s in res] == ["ok", "ok", "failed"]
+    pids = {s.message for s in res[:2]}
+    assert all(p.startswith("pid ") and p != f"pid {os.getpid()}" for p in pids)  # ran in workers
+    assert "progress=False" in (tmp_path / "out" / "a" / "track.log").read_text()
+    assert "never in view" in (tmp_path / "out" / "c" / "track.log").read_text()
+
+
+def test_dask_scheduler_address(tmp_path):
+    distributed = pytest.importorskip("dask.distributed")
+    sessions = make_sessions(tmp_path / "in", ["a", "b"], fail=("b",))
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cluster:
+        res = run_batch(sessions, tmp_path / "out", task=fake_track, scheduler=cluster.scheduler_address)
+    assert [s.status for s in res] == ["ok", "failed"]
+    assert is_finished(tmp_path / "out" / "a")
+    assert "never in view" in (tmp_path / "out" / "b" / "track.log").read_text()
+
+
+def test_bad_batch_arguments(tmp_path):
+    sessions = make_sessions(tmp_path / "x", ["a"]) + make_sessions(tmp_path / "y", ["a"])
+    with pytest.raises(InputError, match="several sessions are named a"):
+        run_batch(sessions, tmp_path / "out", task=fake_track)
+    with pytest.raises(ConfigError, match="--jobs must be at least 1"):
+        run_batch(sessions[:1], tmp_path / "out", task=fake_track, jobs=0)
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    with pytest.raises(OutputError, match="file/out: cannot create the output folder"):
+        run_batch(sessions[:1], blocker / "out", task=fake_track)
+
+
+def test_read_only_output_root_fails_each_session_clearly(tmp_path):
+    sessions = make_sessions(tmp_path / "in", ["a"])
+    root = tmp_path / "ro"
+    root.mkdir()
+    root.chmod(0o555)
+    try:
+        if os.access(root, os.W_OK):
+            pytest.skip("chmod has no effect (running as root)")
+        res = run_batch(sessions, root, task=fake_track)
+    finally:
+        root.chmod(0o755)
+    assert res[0].status == "failed"
+    assert "ro/a/track.log: cannot write the session log (Permission denied)" in res[0].message
+
+
+def test_console_stays_quiet_when_logger_is_at_warning(tmp_path):
+    logger = logging.getLogger("gaitcap")
+    old = logger.level
+    logger.setLevel(logging.WARNING)
+    try:
+        sessions = make_sessions(tmp_path / "in", ["a"])
+        run_batch(sessions, tmp_path / "out", task=fake_track)
+        assert logger.level == logging.WARNING
+    finally:
+        logger.setLevel(old)
+    assert "fake tracking of a" in (tmp_path / "out" / "a" / "track.log").read_text()
+
+
+def test_format_summary_table(tmp_path):
+    sessions = make_sessions(tmp_path / "in", ["walk01", "walk02"], fail=("walk02",))
+    text = format_summary(run_batch(sessions, tmp_path / "out", task=fake_track))
+    lines = text.splitlines()
+    assert lines[0].split() == ["session", "status", "frames", "flagged", "seconds", "message"]
+    assert lines[1].split()[:4] == ["walk01", "ok", str(N_FRAMES), "1"]
+    assert lines[2].split()[:2] == ["walk02", "failed"] and "never in view" in lines[2]
+    assert lines[-1] == "2 sessions: 1 ok, 1 failed, 0 skipped"
+    assert json.loads((tmp_path / "out" / "walk01" / TRACK_JSON).read_text())["status"] == "ok"
+
+
+def test_dask_local_cluster(tmp_path):
+    pytest.importorskip("dask.distributed")
+    sessions = make_sessions(tmp_path / "in", ["a", "b"])
+    res = run_batch(sessions, tmp_path / "out", task=fake_track, scheduler="local", jobs=2)
+    assert [s.status for s in res] == ["ok", "ok"]
+    assert all(s.message != f"pid {os.getpid()}" for s in res)  # worker processes
+
+
+def test_dask_missing_is_a_clear_error(tmp_path, monkeypatch):
+    monkeypatch.setitem(__import__("sys").modules, "dask.distributed", None)
+    sessions = make_sessions(tmp_path / "in", ["a"])
+    with pytest.raises(ConfigError, match=r"dask.distributed is not installed \(pip install 'gaitcap\[distributed\]'\)"):
+        run_batch(sessions, tmp_path / "out", task=fake_track, scheduler="local")
+
+
+def test_session_output_blocked_by_a_file(tmp_path):
+    sessions = make_sessions(tmp_path / "in", ["a", "b"])
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "a").write_text("not a folder")
+    res = run_batch(sessions, tmp_path / "out", task=fake_track)
+    assert [s.status for s in res] == ["failed", "ok"]
+    assert "out/a/track.log: cannot write the session log" in res[0].message

@@ -1,0 +1,215 @@
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from gaitcap.cli.main import cli
+from gaitcap.data import embedded_walk
+from gaitcap.errors import InputError
+from gaitcap.evaluation import Thresholds, check_thresholds, evaluate
+from gaitcap.evaluation.metrics import angle_rmse_deg, match_events, runs, swap_mask
+from gaitcap.io.trajectories_h5 import write_trajectory
+from gaitcap.synth.session import SynthOptions, synthesize
+from gaitcap.synth.truth import read_truth
+from gaitcap.trajectory import GaitEvent, Trajectory
+
+LEGS = ("hip", "knee", "ankle", "heel", "toe")
+
+
+@pytest.fixture(scope="module")
+def session(tmp_path_factory):
+    out = tmp_path_factory.mktemp("eval") / "walk"
+    synthesize(embedded_walk(), out, SynthOptions(size=(320, 240)), progress=False)
+    return out
+
+
+@pytest.fixture(scope="module")
+def truth(session) -> Trajectory:
+    return read_truth(session / "truth.h5").trajectory
+
+
+def tracked(truth: Trajectory, points: np.ndarray) -> Trajectory:
+    """What a tracker writes: the points, no recorded events."""
+    return replace(truth, points=points, events=(), meta={})
+
+
+def swap_legs(points: np.ndarray, names: tuple[str, ...], frames: slice) -> np.ndarray:
+    p = points.copy()
+    for leg in LEGS:
+        i, j = names.index(f"{leg}_l"), names.index(f"{leg}_r")
+        p[frames, i], p[frames, j] = points[frames, j], points[frames, i]
+    return p
+
+
+def test_truth_has_recorded_events(truth):
+    assert truth.n_frames > 40 and len(truth.events) >= 4
+
+
+def test_constant_offset_gives_its_size_as_mpjpe(truth):
+    ev = evaluate(tracked(truth, truth.points + [0.006, -0.008, 0.0]), truth)
+    for group in ("all", "lower_limb", "heel_toe"):
+        assert ev.positions[group]["mpjpe_mm"] == pytest.approx(10.0, abs=1e-6)
+    assert ev.positions["lower_limb"]["n_points"] == 6 and ev.positions["heel_toe"]["n_points"] == 4
+    assert all(v == pytest.approx(10.0, abs=1e-6) for v in ev.per_point_mm.values())
+    assert ev.swaps["n_frames"] == 0
+    # a rigid translation changes no joint angle and no event
+    assert max(ev.angles_rmse_deg.values()) < 1e-6
+    assert [m["error_ms"] for m in ev.events["matches"]] == pytest.approx(
+        [m["error_ms"] for m in ev.events_baseline["matches"]]
+    )
+    assert ev.events["reference_events"] == "recorded in the reference"
+
+
+def test_gaussian_noise_mpjpe_matches_the_chi_mean(truth):
+    sigma = 0.004
+    rng = np.random.default_rng(7)
+    ev = evaluate(tracked(truth, truth.points + rng.normal(0, sigma, truth.points.shape)), truth)
+    expected = 1000 * sigma * 2 * math.sqrt(2 / math.pi)  # mean of a 3-D isotropic Gaussian's norm
+    assert ev.mpjpe_mm == pytest.approx(expected, rel=0.05)
+    assert ev.positions["all"]["frame_max_mm"] > ev.positions["all"]["frame_median_mm"]
+    assert ev.swaps["n_frames"] == 0
+
+
+def test_left_right_swap_is_counted(truth):
+    pts = swap_legs(truth.points, truth.names, slice(20, 30))
+    ev = evaluate(tracked(truth, pts), truth)
+    assert ev.swaps["n_frames"] == 10
+    assert ev.swaps["runs"] == [[20, 30]]
+    assert ev.positions["lower_limb"]["mpjpe_mm"] > 20
+    assert ev.per_point_mm["pelvis"] == pytest.approx(0.0)
+
+
+def test_nan_frames_are_flagged_and_excluded(truth):
+    pts = truth.points + [0.0, 0.0, 0.01]
+    pts[5:12] = np.nan
+    ev = evaluate(tracked(truth, pts), truth)
+    assert ev.n_flagged == 7
+    assert ev.mpjpe_mm == pytest.approx(10.0, abs=1e-6)
+    assert ev.to_dict()["frames"] == {"compared": truth.n_frames - 7, "total": truth.n_frames, "flagged": 7, "reference_missing": 0}
+    json.dumps(ev.to_dict(), allow_nan=False)  # strict JSON: NaN became null
+
+
+def test_nothing_tracked(truth):
+    with pytest.raises(InputError, match=r"OUT has no tracked point at all \(every frame is NaN\)"):
+        evaluate(tracked(truth, np.full_like(truth.points, np.nan)), truth)
+
+
+def test_untracked_point_is_dropped_with_a_note(truth):
+    pts = truth.points.copy()
+    pts[:, truth.names.index("wrist_l")] = np.nan
+    ev = evaluate(tracked(truth, pts), truth)
+    assert ev.n_flagged == 0 and "wrist_l" not in ev.points
+    assert "point never tracked in OUT, not compared: wrist_l" in ev.notes
+
+
+def test_shorter_output_is_aligned_by_time(truth):
+    start = 10
+    out = Trajectory(truth.names, truth.points[start:] + [0.01, 0, 0], truth.rate_hz, t0_s=start / truth.rate_hz)
+    ev = evaluate(out, truth)
+    assert ev.n_frames == truth.n_frames - start
+    assert ev.mpjpe_mm == pytest.approx(10.0, abs=1e-6)
+    assert all(m["reference_s"] >= start / truth.rate_hz - 1e-9 for m in ev.events["matches"])
+
+
+def test_no_common_frame_or_point(truth):
+    late = Trajectory(truth.names, truth.points, truth.rate_hz, t0_s=100.0)
+    with pytest.raises(InputError, match="no frame in common"):
+        evaluate(late, truth)
+    other = Trajectory(("a", "b"), truth.points[:, :2], truth.rate_hz)
+    with pytest.raises(InputError, match="no point in common"):
+        evaluate(other, truth)
+
+
+def test_thresholds(truth):
+    ev = evaluate(tracked(truth, truth.points + [0.01, 0, 0]), truth)
+    assert check_thresholds(ev, Thresholds(max_mpjpe_mm=11, max_angle_rmse_deg=1, max_event_error_frames=5)) == []
+    fails = check_thresholds(ev, Thresholds(max_mpjpe_mm=9.5, max_event_error_frames=0.01))
+    assert fails[0] == "MPJPE 10.0 mm > 9.5 mm"
+    assert fails[1].startswith("event timing error") and fails[1].endswith("> 0.01 frames")
+
+
+def test_angle_error_is_measured(truth):
+    # move both knees 3 cm forward along the walk: the knee flexion changes, the hips do not move
+    fwd = truth.point("pelvis")[-1] - truth.point("pelvis")[0]
+    fwd[2] = 0
+    fwd /= np.linalg.norm(fwd)
+    pts = truth.points.copy()
+    for name in ("knee_l", "knee_r"):
+        pts[:, truth.names.index(name)] += 0.03 * fwd
+    ev = evaluate(tracked(truth, pts), truth)
+    assert ev.angles_rmse_deg["knee_flexion_l"] > 3 and ev.angles_rmse_deg["knee_flexion_r"] > 3
+    assert ev.angles_rmse_deg["pelvis_tilt_l"] < 1e-6
+    name, worst = ev.max_checked_angle_rmse()
+    assert worst == max(ev.angles_rmse_deg[f"{n}_{s}"] for n in ("hip_flexion", "knee_flexion", "ankle_dorsiflexion") for s in "lr")
+    assert check_thresholds(ev, Thresholds(max_angle_rmse_deg=2))[0].startswith(f"{name} RMSE")
+
+
+def test_metric_helpers():
+    assert angle_rmse_deg(np.array([359.0, 10.0, np.nan]), np.array([1.0, 10.0, 5.0])) == (pytest.approx(math.sqrt(2)), 2)
+    assert runs(np.array([0, 1, 1, 0, 1], bool)) == [(1, 3), (4, 5)]
+    ref = [GaitEvent(1.0, "left", "foot_strike"), GaitEvent(2.0, "left", "foot_strike"), GaitEvent(1.5, "right", "foot_off")]
+    det = [GaitEvent(1.04, "left", "foot_strike"), GaitEvent(1.5, "left", "foot_off"), GaitEvent(1.9, "left", "foot_strike")]
+    matches, missed, extra = match_events(det, ref, 0.25)
+    assert [(m.reference_s, round(m.error_s, 6)) for m in matches] == [(1.0, 0.04), (2.0, -0.1)]
+    assert missed == [ref[2]] and extra == [det[1]]
+    est = np.zeros((2, 2, 3))
+    est[:, 0, 0], est[:, 1, 0] = 1.0, -1.0
+    ref_pts = est.copy()
+    ref_pts[1] = est[1, ::-1]
+    assert swap_mask(est, ref_pts, ["hip_l", "hip_r"]).tolist() == [False, True]
+
+
+# ------------------------------------------------------------------------------- the CLI
+def write_out(folder, traj: Trajectory):
+    folder.mkdir(parents=True, exist_ok=True)
+    write_trajectory(folder / "trajectories.h5", traj)
+    return folder
+
+
+def test_cli_thresholds_flip_the_exit_code(tmp_path, session, truth):
+    out = write_out(tmp_path / "OUT", tracked(truth, truth.points + [0.01, 0, 0]))
+    runner = CliRunner()
+    ok = runner.invoke(cli, ["eval", str(out), "--truth", str(session / "truth.h5"), "--max-mpjpe-mm", "15"])
+    assert ok.exit_code == 0, ok.output
+    assert "all points (20)" in ok.output and "10.0" in ok.output
+    doc = json.loads((out / "eval.json").read_text())
+    assert doc["positions_mm"]["all"]["mpjpe_mm"] == pytest.approx(10.0)
+    assert doc["passed"] is True and doc["left_right_swaps"]["n_frames"] == 0
+    bad = runner.invoke(cli, ["eval", str(out), "--truth", str(session), "--max-mpjpe-mm", "5", "--force"])
+    assert bad.exit_code == 1
+    assert "threshold exceeded: MPJPE 10.0 mm > 5 mm" in bad.output
+    assert json.loads((out / "eval.json").read_text())["thresholds_failed"] == ["MPJPE 10.0 mm > 5 mm"]
+
+
+def test_cli_reference_mode_and_output_option(tmp_path, truth):
+    a = write_out(tmp_path / "A", tracked(truth, truth.points))
+    b = write_out(tmp_path / "B", tracked(truth, truth.points + [0, 0.02, 0]))
+    res = CliRunner().invoke(cli, ["eval", str(b), "--reference", str(a), "-o", str(tmp_path / "cmp.json"),
+                                   "--max-event-error-frames", "0.5"])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    doc = json.loads((tmp_path / "cmp.json").read_text())
+    assert doc["positions_mm"]["all"]["mpjpe_mm"] == pytest.approx(20.0)
+    assert doc["events"]["reference_events"] == "detected on the reference"
+    assert doc["events"]["n_missed"] == 0 and doc["events"]["max_abs_frames"] == pytest.approx(0.0, abs=1e-6)
+    assert doc["events_method_baseline"] is None
+
+
+def test_cli_usage_and_input_errors(tmp_path, session, truth):
+    runner = CliRunner()
+    out = write_out(tmp_path / "OUT", tracked(truth, truth.points))
+    neither = runner.invoke(cli, ["eval", str(out)])
+    assert neither.exit_code == 2 and "give exactly one of --truth and --reference" in neither.output
+    both = runner.invoke(cli, ["eval", str(out), "--truth", str(session), "--reference", str(out)])
+    assert both.exit_code == 2
+    missing = runner.invoke(cli, ["eval", str(tmp_path / "nothing"), "--truth", str(session)])
+    assert missing.exit_code == 1 and "nothing: file not found" in missing.output
+    no_truth = runner.invoke(cli, ["eval", str(out), "--truth", str(tmp_path / "t.h5")])
+    assert no_truth.exit_code == 1 and "t.h5: truth file not found" in no_truth.output
+    assert runner.invoke(cli, ["eval", str(out), "--truth", str(session)]).exit_code == 0
+    again = runner.invoke(cli, ["eval", str(out), "--truth", str(session)])
+    assert again.exit_code == 1 and "eval.json: exists already (use --force to overwrite)" in again.output

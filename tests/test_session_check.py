@@ -1,0 +1,78 @@
+from __future__ import annotations
+
+import logging
+
+import pytest
+from session_factory import SIZE, make_session
+
+from gaitcap.errors import InputError
+from gaitcap.session import Session
+from gaitcap.session_check import check_session_videos, count_frames
+
+
+def test_consistent_session(tmp_path):
+    s = Session.open(make_session(tmp_path / "s"))
+    checked = check_session_videos(s)
+    assert checked.n_frames == 20 and checked.frame_range == (0, 20)
+    assert checked.fps == pytest.approx(25.0)
+    assert set(checked.videos) == {"cam0", "cam1"}
+    assert checked.videos["cam0"].info.size == SIZE
+    assert checked.notes == ()
+    assert checked.rig.names == s.rig.names
+
+
+def test_different_frame_counts_use_the_common_range_with_a_warning(tmp_path, caplog):
+    s = Session.open(make_session(tmp_path / "s", frames={"cam0": 20, "cam1": 14}))
+    with caplog.at_level(logging.WARNING, logger="gaitcap"):
+        checked = check_session_videos(s)
+    assert checked.n_frames == 14
+    assert "videos of different lengths (cam0 20, cam1 14 frames); using the 14 frames common to all cameras" in caplog.text
+    assert len(checked.notes) == 1
+
+
+def test_different_frame_rates_are_an_error_unless_allowed(tmp_path, caplog):
+    s = Session.open(make_session(tmp_path / "s", fps={"cam0": 25.0, "cam1": 30.0}))
+    with pytest.raises(InputError, match="the cameras' frame rates differ: cam0 25 fps, cam1 30 fps"):
+        check_session_videos(s)
+    checked = check_session_videos(s, allow_fps_mismatch=True)
+    assert checked.fps == pytest.approx(25.0)
+    assert "using 25 fps as allowed" in caplog.text
+
+
+def test_small_centred_crop_is_fitted_and_said(tmp_path):
+    # 100x64 calibrated, 96x64 decoded: 4 columns, like the 1088 -> 1080 encoder crop
+    s = Session.open(make_session(tmp_path / "s", calib_size=(100, 64), video_size={"cam0": (96, 64), "cam1": (96, 64)}))
+    checked = check_session_videos(s)
+    cam = checked.rig["cam0"]
+    assert cam.size == (96, 64)
+    assert cam.matrix[0, 2] == pytest.approx(s.rig["cam0"].matrix[0, 2] - 2.0)
+    assert "video cam0.avi is 96x64 but calibration.toml says 100x64: assumed a centred crop" in checked.notes[0]
+
+
+def test_video_size_not_matching_the_calibration(tmp_path):
+    s = Session.open(make_session(tmp_path / "s", video_size={"cam1": (48, 32)}))
+    with pytest.raises(InputError) as e:
+        check_session_videos(s)
+    assert str(e.value) == (
+        "camera 'cam1': video cam1.avi is 48x32 but calibration.toml says 96x64; "
+        "recalibrate at the video size (a resize is not a crop)"
+    )
+
+
+def test_truncated_video_is_counted_by_decoding(tmp_path, caplog):
+    root = make_session(tmp_path / "s", frames={"cam0": 30, "cam1": 30})
+    video = root / "videos" / "cam1.avi"
+    data = video.read_bytes()
+    video.write_bytes(data[: len(data) // 2])
+    s = Session.open(root)
+    checked = check_session_videos(s)
+    assert 0 < checked.n_frames < 30
+    assert checked.videos["cam0"].n_frames == 30
+    assert checked.videos["cam1"].info.frame_count == 30  # the header still says 30
+    assert f"cam1.avi: decoding stopped at frame {checked.n_frames} of 30 declared (truncated or corrupt file?)" in caplog.text
+    assert "videos of different lengths" in caplog.text
+
+
+def test_count_frames_without_a_declared_count(tmp_path):
+    root = make_session(tmp_path / "s", frames={"cam0": 7})
+    assert count_frames(root / "videos" / "cam0.avi", 0) == 7
