@@ -69,11 +69,39 @@ class FactoredIPF(Tracker):
                 R_all, o_all = model.frames(q[None])
                 if p == 0:
                     self._place(q, sub.own_capsules, placed, R_all, o_all)
+        q = self._resolve_swap(obs, q)
         self.q = q
         ll, fit = self.full_fit(obs, q)
         points = model.forward(q[None])[0]
         return Estimate(q=q, points=points, uncertainty=np.sqrt(variance), log_likelihood=ll, fit=fit,
                         evaluations=evaluations)  # fmt: skip
+
+    def _resolve_swap(self, obs: Observation, q: np.ndarray) -> np.ndarray:
+        """Compare the estimate with its leg-swapped mirror on the full-body likelihood.
+
+        Seen from the side, the two legs' silhouettes are interchangeable; a chain walk that placed
+        the left leg on the right leg's pixels cannot undo it node by node. Exchanging every left
+        and right leg DOF (the clinical angles mirror) gives the other hypothesis; the better one
+        is kept.
+        """
+        swapped = q.copy()
+        swapped[self._left], swapped[self._right] = q[self._right], q[self._left]
+        A, B, r = self.model.capsules(np.stack([q, swapped]))
+        ll = self.likelihood.log_likelihood(obs, A, B, r)
+        return swapped if ll[1] > ll[0] else q
+
+    @property
+    def _left(self) -> np.ndarray:
+        return np.array([i for i, n in enumerate(self.model.dof_names) if n.endswith("_l") and self._is_leg(n)])
+
+    @property
+    def _right(self) -> np.ndarray:
+        names = self.model.dof_names
+        return np.array([names.index(names[i][:-2] + "_r") for i in self._left])
+
+    @staticmethod
+    def _is_leg(name: str) -> bool:
+        return name.startswith(("hip_", "knee_", "ankle_"))
 
     def _node(self, obs, q, dofs: slice, sub, parent_R, parent_o, free, n: int, widen: float, layers):
         """Diffuse, weight, resample and keep the best for one node. Returns the new estimate,

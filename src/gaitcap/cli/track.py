@@ -1,0 +1,60 @@
+"""``gaitcap track``: silhouettes and tracking, for one session or a folder of sessions."""
+
+from __future__ import annotations
+
+import logging
+import sys
+from pathlib import Path
+
+import click
+
+from gaitcap.batch import any_failed, find_sessions, format_summary, is_session, run_batch
+from gaitcap.cli.options import force_option, handle_errors
+from gaitcap.pipeline import TRACKERS, run_track
+
+log = logging.getLogger("gaitcap")
+
+
+@click.command("track")
+@click.argument("source", type=click.Path(exists=True, file_okay=False, path_type=Path))
+@click.option("-o", "--output", "out", required=True, type=click.Path(file_okay=False, path_type=Path),
+              help="Output folder (for a folder of sessions: one sub-folder per session).")
+@click.option("--tracker", type=click.Choice(sorted(TRACKERS)), default=None,
+              help="Override the configuration's tracker (default factored-ipf).")
+@click.option("-c", "--config", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
+              help="Tracking configuration YAML (default: the shipped configs/tracking.yaml).")
+@click.option("--height", "height_m", type=click.FloatRange(0.5, 2.6), default=None,
+              help="Subject height in metres (default: session.yaml, else estimated).")
+@click.option("--max-frames", type=click.IntRange(min=1), default=None, help="Track only the first N frames.")
+@click.option("-j", "--jobs", type=click.IntRange(min=1), default=1, show_default=True,
+              help="Sessions tracked in parallel (folders of sessions).")
+@click.option("--scheduler", default=None,
+              help="Run the sessions on a Dask cluster: tcp://HOST:8786, or 'local' (needs gaitcap[distributed]).")
+@force_option
+@click.pass_context
+@handle_errors
+def command(ctx: click.Context, source: Path, out: Path, tracker: str | None, config: Path | None,
+            height_m: float | None, max_frames: int | None, jobs: int, scheduler: str | None, force: bool) -> None:
+    """Track the subject in a session (or every session of a folder).
+
+    Writes OUT/trajectories.h5 (points, per-point uncertainty, poses, likelihood, quality),
+    OUT/joints.csv (metres, NaN where flagged) and OUT/joints.trc (OpenSim, mm). A folder of
+    sessions gives OUT/<session>/..., a log per session and a summary; finished sessions are
+    skipped unless --force; the exit code is 1 when any session failed.
+
+    \b
+    Example:
+        gaitcap track sessions/walk01 -o results/walk01
+        gaitcap track sessions/ -o results/ --jobs 2
+    """
+    quiet = bool(ctx.obj.get("quiet"))
+    kwargs = {"config": config, "tracker": tracker, "height_m": height_m, "max_frames": max_frames}
+    if is_session(source) and scheduler is None:
+        summary = run_track(source, out, force=force, progress=not quiet, **kwargs)
+        log.info("%s", summary.message)
+        click.echo(f"results: {out}")
+        return
+    summaries = run_batch(find_sessions(source), out, jobs=jobs, force=force, scheduler=scheduler, **kwargs)
+    click.echo(format_summary(summaries))
+    if any_failed(summaries):
+        sys.exit(1)

@@ -1,0 +1,233 @@
+"""``run_track``: one session, from videos to joint trajectories. One stage after another:
+
+session + videos -> silhouettes (gaitcap.silhouette, per camera, streamed) -> observation (soft,
+undistorted, downscaled) -> initialisation -> the chosen tracker per frame -> trajectories.h5
+(streamed) -> zero-lag filtering -> joints.csv, joints.trc -> track.json (written last: a session
+with it is finished).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import logging
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import yaml
+from tqdm import tqdm
+
+from gaitcap import __version__
+from gaitcap.body.model import load_body_model
+from gaitcap.errors import OutputError, TrackingError
+from gaitcap.io.atomic import write_text_atomic
+from gaitcap.io.track_h5 import (QUALITY_NOT_INITIALISED, QUALITY_OK, QUALITY_OUT_OF_VIEW, QUALITY_POOR_FIT,
+                                 TrackWriter)  # fmt: skip
+from gaitcap.io.trc import write_trc
+from gaitcap.session import Session
+from gaitcap.session_check import check_session_videos
+from gaitcap.silhouette.config import SilhouetteConfig
+from gaitcap.silhouette.run import Source, prepare_extractor
+from gaitcap.track_summary import TrackSummary, is_finished, write_track_json
+from gaitcap.tracking.condensation import Condensation
+from gaitcap.tracking.config import TrackingConfig, load_tracking_config
+from gaitcap.tracking.factored_ipf import FactoredIPF
+from gaitcap.tracking.init import estimate_height, initialise, subject_positions
+from gaitcap.tracking.ipf import IntervalPF
+from gaitcap.tracking.likelihood import SilhouetteLikelihood
+from gaitcap.tracking.observation import Observation, observe, tracking_views
+from gaitcap.tracking.raster import warm_up
+from gaitcap.tracking.smoothing import lowpass
+from gaitcap.trajectory import Trajectory
+from gaitcap.video import iter_synchronised
+
+log = logging.getLogger("gaitcap.pipeline")
+
+TRACKERS = {"condensation": Condensation, "ipf": IntervalPF, "factored-ipf": FactoredIPF}
+OUTPUTS = ("trajectories.h5", "joints.csv", "joints.trc", "track.json")
+
+__all__ = ["TrackSummary", "run_track", "TRACKERS"]
+
+
+@dataclass
+class FrameTiming:
+    tracking_s: float = 0.0
+    total_s: float = 0.0
+
+
+def _check_out(out: Path, force: bool) -> None:
+    if is_finished(out) and not force:
+        raise OutputError(f"{out}: already holds a finished run (use --force to redo it)")
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"{out}: exists and is not a folder")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise OutputError(f"{out}: cannot create the output folder ({e.strerror})") from e
+    (out / "track.json").unlink(missing_ok=True)  # the old run is no longer finished
+
+
+def _height(session: Session, height_m: float | None) -> tuple[float | None, str]:
+    if height_m is not None:
+        return height_m, "--height"
+    if session.info.subject.height_m is not None:
+        return session.info.subject.height_m, "session.yaml"
+    return None, "estimated"
+
+
+def run_track(
+    session: Path, out: Path, *, config: Path | None = None, tracker: str | None = None,
+    height_m: float | None = None, force: bool = False, progress: bool = True, max_frames: int | None = None,
+    on_frame: Callable[[int, FrameTiming], None] | None = None,
+) -> TrackSummary:  # fmt: skip
+    """Track one session into ``out`` (see the module docstring). Returns the run's summary."""
+    t_start = time.perf_counter()
+    session, out = Path(session), Path(out)
+    _check_out(out, force)
+    cfg = load_tracking_config(config)
+    if tracker is not None:
+        cfg.tracker = tracker  # validated by the schema
+    ses = Session.open(session)
+    videos = check_session_videos(ses)
+    rig = videos.rig
+    n_frames = videos.n_frames if max_frames is None else min(videos.n_frames, max_frames)
+    sil_cfg = SilhouetteConfig.load()
+    extractors = {}
+    for cam in rig.names:
+        ex, _ = prepare_extractor(Source(cam, ses.videos[cam], ses.backgrounds.get(cam)), sil_cfg)
+        extractors[cam] = ex
+    views = tracking_views(rig, cfg.scale)
+    likelihood = SilhouetteLikelihood(views, cfg.beta)
+    warm_up()
+    height, height_source = _height(ses, height_m)
+
+    frames = iter_synchronised({c: ses.videos[c] for c in rig.names}, 0, n_frames)
+    first: list[Observation] = []
+    first_masks_frames: list[int] = []
+    for index, images in frames:
+        masks = [extractors[c].process(images[c])[0] for c in rig.names]
+        first.append(observe(views, masks))
+        first_masks_frames.append(index)
+        if len(first) >= cfg.init.frames:
+            break
+    if not first:
+        raise TrackingError(f"{session}: no frame could be read")
+    if height is None:
+        pos = subject_positions(views, first)
+        ok = np.where(np.all(np.isfinite(pos), axis=1))[0]
+        est = estimate_height(views, first[ok[0]], pos[ok[0]]) if len(ok) else None
+        if est is None or not (1.0 < est < 2.3):
+            raise TrackingError(f"{session}: cannot estimate the subject's height; give it with --height or in session.yaml")
+        height = est
+        log.warning("subject height not given: estimated %.2f m from the silhouettes (give --height for accuracy)", height)
+    model = load_body_model(height_m=height)
+    rng = np.random.default_rng(cfg.seed)
+    filt = TRACKERS[cfg.tracker](model, likelihood, cfg, rng)
+    attrs = {"config": yaml.safe_dump(cfg.model_dump(), sort_keys=False), "tracker": cfg.tracker,
+             "height_m": float(height), "height_source": height_source, "session": str(session)}  # fmt: skip
+    writer = TrackWriter(out / "trajectories.h5", model.point_names, model.dof_names, videos.fps, attrs)
+    timing = FrameTiming()
+    try:
+        tracked = _track_frames(filt, likelihood, views, cfg, first, frames, extractors, rig.names, writer,
+                                n_frames, progress, timing, on_frame)  # fmt: skip
+        raw, quality = writer.read_back()
+        points, note = _finish_points(raw, quality, videos.fps, cfg)
+        writer.finish(points, note)
+    except BaseException as e:
+        writer.abort(e)
+        raise
+    traj = Trajectory(model.point_names, points, videos.fps)
+    write_joints_csv(out / "joints.csv", traj)
+    write_trc(out / "joints.trc", traj, units="mm")
+    n_flagged = int(np.sum(quality != QUALITY_OK))
+    seconds = time.perf_counter() - t_start
+    summary = TrackSummary(session=session, out=out, status="ok", n_frames=tracked, n_flagged=n_flagged,
+                           seconds=seconds,
+                           message=f"{cfg.tracker}: {tracked} frames, {n_flagged} flagged, "
+                                   f"{1000 * timing.tracking_s / max(tracked, 1):.0f} ms/frame tracking, "
+                                   f"{tracked / seconds:.1f} frames/s end to end")  # fmt: skip
+    write_track_json(summary)
+    return summary
+
+
+def _track_frames(filt, likelihood, views, cfg: TrackingConfig, first, frames, extractors, cams, writer: TrackWriter,
+                  n_frames: int, progress: bool, timing: FrameTiming, on_frame) -> int:  # fmt: skip
+    """The per-frame loop (streaming): observe, (re)initialise, track, flag, append."""
+    model = filt.model
+    bar = tqdm(total=n_frames, desc=f"tracking ({cfg.tracker})", unit="frame", disable=not progress, leave=False)
+    lost = True
+    pending = list(first)
+
+    def observations():
+        yield from pending
+        for _, images in frames:
+            t0 = time.perf_counter()
+            masks = [extractors[c].process(images[c])[0] for c in cams]
+            obs = observe(views, masks)
+            timing.total_s += time.perf_counter() - t0
+            yield obs
+
+    count = 0
+    for obs in observations():
+        t0 = time.perf_counter()
+        in_view = bool(np.all(obs.fractions() >= cfg.quality.min_silhouette_fraction))
+        quality = QUALITY_OK
+        if not in_view:
+            quality, lost = QUALITY_OUT_OF_VIEW, True
+            est_points = np.full((model.n_points, 3), np.nan)
+            writer.append(est_points, np.full(model.n_points, np.nan), np.full(model.n_dofs, np.nan), np.nan, 0.0, quality)
+        else:
+            if lost:
+                window = pending[count:] if count < len(pending) else [obs]
+                try:
+                    init = initialise(filt, likelihood, views, window[: cfg.init.frames] or [obs],
+                                      cfg.init.heading_step_deg, cfg.init.refine_passes, cfg.init.widen)  # fmt: skip
+                    filt.start(init.q)
+                    lost = False
+                    log.info("frame %d: subject found (fit %.2f)", count, init.fit)
+                except TrackingError as e:
+                    log.debug("frame %d: %s", count, e)
+            if lost:
+                quality = QUALITY_NOT_INITIALISED
+                writer.append(np.full((model.n_points, 3), np.nan), np.full(model.n_points, np.nan),
+                              np.full(model.n_dofs, np.nan), np.nan, 0.0, quality)  # fmt: skip
+            else:
+                est = filt.step(obs)
+                quality = QUALITY_OK if est.fit >= cfg.quality.min_fit else QUALITY_POOR_FIT
+                writer.append(est.points, est.uncertainty, est.q, est.log_likelihood, est.fit, quality)
+        dt = time.perf_counter() - t0
+        timing.tracking_s += dt
+        timing.total_s += dt
+        count += 1
+        bar.update(1)
+        if on_frame is not None:
+            on_frame(count, timing)
+        if count >= n_frames:
+            break
+    bar.close()
+    return count
+
+
+def _finish_points(raw: np.ndarray, quality: np.ndarray, rate_hz: float, cfg: TrackingConfig) -> tuple[np.ndarray, str]:
+    """Flagged frames -> NaN, then the optional zero-lag low-pass filter."""
+    points = raw.copy()
+    points[quality != QUALITY_OK] = np.nan
+    cutoff = cfg.smoothing.cutoff_hz
+    if cutoff is None or cutoff >= rate_hz / 2:
+        return points, "none"
+    return lowpass(points, rate_hz, cutoff, cfg.smoothing.order), (
+        f"zero-lag Butterworth low-pass, order {cfg.smoothing.order}, cut-off {cutoff} Hz (filtfilt)")
+
+
+def write_joints_csv(path: Path, traj: Trajectory) -> None:
+    """``frame, time_s, <point>_x, <point>_y, <point>_z ...`` in metres, NaN where flagged."""
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["frame", "time_s"] + [f"{n}_{a}" for n in traj.names for a in "xyz"])
+    times = traj.times()
+    for t in range(traj.n_frames):
+        w.writerow([t, f"{times[t]:.6f}"] + [f"{v:.6f}" if np.isfinite(v) else "NaN" for v in traj.points[t].ravel()])
+    write_text_atomic(path, buf.getvalue())

@@ -1,0 +1,165 @@
+"""Automatic initialisation: find the subject, its walking direction and a first pose. No clicks.
+
+1. In the first frames, the centroid of each camera's silhouette is triangulated (DLT on the
+   pinhole views): the subject's position over time.
+2. The walking direction is the direction of that motion (when it moves more than 15 cm);
+   otherwise every heading is tried.
+3. Global search on the first frame: headings x stride phases x positions around the
+   triangulated centroid, scored with the full-body likelihood; the best candidates are refined
+   with the tracker's own search on widened intervals; the best refined pose wins.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from gaitcap.body.model import BodyModel
+from gaitcap.errors import TrackingError
+from gaitcap.tracking.base import Tracker
+from gaitcap.tracking.likelihood import SilhouetteLikelihood
+from gaitcap.tracking.observation import Observation, TrackingView
+
+log = logging.getLogger("gaitcap.tracking.init")
+
+MIN_MOTION_M = 0.15
+
+
+@dataclass(frozen=True)
+class InitResult:
+    q: np.ndarray  # (D,) pose at the first observation
+    heading_rad: float
+    walking_direction_known: bool
+    fit: float
+
+
+def _centroid(sil: np.ndarray) -> np.ndarray | None:
+    total = float(sil.sum())
+    if total < 4:
+        return None
+    ys, xs = np.mgrid[0 : sil.shape[0], 0 : sil.shape[1]]
+    return np.array([(xs * sil).sum() / total, (ys * sil).sum() / total])
+
+
+def triangulate(views: list[TrackingView], pixels: list[np.ndarray | None]) -> np.ndarray | None:
+    """DLT triangulation of one point seen in several pinhole views (None: not seen)."""
+    rows = []
+    for view, px in zip(views, pixels):
+        if px is None:
+            continue
+        P = view.K @ np.hstack([view.camera.R, view.camera.tvec[:, None]])
+        rows.append(px[0] * P[2] - P[0])
+        rows.append(px[1] * P[2] - P[1])
+    if len(rows) < 4:
+        return None
+    _, _, vt = np.linalg.svd(np.asarray(rows))
+    X = vt[-1]
+    return X[:3] / X[3] if abs(X[3]) > 1e-12 else None
+
+
+def subject_positions(views: list[TrackingView], observations: list[Observation]) -> np.ndarray:
+    """Triangulated silhouette centroids (T, 3), NaN where fewer than two cameras see the subject."""
+    out = np.full((len(observations), 3), np.nan)
+    for t, obs in enumerate(observations):
+        X = triangulate(views, [_centroid(s) for s in obs.silhouettes])
+        if X is not None:
+            out[t] = X
+    return out
+
+
+def estimate_height(views: list[TrackingView], obs: Observation, position: np.ndarray) -> float | None:
+    """Height from the top of each silhouette: the ray through the topmost silhouette pixel meets the
+    vertical line through the subject's position; the median over cameras, over 0.99 (the head top
+    of a walking person is about 1 % below the standing height)."""
+    tops = []
+    for view, sil in zip(views, obs.silhouettes):
+        rows = np.where(sil.max(axis=1) > 0.5)[0]
+        if len(rows) == 0:
+            continue
+        v = rows[0]
+        u = float(np.average(np.arange(sil.shape[1]), weights=sil[v] + 1e-9))
+        ray = view.camera.R.T @ np.linalg.solve(view.K, [u, v, 1.0])
+        C = view.camera.center
+        # closest point between the ray C + s ray and the vertical line (x, y) = position[:2]
+        d = np.array([0.0, 0.0, 1.0])
+        w0 = C - np.array([position[0], position[1], 0.0])
+        a, b, c = ray @ ray, ray @ d, d @ d
+        dd, e = ray @ w0, d @ w0
+        den = a * c - b * b
+        if abs(den) < 1e-9:
+            continue
+        t_line = (a * e - b * dd) / den
+        tops.append(t_line)
+    if not tops:
+        return None
+    return float(np.median(tops) / 0.99)
+
+
+def _candidate_poses(model: BodyModel, position: np.ndarray, headings: list[float]) -> np.ndarray:
+    """Standing poses at several headings, stride phases and positions around ``position``."""
+    deg = np.pi / 180
+    phases = [(0.0, 0.0, 5.0, 5.0), (20.0, -15.0, 5.0, 30.0), (-15.0, 20.0, 30.0, 5.0), (10.0, -5.0, 50.0, 5.0),
+              (-5.0, 10.0, 5.0, 50.0)]  # fmt: skip
+    offsets = [(dx, dy) for dx in (-0.1, 0.0, 0.1) for dy in (-0.1, 0.0, 0.1)]
+    out = []
+    for h in headings:
+        for hl, hr, kl, kr in phases:
+            for dx, dy in offsets:
+                q = model.neutral_pose(heading_rad=h, x=position[0] + dx, y=position[1] + dy)
+                q[model.dof_index("hip_flexion_l")] = hl * deg
+                q[model.dof_index("hip_flexion_r")] = hr * deg
+                q[model.dof_index("knee_flexion_l")] = kl * deg
+                q[model.dof_index("knee_flexion_r")] = kr * deg
+                q[model.dof_index("pelvis_tz")] -= 0.02
+                out.append(q)
+    return model.clip(np.asarray(out))
+
+
+def initialise(
+    tracker: Tracker, likelihood: SilhouetteLikelihood, views: list[TrackingView], observations: list[Observation],
+    heading_step_deg: float, refine_passes: int, widen: float, keep: int = 3,
+) -> InitResult:  # fmt: skip
+    """Find the first pose (see the module docstring). ``observations[0]`` is the frame to start at."""
+    model = tracker.model
+    positions = subject_positions(views, observations)
+    seen = np.where(np.all(np.isfinite(positions), axis=1))[0]
+    if len(seen) == 0 or not np.all(np.isfinite(positions[0])):
+        raise TrackingError("cannot initialise: the subject is not seen by two cameras in the first frame")
+    start = positions[0]
+    motion = positions[seen[-1]] - start
+    known = bool(np.hypot(motion[0], motion[1]) > MIN_MOTION_M)
+    if known:
+        h0 = float(np.arctan2(motion[1], motion[0]))
+        headings = [h0 + np.radians(d) for d in (-20, -10, 0, 10, 20)]
+        log.info("walking direction from the first %d frames: %.0f degrees", len(observations), np.degrees(h0))
+    else:
+        headings = list(np.radians(np.arange(0, 360, heading_step_deg)))
+        log.info("the subject barely moves in the first frames: searching every heading")
+    obs = observations[0]
+    Q = _candidate_poses(model, start, headings)
+    A, B, r = model.capsules(Q)
+    ll = likelihood.log_likelihood(obs, A, B, r)
+    order = np.argsort(-ll)
+    # keep the best candidates with distinct headings
+    chosen: list[int] = []
+    for i in order:
+        h = Q[i, model.dof_index("pelvis_rotation")]
+        if all(abs(np.angle(np.exp(1j * (h - Q[j, model.dof_index("pelvis_rotation")])))) > np.radians(25) for j in chosen):
+            chosen.append(int(i))
+        if len(chosen) == keep:
+            break
+    best: tuple[float, np.ndarray] | None = None
+    for i in chosen:
+        tracker.start(Q[i])
+        est = None
+        for _ in range(max(1, refine_passes)):
+            est = tracker.step(obs, widen=widen)  # type: ignore[call-arg]
+        assert est is not None
+        if best is None or est.fit > best[0]:
+            best = (est.fit, est.q.copy())
+    assert best is not None
+    fit, q = best
+    heading = float(q[model.dof_index("pelvis_rotation")])
+    return InitResult(q=q, heading_rad=heading, walking_direction_known=known, fit=fit)
