@@ -46,11 +46,11 @@ class TrackWriter:
         P, D = len(names), len(dof_names)
         f = self._f
         self._ds = {
-            "points_unfiltered": f.create_dataset("points_unfiltered", (0, P, 3), maxshape=(None, P, 3), chunks=(64, P, 3)),
-            "uncertainty": f.create_dataset("uncertainty", (0, P), maxshape=(None, P), chunks=(256, P)),
-            "poses": f.create_dataset("poses", (0, D), maxshape=(None, D), chunks=(256, D)),
-            "likelihood": f.create_dataset("likelihood", (0,), maxshape=(None,), chunks=(1024,)),
-            "fit": f.create_dataset("fit", (0,), maxshape=(None,), chunks=(1024,)),
+            "points_unfiltered": f.create_dataset("points_unfiltered", (0, P, 3), maxshape=(None, P, 3), chunks=(64, P, 3), dtype=np.float64),
+            "uncertainty": f.create_dataset("uncertainty", (0, P), maxshape=(None, P), chunks=(256, P), dtype=np.float64),
+            "poses": f.create_dataset("poses", (0, D), maxshape=(None, D), chunks=(256, D), dtype=np.float64),
+            "likelihood": f.create_dataset("likelihood", (0,), maxshape=(None,), chunks=(1024,), dtype=np.float64),
+            "fit": f.create_dataset("fit", (0,), maxshape=(None,), chunks=(1024,), dtype=np.float64),
             "quality": f.create_dataset("quality", (0,), maxshape=(None,), chunks=(1024,), dtype=np.uint8),
         }  # fmt: skip
         self._ds["poses"].attrs["dof_names"] = list(dof_names)

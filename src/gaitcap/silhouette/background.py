@@ -92,9 +92,15 @@ def global_gain(frame: np.ndarray, background: np.ndarray, stride: int = 4) -> n
 
 
 def _robust_noise(
-    frames: np.ndarray, centre: np.ndarray, min_noise: float, gains: np.ndarray | None = None
-) -> np.ndarray:
+    frames: np.ndarray, centre: np.ndarray, min_noise: float, gains: np.ndarray | None = None,
+    max_factor: float = 3.0,
+) -> np.ndarray:  # fmt: skip
     """Per-pixel noise sigma: 1.4826 * median over samples of the channel-mean |I - g * centre|.
+
+    A subject who stays at one spot in most samples (walking in place, a treadmill) makes that
+    median large exactly where the subject is, which would raise the foreground threshold there
+    and hide the subject; sensor and compression noise vary smoothly, so each pixel's sigma is
+    capped at ``max_factor`` times the image's median sigma.
 
     frames: (N, H, W, 3); centre: (H, W, 3); gains: (N, 3) per-sample brightness ratios or
     None (all 1). Returns (H, W) float32 >= ``min_noise``.
@@ -106,7 +112,8 @@ def _robust_noise(
         chunk = frames[:, r0 : r0 + _ROW_CHUNK].astype(np.float32)
         dev = np.abs(chunk - g * centre[None, r0 : r0 + _ROW_CHUNK]).mean(axis=3)
         out[r0 : r0 + _ROW_CHUNK] = _MAD_TO_SIGMA * np.median(dev, axis=0)
-    return np.maximum(out, np.float32(min_noise))
+    out = np.maximum(out, np.float32(min_noise))
+    return np.minimum(out, np.float32(max_factor * np.median(out)))
 
 
 def _median_and_ambiguity(frames: np.ndarray, cfg: BackgroundConfig) -> tuple[np.ndarray, np.ndarray]:
@@ -138,7 +145,7 @@ def background_from_video_samples(frames: np.ndarray, cfg: BackgroundConfig, wha
     frames = _check_stack(frames, what)
     n = frames.shape[0]
     median, ambiguous = _median_and_ambiguity(frames, cfg)
-    noise = _robust_noise(frames, median, cfg.min_noise)
+    noise = _robust_noise(frames, median, cfg.min_noise, max_factor=cfg.max_noise_factor)
     frac = float(ambiguous.mean())
     usable = frac <= cfg.max_ambiguous_fraction and n >= 5
     if n < 5:
@@ -187,7 +194,7 @@ def background_from_plate(
             )
         n = frames.shape[0]
         gains = np.stack([global_gain(f, image) for f in frames])
-        noise = _robust_noise(frames, image, cfg.min_noise, gains)
+        noise = _robust_noise(frames, image, cfg.min_noise, gains, cfg.max_noise_factor)
     report = BackgroundReport("plate", n, float("nan"), True, f"{what}: background from the plate")
     log.info("%s", report.message)
     return Background(image, noise, report)

@@ -28,6 +28,7 @@ class BackgroundConfig(Strict):
         default=True, description="rescale the background by the frame's global brightness ratio each frame"
     )
     min_noise: float = Field(default=2.0, gt=0, description="floor of the per-pixel noise estimate, grey levels")
+    max_noise_factor: float = Field(default=3.0, ge=1, description="cap of a pixel's noise, times the image's median noise")
     # "no usable background" detection, for backgrounds estimated from the video
     hidden_diff: float = Field(
         default=25.0, gt=0, description="grey-level difference from the median that counts as 'background hidden'"

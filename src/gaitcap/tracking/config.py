@@ -28,6 +28,7 @@ class FactoredIPFConfig(Strict):
     order: list[str] = Field(default_factory=list)
     layers: list[Layer] = Field(min_length=1)
     passes: int = Field(default=2, ge=1, le=10)
+    swap_hypothesis: bool = True
     ess_threshold: float = Field(default=0.5, ge=0, le=1)
 
 

@@ -38,14 +38,37 @@ class FactoredIPF(Tracker):
         self.subtrees = subtrees(self.model)
 
     def step(self, obs: Observation, widen: float = 1.0) -> Estimate:
-        """Track one frame (``widen`` > 1 enlarges every interval, for initialisation).
+        """Track one frame from the previous estimate and, with ``swap_hypothesis``, also from its
+        leg-swapped mirror; the better fit wins.
+
+        Seen from the side the two legs are interchangeable, and a chain walk that put the left leg
+        on the right leg's pixels settles in a consistent wrong state (heading turned, hips
+        compensating) that no single node can leave: the mirrored start, searched in full, lets
+        the silhouettes of all cameras decide again.
+        """
+        start = self.q.copy()
+        best = self._search(obs, start, widen)
+        if self.config.factored_ipf.swap_hypothesis:
+            mirrored = start.copy()
+            mirrored[self._left], mirrored[self._right] = start[self._right], start[self._left]
+            other = self._search(obs, mirrored, widen)
+            other.evaluations += best.evaluations
+            if other.fit > best.fit:
+                best = other
+            else:
+                best.evaluations = other.evaluations
+        self.q = best.q
+        return best
+
+    def _search(self, obs: Observation, start: np.ndarray, widen: float) -> Estimate:
+        """The factored search of one frame from ``start`` (``widen`` > 1 enlarges every interval).
 
         The first pass walks the chain with Img_n = the silhouette minus the segments placed so
         far; each further pass (``passes``) revisits every node with Img_n = the silhouette minus
         all the other segments at their current estimates, with the finer layers only.
         """
         model, cfg = self.model, self.config.factored_ipf
-        q = self.q.copy()
+        q = start.copy()
         variance = np.zeros(model.n_points)
         evaluations = 0
         for p in range(cfg.passes):
@@ -69,26 +92,10 @@ class FactoredIPF(Tracker):
                 R_all, o_all = model.frames(q[None])
                 if p == 0:
                     self._place(q, sub.own_capsules, placed, R_all, o_all)
-        q = self._resolve_swap(obs, q)
-        self.q = q
         ll, fit = self.full_fit(obs, q)
         points = model.forward(q[None])[0]
         return Estimate(q=q, points=points, uncertainty=np.sqrt(variance), log_likelihood=ll, fit=fit,
                         evaluations=evaluations)  # fmt: skip
-
-    def _resolve_swap(self, obs: Observation, q: np.ndarray) -> np.ndarray:
-        """Compare the estimate with its leg-swapped mirror on the full-body likelihood.
-
-        Seen from the side, the two legs' silhouettes are interchangeable; a chain walk that placed
-        the left leg on the right leg's pixels cannot undo it node by node. Exchanging every left
-        and right leg DOF (the clinical angles mirror) gives the other hypothesis; the better one
-        is kept.
-        """
-        swapped = q.copy()
-        swapped[self._left], swapped[self._right] = q[self._right], q[self._left]
-        A, B, r = self.model.capsules(np.stack([q, swapped]))
-        ll = self.likelihood.log_likelihood(obs, A, B, r)
-        return swapped if ll[1] > ll[0] else q
 
     @property
     def _left(self) -> np.ndarray:

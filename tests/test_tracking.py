@@ -1,0 +1,124 @@
+from __future__ import annotations
+
+import csv
+
+import h5py
+import numpy as np
+import pytest
+import yaml
+
+from gaitcap.body.model import load_body_model
+from gaitcap.errors import ConfigError, OutputError
+from gaitcap.io.calibration_toml import read_calibration
+from gaitcap.io.trajectories_h5 import read_trajectory
+from gaitcap.markers.motion import read_markers
+from gaitcap.pipeline import run_track
+from gaitcap.synth.truth import read_truth
+from gaitcap.tracking.config import load_tracking_config
+from gaitcap.tracking.likelihood import SilhouetteLikelihood
+from gaitcap.tracking.observation import observe, tracking_views
+from gaitcap.trajectory import LOWER_LIMB, POINT_NAMES
+from gaitcap.config import default_config_path
+
+
+def _truth_setup(session):
+    truth = read_truth(session / "truth.h5")
+    rig = read_calibration(session / "calibration.toml")
+    prop = truth.attrs["proportions"]
+    model = load_body_model(height_m=truth.attrs["height_m"], scales=prop["scales"], shifts=prop["shifts"])
+    return truth, rig, model
+
+
+def test_likelihood_prefers_the_true_pose(embedded_session, rng):
+    truth, rig, model = _truth_setup(embedded_session.session)
+    views = tracking_views(rig, 0.5)
+    lik = SilhouetteLikelihood(views, beta=40.0)
+    for frame in (5, 30, 50):
+        obs = observe(views, [truth.mask(c, frame) for c in rig.names])
+        q = truth.poses[frame]
+        Q = np.repeat(q[None], 300, axis=0)
+        Q[:, 6:] += rng.normal(0, np.radians(8), size=(300, 25))
+        Q[:, :2] += rng.normal(0, 0.03, size=(300, 2))
+        A, B, r = model.capsules(np.vstack([q[None], Q]))
+        ll = lik.log_likelihood(obs, A, B, r)
+        assert np.all(ll[0] > ll[1:]), f"frame {frame}: {np.sum(ll[1:] >= ll[0])} perturbed poses score as well"
+        fit = lik.fit(obs, A[:1], B[:1], r)[0]
+        assert fit > 0.9
+
+
+def test_end_to_end_tracking_accuracy(tracked_session):
+    synth, out, summary = tracked_session
+    assert summary.status == "ok" and summary.n_frames == 20
+    traj = read_trajectory(out / "trajectories.h5")
+    truth = read_truth(synth.session / "truth.h5").trajectory
+    idx = [traj.index(p) for p in LOWER_LIMB]
+    tidx = [truth.index(p) for p in LOWER_LIMB]
+    err = np.linalg.norm(traj.points[:, idx] - truth.points[:20, tidx], axis=2)
+    assert np.isfinite(err).all()
+    assert 1000 * err.mean() < 80.0, f"lower-limb MPJPE {1000 * err.mean():.1f} mm"
+
+
+def test_trajectories_h5_layout(tracked_session):
+    _, out, _ = tracked_session
+    with h5py.File(out / "trajectories.h5") as f:
+        assert f["points"].shape == (20, 20, 3)
+        assert list(f["points"].attrs["names"]) == list(POINT_NAMES)
+        assert f["points"].attrs["rate_hz"] == 25.0
+        assert f["poses"].shape == (20, 31) and len(f["poses"].attrs["dof_names"]) == 31
+        for key in ("uncertainty", "quality", "likelihood", "fit", "times", "points_unfiltered"):
+            assert f[key].shape[0] == 20, key
+        unc = f["uncertainty"][()]
+        assert np.all(np.isfinite(unc)) and np.all(unc >= 0) and unc.mean() > 0
+        cfg = yaml.safe_load(f.attrs["config"])
+        assert cfg["tracker"] == "factored-ipf"
+        assert f.attrs["height_source"] == "session.yaml"
+        assert "Butterworth" in f.attrs["filter"]
+        assert f.attrs["gaitcap_version"]
+
+
+def test_joints_csv_layout(tracked_session):
+    _, out, _ = tracked_session
+    rows = list(csv.reader((out / "joints.csv").open()))
+    header = rows[0]
+    assert header[:2] == ["frame", "time_s"]
+    assert header[2:5] == ["pelvis_x", "pelvis_y", "pelvis_z"]
+    assert len(header) == 2 + 3 * 20 and len(rows) == 21
+    assert float(rows[2][1]) == pytest.approx(0.04)
+
+
+def test_joints_trc_follows_opensim_rules(tracked_session):
+    _, out, _ = tracked_session
+    lines = (out / "joints.trc").read_text().splitlines()
+    assert lines[0].split("\t")[:2] == ["PathFileType", "4"]
+    keys = lines[1].split("\t")
+    values = dict(zip(keys, lines[2].split("\t")))
+    assert keys == ["DataRate", "CameraRate", "NumFrames", "NumMarkers", "Units", "OrigDataRate",
+                    "OrigDataStartFrame", "OrigNumFrames"]
+    assert values["Units"] == "mm" and int(values["NumFrames"]) == 20 and int(values["NumMarkers"]) == 20
+    assert lines[3].split("\t")[:3] == ["Frame#", "Time", "pelvis"]
+    back = read_markers(out / "joints.trc", up_axis="y")
+    traj = read_trajectory(out / "trajectories.h5")
+    np.testing.assert_allclose(back.points, traj.points, atol=2e-5)
+
+
+def test_finished_output_is_not_redone_without_force(tracked_session):
+    synth, out, _ = tracked_session
+    with pytest.raises(OutputError, match="finished run"):
+        run_track(synth.session, out, progress=False, max_frames=2)
+
+
+def test_tracking_config_rejects_unknown_keys(tmp_path):
+    data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
+    data["factored_ipf"]["particels"] = 10
+    path = tmp_path / "tracking.yaml"
+    path.write_text(yaml.safe_dump(data))
+    with pytest.raises(ConfigError, match=r"factored_ipf\.particels: unknown key \(did you mean 'particles'\?\)"):
+        load_tracking_config(path)
+
+
+def test_every_dof_has_an_interval():
+    cfg = load_tracking_config()
+    model = load_body_model()
+    widths = cfg.half_widths(model)
+    assert widths.shape == (31,) and np.all(widths > 0)
+    assert cfg.order_indices(model)[0] == model.segment("pelvis").index
