@@ -9,23 +9,23 @@ For particle n with capsule set M_n the kernel returns
 
     s1[n] = sum over the pixels of M_n of g1,     s2[n] = sum over the pixels of M_n of g2
 
-using row prefix sums C[y, x] = sum_{x' < x} g[y, x'], so each merged interval costs O(1) and a
-particle costs O(rows x capsules), whatever its area. Compiled with numba, parallel over particles.
+using integral images C[y, x] = sum_{y' < y, x' < x} g[y', x'] (OpenCV's, the fastest to build),
+so each merged interval costs four look-ups and a particle costs O(rows x capsules), whatever its
+area. Compiled with numba, parallel over particles.
 """
 
 from __future__ import annotations
 
 import math
 
+import cv2
 import numpy as np
 from numba import njit, prange
 
 
 def row_prefix(g: np.ndarray) -> np.ndarray:
-    """Row prefix sums (H, W + 1) float64 of a map (H, W): C[y, x] = sum of g[y, :x]."""
-    c = np.zeros((g.shape[0], g.shape[1] + 1))
-    np.cumsum(g, axis=1, out=c[:, 1:])
-    return c
+    """Integral image (H + 1, W + 1) float64 of a map (H, W): C[y, x] = sum of g[:y, :x]."""
+    return cv2.integral(np.ascontiguousarray(g, dtype=np.float32), sdepth=cv2.CV_64F)
 
 
 @njit(cache=True, inline="always")
@@ -73,29 +73,34 @@ def _capsule_span(y: float, ax: float, ay: float, bx: float, by: float, ra: floa
 def capsule_sums(
     a: np.ndarray, b: np.ndarray, ra: np.ndarray, rb: np.ndarray, c1: np.ndarray, c2: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
-    """a, b (N, K, 2); ra, rb (N, K); c1, c2 (H, W + 1) row prefix sums -> s1, s2 (N,)."""
+    """a, b (N, K, 2); ra, rb (N, K); c1, c2 (H + 1, W + 1) integral images -> s1, s2 (N,)."""
     N, K = a.shape[0], a.shape[1]
-    H, W = c1.shape[0], c1.shape[1] - 1
+    H, W = c1.shape[0] - 1, c1.shape[1] - 1
     s1 = np.zeros(N)
     s2 = np.zeros(N)
     for n in prange(N):
         lo = np.empty(K)
         hi = np.empty(K)
+        ylo = np.empty(K, np.int64)  # rows each capsule can touch (empty range: skipped)
+        yhi = np.empty(K, np.int64)
         ymin, ymax = H, -1
         for k in range(K):
+            ylo[k], yhi[k] = 1, 0
             if not (np.isfinite(a[n, k, 0]) and np.isfinite(a[n, k, 1]) and np.isfinite(b[n, k, 0])
                     and np.isfinite(b[n, k, 1])):
                 continue
             r = max(ra[n, k], rb[n, k])
-            ymin = min(ymin, int(math.ceil(min(a[n, k, 1], b[n, k, 1]) - r)))
-            ymax = max(ymax, int(math.floor(max(a[n, k, 1], b[n, k, 1]) + r)))
-        ymin, ymax = max(ymin, 0), min(ymax, H - 1)
+            ylo[k] = max(0, int(math.ceil(min(a[n, k, 1], b[n, k, 1]) - r)))
+            yhi[k] = min(H - 1, int(math.floor(max(a[n, k, 1], b[n, k, 1]) + r)))
+            if ylo[k] <= yhi[k]:
+                ymin = min(ymin, ylo[k])
+                ymax = max(ymax, yhi[k])
         acc1 = 0.0
         acc2 = 0.0
         for y in range(ymin, ymax + 1):
             m = 0
             for k in range(K):
-                if not (np.isfinite(a[n, k, 0]) and np.isfinite(b[n, k, 0])):
+                if y < ylo[k] or y > yhi[k]:
                     continue
                 l, h = _capsule_span(float(y), a[n, k, 0], a[n, k, 1], b[n, k, 0], b[n, k, 1], ra[n, k], rb[n, k])
                 xl, xh = max(0, int(math.ceil(l))), min(W - 1, int(math.floor(h)))
@@ -116,8 +121,8 @@ def capsule_sums(
                 if i < m and int(lo[i]) <= ch + 1:
                     ch = max(ch, int(hi[i]))
                     continue
-                acc1 += c1[y, ch + 1] - c1[y, cl]
-                acc2 += c2[y, ch + 1] - c2[y, cl]
+                acc1 += c1[y + 1, ch + 1] - c1[y + 1, cl] - c1[y, ch + 1] + c1[y, cl]
+                acc2 += c2[y + 1, ch + 1] - c2[y + 1, cl] - c2[y, ch + 1] + c2[y, cl]
                 if i < m:
                     cl, ch = int(lo[i]), int(hi[i])
         s1[n] = acc1
