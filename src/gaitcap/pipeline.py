@@ -68,6 +68,8 @@ def _check_out(out: Path, force: bool) -> None:
     except OSError as e:
         raise OutputError(f"{out}: cannot create the output folder ({e.strerror})") from e
     (out / "track.json").unlink(missing_ok=True)  # the old run is no longer finished
+    for stale in out.glob(".*.part*"):  # temporary files of a run that was killed
+        stale.unlink(missing_ok=True)
 
 
 def _height(session: Session, height_m: float | None) -> tuple[float | None, str]:
