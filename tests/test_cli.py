@@ -1,5 +1,6 @@
 from __future__ import annotations
 
+import json
 import re
 
 import pytest
@@ -56,8 +57,19 @@ def test_synth_refuses_existing_output(runner, tmp_path):
 
 
 def test_demo_runs_end_to_end(runner, tmp_path):
-    result = runner.invoke(cli, ["demo", "-o", str(tmp_path)])
+    # two frames keep the test short (the initialisation search dominates); the README runs all 56
+    result = runner.invoke(cli, ["demo", "-o", str(tmp_path), "--max-frames", "2"])
     assert result.exit_code == 0, result.output
-    assert f"session: {tmp_path / 'session'}" in result.output
+    assert "100.0 %" in result.output  # every truth point inside the rendered silhouettes
     assert (tmp_path / "session" / "truth.h5").is_file()
-    assert "100.0 %" in result.output
+    out = tmp_path / "track"
+    for line, path in [("session", tmp_path / "session"), ("tracking", out), ("evaluation", out / "eval.json"),
+                       ("report", out / "gait" / "report.html")]:  # fmt: skip
+        assert f"{line}: {path}" in result.output
+        assert path.exists(), path
+    assert json.loads((out / "track.json").read_text())["n_frames"] == 2
+    doc = json.loads((out / "eval.json").read_text())
+    assert doc["frames"]["total"] == 2
+    mpjpe = re.search(r"lower-limb MPJPE ([0-9.]+) mm", result.output)
+    assert mpjpe and float(mpjpe.group(1)) == pytest.approx(doc["positions_mm"]["lower_limb"]["mpjpe_mm"], abs=0.05)
+    assert "knee flexion RMSE left" in result.output

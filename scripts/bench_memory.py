@@ -1,0 +1,122 @@
+"""Peak memory of ``gaitcap track`` against video length: does it stream?
+
+    PYTHONPATH=src python scripts/bench_memory.py [--session SESSION] [--work /tmp/gaitcap-bench]
+        [--seconds 5 20] [--fps 25] [-- extra gaitcap track options, e.g. --tracker ipf]
+
+Takes a synthetic session (default: the embedded walk, rendered once into --work), builds longer
+sessions from it by playing its videos forwards then backwards, again and again (a ping-pong
+loop: the subject never jumps, so the tracker follows one continuous motion), to each length of
+--seconds at --fps (written with gaitcap.io.video_write.AtomicVideoWriter; calibration.toml,
+background/ and session.yaml copied), then runs ``python -m gaitcap -q track`` on each in a
+child process and prints a markdown table: video seconds, frames, the child's peak resident set
+size (``ru_maxrss`` from ``os.wait4``), wall seconds and ms/frame (track.json's seconds / frames).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from gaitcap.data import embedded_walk
+from gaitcap.errors import GaitcapError
+from gaitcap.io.video_write import AtomicVideoWriter
+from gaitcap.session import BACKGROUND_DIR, CALIBRATION_FILE, SESSION_FILE, VIDEOS_DIR, Session
+from gaitcap.synth.session import TRUTH_FILE, SynthOptions, synthesize
+from gaitcap.video import VideoReader, probe_video
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def base_session(work: Path, fps: float) -> Path:
+    """The embedded walk rendered at ``fps`` (cached in ``work``)."""
+    root = work / f"embedded-walk-{fps:g}fps"
+    if not (root / TRUTH_FILE).is_file():
+        synthesize(embedded_walk(), root, SynthOptions(fps=fps), force=True, progress=False)
+    return root
+
+
+def ping_pong(n_source: int, n_out: int) -> np.ndarray:
+    """Frame indices 0, 1, ..., n-1, n-2, ..., 1, 0, 1, ... of length ``n_out``, shape (n_out,)."""
+    if n_source < 2:
+        return np.zeros(n_out, dtype=int)
+    cycle = np.concatenate([np.arange(n_source), np.arange(n_source - 2, 0, -1)])
+    return np.resize(cycle, n_out)
+
+
+def _has_frames(session: Path, n_frames: int) -> bool:
+    """``session`` is already a complete session of ``n_frames`` frames per camera."""
+    try:
+        return all(probe_video(v).frame_count == n_frames for v in Session.open(session).videos.values())
+    except GaitcapError:
+        return False
+
+
+def long_session(source: Path, target: Path, n_frames: int, fps: float) -> Path:
+    """A copy of ``source`` whose videos are looped (ping-pong) to ``n_frames`` at ``fps``."""
+    if _has_frames(target, n_frames):
+        return target
+    shutil.rmtree(target, ignore_errors=True)
+    (target / VIDEOS_DIR).mkdir(parents=True)
+    shutil.copy2(source / CALIBRATION_FILE, target / CALIBRATION_FILE)
+    if (source / SESSION_FILE).is_file():
+        shutil.copy2(source / SESSION_FILE, target / SESSION_FILE)
+    if (source / BACKGROUND_DIR).is_dir():
+        shutil.copytree(source / BACKGROUND_DIR, target / BACKGROUND_DIR)
+    for cam, video in Session.open(source).videos.items():
+        with VideoReader(video) as reader:
+            frames = [frame for _, frame in reader]
+        h, w = frames[0].shape[:2]
+        with AtomicVideoWriter(target / VIDEOS_DIR / video.name, fps, (w, h)) as writer:
+            for i in ping_pong(len(frames), n_frames):
+                writer.write(frames[i])
+    return target
+
+
+def track_in_child(session: Path, out: Path, extra: list[str]) -> tuple[float, float, dict]:
+    """Run ``python -m gaitcap -q track`` on ``session``: (peak RSS MB, wall s, track.json)."""
+    env = dict(os.environ, PYTHONPATH=str(REPO / "src") + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    cmd = [sys.executable, "-m", "gaitcap", "-q", "track", str(session), "-o", str(out), "--force", *extra]
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(cmd, env=env)
+    _, status, usage = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - t0
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    if proc.returncode != 0:
+        raise SystemExit(f"{' '.join(cmd)} failed with exit code {proc.returncode}")
+    summary = json.loads((out / "track.json").read_text())
+    return usage.ru_maxrss / 1024.0, wall, summary  # ru_maxrss is in KiB on Linux
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--session", type=Path, default=None, help="session to loop (default: the embedded walk)")
+    ap.add_argument("--work", type=Path, default=Path("/tmp/gaitcap-bench"))
+    ap.add_argument("--seconds", type=float, nargs="+", default=[5.0, 20.0])
+    ap.add_argument("--fps", type=float, default=25.0)
+    ap.add_argument("extra", nargs="*", help="options passed on to gaitcap track (after --)")
+    args = ap.parse_args()
+    source = args.session or base_session(args.work, args.fps)
+    rows = []
+    for seconds in args.seconds:
+        n = int(round(seconds * args.fps))
+        session = long_session(source, args.work / f"{source.name}-{n}frames", n, args.fps)
+        rss, wall, summary = track_in_child(session, args.work / f"{session.name}-out", args.extra)
+        frames = summary["n_frames"]
+        rows.append((seconds, frames, rss, wall, 1000 * summary["seconds"] / max(frames, 1)))
+        print(f"<!-- {seconds:g} s: {frames} frames, {rss:.0f} MB, {wall:.0f} s -->", flush=True)
+    print("| video s | frames | peak RSS MB | wall s | ms/frame |")
+    print("|---|---|---|---|---|")
+    for seconds, frames, rss, wall, ms in rows:
+        print(f"| {seconds:g} | {frames} | {rss:.0f} | {wall:.0f} | {ms:.0f} |")
+
+
+if __name__ == "__main__":
+    main()
