@@ -47,21 +47,26 @@ class FactoredIPF(Tracker):
         the silhouettes of all cameras decide again.
         """
         start = self.q.copy()
-        best = self._search(obs, start, widen)
-        if self.config.factored_ipf.swap_hypothesis:
+        cfg = self.config.factored_ipf
+        best = self._search(obs, start, widen, 0, 1)
+        if cfg.swap_hypothesis:
+            # both hypotheses get the first pass; the further passes refine the winner only
             mirrored = start.copy()
             mirrored[self._left], mirrored[self._right] = start[self._right], start[self._left]
-            other = self._search(obs, mirrored, widen)
-            other.evaluations += best.evaluations
-            if other.fit > best.fit:
-                best = other
-            else:
-                best.evaluations = other.evaluations
+            other = self._search(obs, mirrored, widen, 0, 1)
+            evaluations = best.evaluations + other.evaluations
+            best = other if other.fit > best.fit else best
+            best.evaluations = evaluations
+        if cfg.passes > 1:
+            refined = self._search(obs, best.q, widen, 1, cfg.passes)
+            refined.evaluations += best.evaluations
+            best = refined
         self.q = best.q
         return best
 
-    def _search(self, obs: Observation, start: np.ndarray, widen: float) -> Estimate:
-        """The factored search of one frame from ``start`` (``widen`` > 1 enlarges every interval).
+    def _search(self, obs: Observation, start: np.ndarray, widen: float, first: int, stop: int) -> Estimate:
+        """Passes ``first`` to ``stop - 1`` of the factored search from ``start``
+        (``widen`` > 1 enlarges every interval).
 
         The first pass walks the chain with Img_n = the silhouette minus the segments placed so
         far; each further pass (``passes``) revisits every node with Img_n = the silhouette minus
@@ -71,7 +76,7 @@ class FactoredIPF(Tracker):
         q = start.copy()
         variance = np.zeros(model.n_points)
         evaluations = 0
-        for p in range(cfg.passes):
+        for p in range(first, stop):
             layers = cfg.layers if p == 0 else cfg.layers[-1:]
             variance[:] = 0.0
             placed = [np.zeros_like(s) for s in obs.silhouettes]
