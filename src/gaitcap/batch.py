@@ -24,6 +24,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import multiprocessing
+import os
 import sys
 import threading
 import time
@@ -146,6 +147,32 @@ def _ensure_worker_console() -> None:
         logger.propagate = False
 
 
+THREADS_ENV = "GAITCAP_THREADS"
+
+
+@contextlib.contextmanager
+def _shared_cores(n_workers: int) -> Iterator[None]:
+    """Workers started inside this block get cores / n_workers compiled-kernel threads each, so
+    that n parallel sessions do not oversubscribe the machine (numba defaults to every core)."""
+    old = os.environ.get(THREADS_ENV)
+    os.environ[THREADS_ENV] = str(max(1, (os.cpu_count() or 1) // max(1, n_workers)))
+    try:
+        yield
+    finally:
+        if old is None:
+            os.environ.pop(THREADS_ENV, None)
+        else:
+            os.environ[THREADS_ENV] = old
+
+
+def _limit_threads() -> None:
+    threads = os.environ.get(THREADS_ENV)
+    if threads:
+        import numba
+
+        numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
+
+
 def run_session(job: SessionJob) -> TrackSummary:
     """Run ``job.task`` on one session with its log file; never raises for a failed session.
 
@@ -154,6 +181,7 @@ def run_session(job: SessionJob) -> TrackSummary:
         goes to ``track.log``).
     """
     _ensure_worker_console()
+    _limit_threads()
     start = time.perf_counter()
     try:
         with session_log(job.out / LOG_FILE):
@@ -178,7 +206,7 @@ def _run_in_process(jobs: list[SessionJob]) -> list[TrackSummary]:
 def _run_in_pool(jobs: list[SessionJob], n_workers: int) -> list[TrackSummary]:
     results: list[TrackSummary | None] = [None] * len(jobs)
     context = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=n_workers, mp_context=context) as pool:
+    with _shared_cores(n_workers), ProcessPoolExecutor(max_workers=n_workers, mp_context=context) as pool:
         futures = {pool.submit(run_session, job): i for i, job in enumerate(jobs)}
         for future in as_completed(futures):
             i = futures[future]
@@ -199,7 +227,8 @@ def _dask_client(scheduler: str, n_workers: int) -> tuple[Any, Any]:
             f"--scheduler {scheduler}: dask.distributed is not installed (pip install 'gaitcap[distributed]')"
         ) from e
     if scheduler == LOCAL_SCHEDULER:
-        cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, dashboard_address=None)
+        with _shared_cores(n_workers):
+            cluster = LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, dashboard_address=None)
         return Client(cluster), cluster
     try:
         return Client(scheduler, timeout="10s"), None
