@@ -122,3 +122,26 @@ def test_every_dof_has_an_interval():
     widths = cfg.half_widths(model)
     assert widths.shape == (31,) and np.all(widths > 0)
     assert cfg.order_indices(model)[0] == model.segment("pelvis").index
+
+
+def test_subject_absent_from_every_frame_is_one_clear_error(embedded_session, tmp_path):
+    import shutil
+
+    import cv2
+    from click.testing import CliRunner
+
+    from gaitcap.cli.main import cli
+    from gaitcap.io.video_write import AtomicVideoWriter
+
+    session = tmp_path / "empty"
+    shutil.copytree(embedded_session.session, session)
+    for cam in ("cam1", "cam2"):
+        plate = cv2.imread(str(session / "background" / f"{cam}.png"))
+        with AtomicVideoWriter(session / "videos" / f"{cam}.mp4", 25.0, (plate.shape[1], plate.shape[0])) as w:
+            for _ in range(12):
+                w.write(plate)
+    out = tmp_path / "out"
+    result = CliRunner().invoke(cli, ["-q", "track", str(session), "-o", str(out)])
+    assert result.exit_code == 1
+    assert "the subject was not found in any of the 12 frames" in result.output
+    assert not (out / "trajectories.h5").exists() and not (out / "track.json").exists()

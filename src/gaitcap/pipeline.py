@@ -136,6 +136,11 @@ def run_track(
         tracked = _track_frames(filt, likelihood, views, cfg, first, frames, extractors, rig.names, writer,
                                 n_frames, progress, timing, on_frame)  # fmt: skip
         raw, quality = writer.read_back()
+        if not np.any((quality == QUALITY_OK) | (quality == QUALITY_POOR_FIT)):
+            raise TrackingError(
+                f"{session}: the subject was not found in any of the {tracked} frames (every camera needs a "
+                f"silhouette covering at least {100 * cfg.quality.min_silhouette_fraction:.1f} % of its image)"
+            )
         points, note = _finish_points(raw, quality, videos.fps, cfg)
         writer.finish(points, note)
     except BaseException as e:
