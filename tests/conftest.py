@@ -14,6 +14,22 @@ def rng() -> np.random.Generator:
     return np.random.default_rng(12345)
 
 
+@pytest.fixture
+def read_only_dir(tmp_path):
+    """A folder nobody may write into (skips where chmod has no effect, as for root)."""
+    import os
+
+    folder = tmp_path / "ro"
+    folder.mkdir()
+    folder.chmod(0o555)
+    try:
+        if os.access(folder, os.W_OK):
+            pytest.skip("chmod has no effect (running as root)")
+        yield folder
+    finally:
+        folder.chmod(0o755)
+
+
 @pytest.fixture(scope="session")
 def embedded_session(tmp_path_factory):
     """The embedded walk rendered once per test run (2 cameras, 640x480, 56 frames)."""

@@ -108,11 +108,9 @@ def run_track(
 
     frames = iter_synchronised({c: ses.videos[c] for c in rig.names}, 0, n_frames)
     first: list[Observation] = []
-    first_masks_frames: list[int] = []
-    for index, images in frames:
+    for _, images in frames:
         masks = [extractors[c].process(images[c])[0] for c in rig.names]
         first.append(observe(views, masks))
-        first_masks_frames.append(index)
         if len(first) >= cfg.init.frames:
             break
     if not first:

@@ -14,11 +14,20 @@ from pathlib import Path
 from gaitcap.errors import OutputError
 
 
-def default_file_mode() -> int:
-    """The mode a new file gets under the current umask (temporary files are created 0600)."""
+def _umask() -> int:
     umask = os.umask(0)
     os.umask(umask)
-    return 0o666 & ~umask
+    return umask
+
+
+def default_file_mode() -> int:
+    """The mode a new file gets under the current umask (temporary files are created 0600)."""
+    return 0o666 & ~_umask()
+
+
+def default_dir_mode() -> int:
+    """The mode a new folder gets under the current umask (temporary folders are created 0700)."""
+    return 0o777 & ~_umask()
 
 
 @contextlib.contextmanager

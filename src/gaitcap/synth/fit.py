@@ -142,8 +142,6 @@ def _foot_affine(
         d = traj.point(n) - o[:, seg.index]
         loc = np.einsum("tji,tj->ti", R[:, seg.index], d)
         local.append(np.nanmedian(loc, axis=0))
-    base_scale = model.scales[seg.name]
-    base_shift = model.shifts[seg.name]
     spec_pts = [np.asarray(model.spec.segments[seg.name].points[n]) * model.height_m for n in names]
     (xh, zh), (xt, zt) = ((p[0], p[2]) for p in spec_pts)
     if abs(xt - xh) < 1e-6 or abs(zh + zt) < 1e-6:
@@ -154,7 +152,6 @@ def _foot_affine(
     if not (0.6 < sx < 1.8 and 0.6 < sz < 2.5) or not np.all(np.isfinite([sx, dx, sz])):
         log.debug("foot%s affine out of range (sx %.2f, sz %.2f): kept the distance-based scales", s, sx, sz)
         return None
-    del base_scale, base_shift
     return (float(sx), 1.0, float(sz)), (float(dx), 0.0, 0.0)
 
 

@@ -29,6 +29,7 @@ from gaitcap import __version__
 from gaitcap.body.model import load_body_spec
 from gaitcap.camera import CameraRig
 from gaitcap.errors import OutputError
+from gaitcap.io.atomic import default_dir_mode
 from gaitcap.io.calibration_toml import write_calibration
 from gaitcap.io.video_write import CODECS, AtomicVideoWriter
 from gaitcap.markers.motion import read_motion
@@ -82,12 +83,6 @@ class SynthResult:
     cameras: list[str]
     fit: FitResult
     truth: Trajectory
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
 
 
 def _light_direction(rig: CameraRig, fit_points: np.ndarray) -> tuple[float, float, float]:
@@ -153,7 +148,7 @@ def synthesize(
         _write_session(tmp, rig, renderer, fit, traj, truth, options, motion, source_t0, progress)
         if out.exists():
             shutil.rmtree(out) if out.is_dir() else out.unlink()
-        os.chmod(tmp, 0o777 & ~_umask())
+        os.chmod(tmp, default_dir_mode())
         tmp.rename(out)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)

@@ -36,6 +36,10 @@ class FactoredIPF(Tracker):
         super().__init__(*args, **kwargs)
         self.order = self.config.order_indices(self.model)
         self.subtrees = subtrees(self.model)
+        names = self.model.dof_names
+        legs = ("hip_", "knee_", "ankle_")
+        self._left = np.array([i for i, n in enumerate(names) if n.endswith("_l") and n.startswith(legs)])
+        self._right = np.array([names.index(names[i][:-2] + "_r") for i in self._left])
 
     def step(self, obs: Observation, widen: float = 1.0) -> Estimate:
         """Track one frame from the previous estimate and, with ``swap_hypothesis``, also from its
@@ -101,19 +105,6 @@ class FactoredIPF(Tracker):
         points = model.forward(q[None])[0]
         return Estimate(q=q, points=points, uncertainty=np.sqrt(variance), log_likelihood=ll, fit=fit,
                         evaluations=evaluations)  # fmt: skip
-
-    @property
-    def _left(self) -> np.ndarray:
-        return np.array([i for i, n in enumerate(self.model.dof_names) if n.endswith("_l") and self._is_leg(n)])
-
-    @property
-    def _right(self) -> np.ndarray:
-        names = self.model.dof_names
-        return np.array([names.index(names[i][:-2] + "_r") for i in self._left])
-
-    @staticmethod
-    def _is_leg(name: str) -> bool:
-        return name.startswith(("hip_", "knee_", "ankle_"))
 
     def _node(self, obs, q, dofs: slice, sub, parent_R, parent_o, free, n: int, widen: float, layers):
         """Diffuse, weight, resample and keep the best for one node. Returns the new estimate,

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from gaitcap.camera import Camera, CameraRig
+from gaitcap.camera import Camera, CameraRig, distort_normalized
 from gaitcap.tracking.raster import row_prefix
 
 
@@ -43,8 +43,6 @@ class TrackingView:
             gv, gu = np.mgrid[0:h, 0:w].astype(np.float64)
             Kinv = np.linalg.inv(camera.matrix)
             rays = np.stack([gu, gv, np.ones_like(gu)], -1) @ Kinv.T
-            from gaitcap.camera import distort_normalized
-
             xd, yd = distort_normalized(rays[..., 0], rays[..., 1], camera.dist)
             M = camera.matrix
             umap = ((M[0, 0] * xd + M[0, 2]).astype(np.float32), (M[1, 1] * yd + M[1, 2]).astype(np.float32))
