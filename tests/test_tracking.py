@@ -145,3 +145,20 @@ def test_subject_absent_from_every_frame_is_one_clear_error(embedded_session, tm
     assert result.exit_code == 1
     assert "the subject was not found in any of the 12 frames" in result.output
     assert not (out / "trajectories.h5").exists() and not (out / "track.json").exists()
+
+
+def test_camera_without_video_creates_no_output(embedded_session, tmp_path):
+    import shutil
+
+    from click.testing import CliRunner
+
+    from gaitcap.cli.main import cli
+
+    session = tmp_path / "session"
+    shutil.copytree(embedded_session.session, session)
+    (session / "videos" / "cam2.mp4").rename(session / "videos" / "camX.mp4")
+    out = tmp_path / "out"
+    result = CliRunner().invoke(cli, ["-q", "track", str(session), "-o", str(out)])
+    assert result.exit_code == 1
+    assert "no video for camera 'cam2' from calibration.toml" in result.output
+    assert not out.exists()

@@ -88,12 +88,12 @@ def run_track(
     """Track one session into ``out`` (see the module docstring). Returns the run's summary."""
     t_start = time.perf_counter()
     session, out = Path(session), Path(out)
-    _check_out(out, force)
     cfg = load_tracking_config(config)
     if tracker is not None:
         cfg.tracker = tracker  # validated by the schema
     ses = Session.open(session)
     videos = check_session_videos(ses)
+    _check_out(out, force)  # only once the inputs are known good: bad input creates nothing
     rig = videos.rig
     n_frames = videos.n_frames if max_frames is None else min(videos.n_frames, max_frames)
     sil_cfg = SilhouetteConfig.load()
