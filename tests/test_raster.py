@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from gaitcap.body.shape import ProjectedCapsules, capsule_polygon, rasterize
-from gaitcap.tracking.raster import capsule_sums, row_prefix
+from gaitcap.tracking.raster import capsule_sums, fill_capsules, row_prefix
 
 
 def _inside_capsule(x, y, a, b, ra, rb):
@@ -92,3 +92,15 @@ def test_capsules_outside_the_image_and_nan_count_nothing():
     g = np.ones((30, 30), np.float32)
     s1, s2 = _sums(a, b, r, r, g, g)
     assert s1[0] == 0 and s2[0] == 0
+
+
+def test_fill_marks_exactly_the_pixels_the_kernel_counts(rng):
+    h, w = 90, 120
+    a = rng.uniform([10, 10], [110, 80], size=(4, 2))
+    b = a + rng.uniform(-30, 30, size=(4, 2))
+    ra, rb = rng.uniform(2, 9, size=4), rng.uniform(2, 9, size=4)
+    mask = np.zeros((h, w), np.float32)
+    fill_capsules(mask, a, b, ra, rb, 1.0)
+    _, _, exact = _brute_force(a, b, ra, rb, mask, mask)
+    assert mask.sum() > 0
+    assert np.array_equal(mask > 0, exact)

@@ -14,9 +14,11 @@ from gaitcap.io.trajectories_h5 import read_trajectory
 from gaitcap.markers.motion import read_markers
 from gaitcap.pipeline import run_track
 from gaitcap.synth.truth import read_truth
+from gaitcap.tracking.chain import subtrees
 from gaitcap.tracking.config import load_tracking_config
 from gaitcap.tracking.likelihood import SilhouetteLikelihood
 from gaitcap.tracking.observation import observe, tracking_views
+from gaitcap.tracking.projector import PoseProjector
 from gaitcap.trajectory import LOWER_LIMB, POINT_NAMES
 from gaitcap.config import default_config_path
 
@@ -122,6 +124,44 @@ def test_every_dof_has_an_interval():
     widths = cfg.half_widths(model)
     assert widths.shape == (31,) and np.all(widths > 0)
     assert cfg.order_indices(model)[0] == model.segment("pelvis").index
+
+
+def test_compiled_projection_equals_the_numpy_model(embedded_session, rng):
+    truth, rig, model = _truth_setup(embedded_session.session)
+    views = tracking_views(rig, 0.5)
+    lik = SilhouetteLikelihood(views, beta=40.0)
+    Q = model.clip(truth.poses[10] + rng.normal(0, 0.3, size=(50, 31)))
+    proj = PoseProjector(model, views).capsules(Q)
+    A, B, r = model.capsules(Q)
+    ref = lik.projected(A, B, r)
+    for got, want in zip((proj.a, proj.b, proj.ra, proj.rb), (ref.a, ref.b, ref.ra, ref.rb)):
+        assert got.shape == want.shape
+        assert np.allclose(got, want, atol=1e-9)
+    caps = np.array([3, 0, 7])
+    assert np.allclose(PoseProjector(model, views).capsules(Q, caps).a, ref.a[:, :, caps], atol=1e-9)
+    assert np.allclose(PoseProjector(model, views).points(Q), model.forward(Q), atol=1e-12)
+
+
+def test_posture_prior_and_coupled_dofs_are_validated(tmp_path):
+    model = load_body_model()
+    cfg = load_tracking_config()
+    sigma = cfg.prior_sigmas(model)
+    assert np.isinf(sigma[model.dof_index("knee_flexion_l")])  # seen in the image: no prior
+    assert np.isclose(sigma[model.dof_index("pelvis_tilt")], np.radians(cfg.prior["pelvis_(tilt|obliquity)"]))
+    explored = cfg.explored_dofs(model, subtrees(model))
+    thigh = explored[model.segment("thigh_l").index]
+    assert model.dof_index("knee_flexion_l") in thigh and model.dof_index("hip_flexion_l") in thigh
+    data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
+    data["factored_ipf"]["coupled"] = {"shank_l": ["hip_flexion_l"]}  # a DOF above the node: refused
+    path = tmp_path / "tracking.yaml"
+    path.write_text(yaml.safe_dump(data))
+    with pytest.raises(ConfigError, match=r"coupled\.shank_l: 'hip_flexion_l' is not a DOF of a segment below"):
+        load_tracking_config(path).explored_dofs(model, subtrees(model))
+    data["factored_ipf"]["coupled"] = {}
+    data["prior"] = {"pelvis_.*": 5, "pelvis_tilt": 3}  # two patterns for one DOF
+    path.write_text(yaml.safe_dump(data))
+    with pytest.raises(ConfigError, match=r"prior: DOF 'pelvis_tilt' matches several patterns"):
+        load_tracking_config(path).prior_sigmas(model)
 
 
 def test_subject_absent_from_every_frame_is_one_clear_error(embedded_session, tmp_path):

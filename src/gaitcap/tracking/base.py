@@ -10,6 +10,7 @@ from gaitcap.body.model import BodyModel
 from gaitcap.tracking.config import Layer, TrackingConfig
 from gaitcap.tracking.likelihood import SilhouetteLikelihood
 from gaitcap.tracking.observation import Observation
+from gaitcap.tracking.projector import PoseProjector
 
 
 @dataclass
@@ -43,6 +44,8 @@ class Tracker:
         self.config = config
         self.rng = rng
         self.half_width = config.half_widths(model)
+        self.prior_sigma = config.prior_sigmas(model)
+        self.projector = PoseProjector(model, likelihood.views)
         self.q = model.neutral_pose()
 
     def start(self, q0: np.ndarray) -> None:
@@ -66,9 +69,18 @@ class Tracker:
         k = self.rng.integers(-m, m + 1, size=(n, len(dofs)))
         return k * step
 
+    def log_prior(self, Q: np.ndarray, dofs: np.ndarray | slice = slice(None)) -> np.ndarray:
+        """The posture prior over the DOF ``dofs`` of poses Q (N, D): shape (N,).
+
+        log p(x) = -1/2 sum_d (x_d / sigma_d)^2 over the DOF with a prior (``prior`` in the YAML):
+        the rotations a silhouette cannot see (the pelvis about its own capsule axis, the limbs
+        about their long axes, the lumbar joint whose rotation the torso and pelvis trade off),
+        centred on the anatomical neutral and wide enough that the image overrides it.
+        """
+        z = Q[:, dofs] / self.prior_sigma[dofs]
+        return -0.5 * np.sum(z * z, axis=1)
+
     def full_fit(self, obs: Observation, q: np.ndarray) -> tuple[float, float]:
         """(log-likelihood, fit) of one pose against the full silhouettes."""
-        A, B, r = self.model.capsules(q[None])
-        ll = float(self.likelihood.log_likelihood(obs, A, B, r)[0])
-        fit = float(self.likelihood.fit(obs, A, B, r)[0])
-        return ll, fit
+        proj = self.projector.capsules(q[None])
+        return float(self.likelihood.score(obs, proj)[0]), float(self.likelihood.fit_of(obs, proj)[0])

@@ -33,12 +33,11 @@ class Condensation(Tracker):
         X = self.X[systematic(self.W, n, self.rng)]
         sigma = cfg.sigma_fraction * self.half_width * widen
         X = model.clip(X + self.rng.normal(0.0, 1.0, size=X.shape) * sigma)
-        A, B, r = model.capsules(X)
-        logw = self.likelihood.log_likelihood(obs, A, B, r)
+        logw = self.likelihood.score(obs, self.projector.capsules(X)) + self.log_prior(X)
         self.X, self.W = X, normalise_log_weights(logw)
         i = int(np.argmax(logw))
         self.q = X[i].copy()
         ll, fit = self.full_fit(obs, self.q)
-        spread = weighted_spread(model.forward(X), self.W)
+        spread = weighted_spread(self.projector.points(X), self.W)
         return Estimate(q=self.q, points=model.forward(self.q[None])[0], uncertainty=np.sqrt(spread),
                         log_likelihood=ll, fit=fit, evaluations=n)  # fmt: skip

@@ -28,7 +28,9 @@ class FactoredIPFConfig(Strict):
     order: list[str] = Field(default_factory=list)
     layers: list[Layer] = Field(min_length=1)
     passes: int = Field(default=2, ge=1, le=10)
+    coupled: dict[str, list[str]] = Field(default_factory=dict)
     swap_hypothesis: bool = True
+    swap_within_deg: float = Field(default=25.0, gt=0, le=180)
     ess_threshold: float = Field(default=0.5, ge=0, le=1)
 
 
@@ -64,6 +66,7 @@ class TrackingConfig(Strict):
     scale: float = Field(default=0.5, gt=0.05, le=1)
     beta: float = Field(default=40.0, gt=0)
     intervals: dict[str, float]
+    prior: dict[str, float] = Field(default_factory=dict)
     factored_ipf: FactoredIPFConfig
     ipf: IPFConfig
     condensation: CondensationConfig
@@ -72,29 +75,25 @@ class TrackingConfig(Strict):
     smoothing: SmoothingConfig = Field(default_factory=SmoothingConfig)
     seed: int = 0
 
-    @field_validator("intervals")
+    @field_validator("intervals", "prior")
     @classmethod
-    def _check_intervals(cls, v: dict[str, float]) -> dict[str, float]:
+    def _check_patterns(cls, v: dict[str, float]) -> dict[str, float]:
         for pattern, width in v.items():
             try:
                 re.compile(pattern)
             except re.error as e:
                 raise ValueError(f"'{pattern}' is not a valid regular expression ({e})") from e
             if not (np.isfinite(width) and width > 0):
-                raise ValueError(f"'{pattern}': half-width must be positive")
+                raise ValueError(f"'{pattern}': must be a positive number")
         return v
 
     def half_widths(self, model: BodyModel) -> np.ndarray:
         """Interval half-width per DOF (D,), radians / metres. Each DOF must match one pattern."""
-        out = np.zeros(model.n_dofs)
-        for i, name in enumerate(model.dof_names):
-            hits = [p for p in self.intervals if re.fullmatch(p, name)]
-            if len(hits) != 1:
-                what = "no pattern" if not hits else f"several patterns ({', '.join(hits)})"
-                raise ConfigError(f"tracking config: intervals: DOF '{name}' matches {what}")
-            w = self.intervals[hits[0]]
-            out[i] = w if not model.is_rotation[i] else np.radians(w)
-        return out
+        return _per_dof("intervals", self.intervals, model, required=True)
+
+    def prior_sigmas(self, model: BodyModel) -> np.ndarray:
+        """Standard deviation of the posture prior per DOF (D,), radians / metres; inf: no prior."""
+        return _per_dof("prior", self.prior, model, required=False)
 
     def order_indices(self, model: BodyModel) -> list[int]:
         """Segment indices of the factored chain walk; every segment once, parents first."""
@@ -114,6 +113,40 @@ class TrackingConfig(Strict):
                 raise ConfigError(f"tracking config: factored_ipf.order: '{model.segments[i].name}' comes before its parent")
             seen.add(i)
         return idx
+
+    def explored_dofs(self, model: BodyModel, subtrees: list) -> list[np.ndarray]:
+        """DOF indices each node of the factored chain explores: its segment's own, then the
+        ``coupled`` DOF of segments below it (which its subtree score sees)."""
+        out = [np.arange(seg.dof_start, seg.dof_stop) for seg in model.segments]
+        for name, dofs in self.factored_ipf.coupled.items():
+            seg = model.segment(name) if name in {s.name for s in model.segments} else None
+            if seg is None:
+                raise ConfigError(f"tracking config: factored_ipf.coupled: unknown segment '{name}'")
+            for dof in dofs:
+                if dof not in model.dof_names:
+                    raise ConfigError(f"tracking config: factored_ipf.coupled.{name}: unknown DOF '{dof}'")
+                i = model.dof_index(dof)
+                owner = next(s.index for s in model.segments if s.dof_start <= i < s.dof_stop)
+                if owner == seg.index or owner not in subtrees[seg.index].segments:
+                    raise ConfigError(f"tracking config: factored_ipf.coupled.{name}: '{dof}' is not a DOF of a "
+                                      f"segment below {name}")  # fmt: skip
+                out[seg.index] = np.r_[out[seg.index], i]
+        return out
+
+
+def _per_dof(key: str, patterns: dict[str, float], model: BodyModel, required: bool) -> np.ndarray:
+    """Value per DOF (D,) from {regular expression: degrees or metres}; a DOF may match at most one
+    pattern (exactly one when ``required``); unmatched DOF get inf."""
+    out = np.full(model.n_dofs, np.inf)
+    for i, name in enumerate(model.dof_names):
+        hits = [p for p in patterns if re.fullmatch(p, name)]
+        if len(hits) > 1 or (required and not hits):
+            what = "no pattern" if not hits else f"several patterns ({', '.join(hits)})"
+            raise ConfigError(f"tracking config: {key}: DOF '{name}' matches {what}")
+        if hits:
+            w = patterns[hits[0]]
+            out[i] = w if not model.is_rotation[i] else np.radians(w)
+    return out
 
 
 def load_tracking_config(path: str | Path | None = None) -> TrackingConfig:

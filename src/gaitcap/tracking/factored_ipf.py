@@ -1,13 +1,16 @@
 """Factored interval particle filtering (Saboune & Charpillet).
 
 The pose x = (x_1, ..., x_S) is factored along the kinematic chain: node n holds the DOF of
-segment n. The filter walks the chain in topological order (``factored_ipf.order``); at node n:
+segment n, plus the ``coupled`` DOF of the segments below it (hip flexion with knee flexion, knee
+with ankle: the likelihood has a ridge along which they trade off, which one-DOF-group-at-a-time
+moves cannot follow). The filter walks the chain in topological order (``factored_ipf.order``); at node n:
 
     state node        x_n^(i) = x̂_n + δ^(i),  δ^(i)_d ∈ {-m_d, ..., m_d} · step      (children on the
                       discretised interval of each DOF around the current estimate x̂_n)
-    observation node  log w^(i) = log p(z_n | x̂_{<n}, x_n^(i))                        (likelihood.py:
+    observation node  log w^(i) = log p(z_n | x̂_{<n}, x_n^(i)) + log p(x_n^(i))      (likelihood.py:
                       the subtree of n against Img_n = the silhouette left free by the segments
-                      already placed)
+                      already placed; p(x_n): the posture prior on the DOF the image cannot
+                      see, base.py)
                       W^(i) = w^(i) / Σ_j w^(j);  resample when ESS = 1 / Σ_i (W^(i))² < τ N
     refinement        further layers with finer steps (down to 2 degrees) around the resampled
                       particles
@@ -24,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from gaitcap.tracking.base import Estimate, Tracker, weighted_spread
-from gaitcap.tracking.chain import capsules_of, points_of, subtree_frames, subtrees
+from gaitcap.tracking.chain import subtrees
 from gaitcap.tracking.observation import Observation
 from gaitcap.tracking.resampling import ess, normalise_log_weights, systematic
 
@@ -36,10 +39,14 @@ class FactoredIPF(Tracker):
         super().__init__(*args, **kwargs)
         self.order = self.config.order_indices(self.model)
         self.subtrees = subtrees(self.model)
+        self._explored = self.config.explored_dofs(self.model, self.subtrees)
+        everything = np.arange(len(self.model.capsule_segment))
+        self._outside = [np.setdiff1d(everything, sub.capsules) for sub in self.subtrees]
         names = self.model.dof_names
         legs = ("hip_", "knee_", "ankle_")
         self._left = np.array([i for i, n in enumerate(names) if n.endswith("_l") and n.startswith(legs)])
         self._right = np.array([names.index(names[i][:-2] + "_r") for i in self._left])
+        self._hip_flex = (self.model.dof_index("hip_flexion_l"), self.model.dof_index("hip_flexion_r"))
 
     def step(self, obs: Observation, widen: float = 1.0) -> Estimate:
         """Track one frame from the previous estimate and, with ``swap_hypothesis``, also from its
@@ -53,7 +60,7 @@ class FactoredIPF(Tracker):
         start = self.q.copy()
         cfg = self.config.factored_ipf
         best = self._search(obs, start, widen, 0, 1)
-        if cfg.swap_hypothesis:
+        if cfg.swap_hypothesis and (widen > 1.0 or self._legs_close(start)):  # always when initialising
             # both hypotheses get the first pass; the further passes refine the winner only
             mirrored = start.copy()
             mirrored[self._left], mirrored[self._right] = start[self._right], start[self._left]
@@ -67,6 +74,12 @@ class FactoredIPF(Tracker):
             best = refined
         self.q = best.q
         return best
+
+    def _legs_close(self, q: np.ndarray) -> bool:
+        """Whether the legs are near enough to each other to be confused: their hip flexions differ
+        by less than ``swap_within_deg`` (a swap was seen to win only below 18 degrees)."""
+        limit = np.radians(self.config.factored_ipf.swap_within_deg)
+        return bool(np.all(np.abs(q[self._hip_flex[0]] - q[self._hip_flex[1]]) < limit))
 
     def _search(self, obs: Observation, start: np.ndarray, widen: float, first: int, stop: int) -> Estimate:
         """Passes ``first`` to ``stop - 1`` of the factored search from ``start``
@@ -84,33 +97,28 @@ class FactoredIPF(Tracker):
             layers = cfg.layers if p == 0 else cfg.layers[-1:]
             variance[:] = 0.0
             placed = [np.zeros_like(s) for s in obs.silhouettes]
-            R_all, o_all = model.frames(q[None])
             for s in self.order:
-                seg = model.segments[s]
                 sub = self.subtrees[s]
-                n = cfg.root_particles if seg.parent < 0 else cfg.particles
-                parent_R = None if seg.parent < 0 else R_all[0, seg.parent]
-                parent_o = None if seg.parent < 0 else o_all[0, seg.parent]
+                n = cfg.root_particles if model.segments[s].parent < 0 else cfg.particles
                 if p == 0:
-                    free = self.likelihood.free_prefixes(obs, [1.0 - m for m in placed])
+                    free = [1.0 - m for m in placed]
                 else:
-                    free = self.likelihood.free_prefixes(obs, self._free_outside(q, sub, R_all, o_all, obs))
-                q, W, X, pts = self._node(obs, q, seg.dofs, sub, parent_R, parent_o, free, n, widen, layers)
+                    free = self._free_outside(q, s, obs)
+                q, W, pts = self._node(obs, q, self._explored[s], sub,
+                                       self.likelihood.free_prefixes(obs, free), n, widen, layers)  # fmt: skip
                 evaluations += n * len(layers)
                 variance[sub.points] += weighted_spread(pts, W)
-                R_all, o_all = model.frames(q[None])
                 if p == 0:
-                    self._place(q, sub.own_capsules, placed, R_all, o_all)
+                    self._draw(q, sub.own_capsules, placed)
         ll, fit = self.full_fit(obs, q)
-        points = model.forward(q[None])[0]
+        points = self.projector.points(q[None])[0]
         return Estimate(q=q, points=points, uncertainty=np.sqrt(variance), log_likelihood=ll, fit=fit,
                         evaluations=evaluations)  # fmt: skip
 
-    def _node(self, obs, q, dofs: slice, sub, parent_R, parent_o, free, n: int, widen: float, layers):
+    def _node(self, obs, q, idx: np.ndarray, sub, free, n: int, widen: float, layers):
         """Diffuse, weight, resample and keep the best for one node. Returns the new estimate,
-        the final weights (N,), the particles' node DOF values and their subtree points."""
+        the final weights (N,) and the particles' subtree points (N, P_sub, 3)."""
         model = self.model
-        idx = np.arange(model.n_dofs)[dofs]
         base = np.repeat(q[None], n, axis=0)
         X = base[:, idx].copy()
         logw = np.zeros(n)
@@ -125,30 +133,24 @@ class FactoredIPF(Tracker):
             Q[:, idx] = X
             Q = model.clip(Q)
             X = Q[:, idx]
-            Rs, os_ = subtree_frames(model, sub, Q, parent_R, parent_o)
-            A, B, r = capsules_of(model, sub.capsules, Rs, os_)
-            logw = self.likelihood.log_likelihood(obs, A, B, r, free)
+            logw = self.likelihood.score(obs, self.projector.capsules(Q, sub.capsules), free) + self.log_prior(Q, idx)
             i = int(np.argmax(logw))
             if logw[i] > best_ll:
                 best_ll, best_x = float(logw[i]), X[i].copy()
         q = q.copy()
         q[idx] = best_x
-        pts = points_of(model, sub.points, Rs, os_)
-        return q, normalise_log_weights(logw), X, pts
+        return q, normalise_log_weights(logw), self.projector.points(Q, sub.points)
 
-    def _free_outside(self, q, sub, R_all, o_all, obs: Observation) -> list[np.ndarray]:
-        """1 - (all segments outside the subtree, drawn at the estimate), per view."""
-        others = np.setdiff1d(np.arange(len(self.model.capsule_a)), sub.capsules)
-        placed = [np.zeros_like(s) for s in obs.silhouettes]
-        self._place(q, others, placed, R_all, o_all)
+    def _free_outside(self, q: np.ndarray, s: int, obs: Observation) -> list[np.ndarray]:
+        """1 - (all segments outside segment s's subtree, drawn at the estimate), per view."""
+        placed = [np.zeros_like(m) for m in obs.silhouettes]
+        self._draw(q, self._outside[s], placed)
         return [1.0 - m for m in placed]
 
-    def _place(self, q, caps, placed, R_all, o_all) -> None:
-        """Draw the segment's own capsules at the estimate into every view's placed mask."""
+    def _draw(self, q: np.ndarray, caps: np.ndarray, masks: list[np.ndarray]) -> None:
+        """Fill capsules ``caps`` at pose q into every view's mask."""
         if len(caps) == 0:
             return
-        Rs = {s: R_all[:, s] for s in range(len(self.model.segments))}
-        os_ = {s: o_all[:, s] for s in range(len(self.model.segments))}
-        A, B, r = capsules_of(self.model, caps, Rs, os_)
-        for c in range(len(placed)):
-            self.likelihood.render(c, A[0], B[0], r, placed[c])
+        proj = self.projector.capsules(q[None], caps)
+        for c, m in enumerate(masks):
+            self.likelihood.fill(c, proj, m)

@@ -139,8 +139,7 @@ def initialise(
         log.info("the subject barely moves in the first frames: searching every heading")
     obs = observations[0]
     Q = _candidate_poses(model, start, headings)
-    A, B, r = model.capsules(Q)
-    ll = likelihood.log_likelihood(obs, A, B, r)
+    ll = likelihood.score(obs, tracker.projector.capsules(Q))
     order = np.argsort(-ll)
     # keep the best candidates with distinct headings
     chosen: list[int] = []

@@ -31,14 +31,13 @@ class IntervalPF(Tracker):
                 X = X[systematic(normalise_log_weights(logw), n, self.rng)]
             X = model.clip(X + self.grid_offsets(n, all_dofs, layer, widen))
             X[0] = best_q
-            A, B, r = model.capsules(X)
-            logw = self.likelihood.log_likelihood(obs, A, B, r)
+            logw = self.likelihood.score(obs, self.projector.capsules(X)) + self.log_prior(X)
             i = int(np.argmax(logw))
             if logw[i] > best_ll:
                 best_ll, best_q = float(logw[i]), X[i].copy()
         self.q = best_q
         W = normalise_log_weights(logw)
-        spread = weighted_spread(model.forward(X), W)
+        spread = weighted_spread(self.projector.points(X), W)
         ll, fit = self.full_fit(obs, best_q)
         return Estimate(q=best_q, points=model.forward(best_q[None])[0], uncertainty=np.sqrt(spread),
                         log_likelihood=ll, fit=fit, evaluations=n * len(cfg.layers))  # fmt: skip

@@ -19,9 +19,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from gaitcap.body.shape import draw_capsule
 from gaitcap.tracking.observation import Observation, TrackingView
-from gaitcap.tracking.raster import capsule_sums, row_prefix
+from gaitcap.tracking.projector import Projected
+from gaitcap.tracking.raster import capsule_sums, fill_capsules, row_prefix
 
 
 class SilhouetteLikelihood:
@@ -43,39 +43,53 @@ class SilhouetteLikelihood:
         """Row prefix sums of (silhouette x free, free) per camera, for :meth:`terms`."""
         return [(row_prefix(s * f), row_prefix(f)) for s, f in zip(obs.silhouettes, free)]
 
+    def projected(self, A: np.ndarray, B: np.ndarray, radii: np.ndarray) -> Projected:
+        """World capsules A, B (N, K, 3), radii (K, 2) -> every view's 2D capsules (numpy path;
+        the trackers use the compiled :class:`~gaitcap.tracking.projector.PoseProjector`)."""
+        parts = [self.project(view, A, B, radii) for view in self.views]
+        return Projected(*(np.stack([p[i] for p in parts]) for i in range(4)))
+
     def terms(
-        self, obs: Observation, A: np.ndarray, B: np.ndarray, radii: np.ndarray,
-        free: list[tuple[np.ndarray, np.ndarray]] | None = None,
-    ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
-        """Per camera overlap I (C, N) and model area A (C, N), over the free pixels when
-        ``free`` (from :meth:`free_prefixes`) is given."""
+        self, obs: Observation, proj: Projected, free: list[tuple[np.ndarray, np.ndarray]] | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Per camera overlap I (C, N) and model area A (C, N) of projected capsules, over the free
+        pixels when ``free`` (from :meth:`free_prefixes`) is given."""
         I_all, A_all = [], []
-        for c, view in enumerate(self.views):
-            a, b, ra, rb = self.project(view, A, B, radii)
+        for c in range(len(self.views)):
             c1, c2 = obs.prefix(c) if free is None else free[c]
-            s1, s2 = capsule_sums(a, b, ra, rb, c1, c2)
+            s1, s2 = capsule_sums(*proj.camera(c), c1, c2)
             I_all.append(s1)
             A_all.append(s2)
         return np.asarray(I_all), np.asarray(A_all)
+
+    def score(
+        self, obs: Observation, proj: Projected, free: list[tuple[np.ndarray, np.ndarray]] | None = None
+    ) -> np.ndarray:
+        """log p(z | x) of N particles' projected capsules: shape (N,)."""
+        I, M = self.terms(obs, proj, free)
+        areas = np.maximum(obs.areas, 1.0)[:, None]
+        return self.beta * np.mean((2 * I - M) / areas, axis=0)
+
+    def fit_of(self, obs: Observation, proj: Projected) -> np.ndarray:
+        """1 - xor/|S| averaged over the cameras, shape (N,): 1 is a perfect fit, <= 0 no overlap."""
+        I, M = self.terms(obs, proj)
+        areas = np.maximum(obs.areas, 1.0)[:, None]
+        xor = areas + M - 2 * I
+        return np.mean(1.0 - xor / areas, axis=0)
 
     def log_likelihood(
         self, obs: Observation, A: np.ndarray, B: np.ndarray, radii: np.ndarray,
         free: list[tuple[np.ndarray, np.ndarray]] | None = None,
     ) -> np.ndarray:  # fmt: skip
         """log p(z | x) for N particles' capsules A, B (N, K, 3) with radii (K, 2): shape (N,)."""
-        I, M = self.terms(obs, A, B, radii, free)
-        areas = np.maximum(obs.areas, 1.0)[:, None]
-        return self.beta * np.mean((2 * I - M) / areas, axis=0)
+        return self.score(obs, self.projected(A, B, radii), free)
 
     def fit(self, obs: Observation, A: np.ndarray, B: np.ndarray, radii: np.ndarray) -> np.ndarray:
-        """1 - xor/|S| averaged over the cameras, shape (N,): 1 is a perfect fit, <= 0 no overlap."""
-        I, M = self.terms(obs, A, B, radii)
-        areas = np.maximum(obs.areas, 1.0)[:, None]
-        xor = areas + M - 2 * I
-        return np.mean(1.0 - xor / areas, axis=0)
+        """:meth:`fit_of` for world capsules A, B (N, K, 3), radii (K, 2)."""
+        return self.fit_of(obs, self.projected(A, B, radii))
 
-    def render(self, view_index: int, A: np.ndarray, B: np.ndarray, radii: np.ndarray, into: np.ndarray) -> None:
-        """Draw one pose's capsules A, B (K, 3) into the float mask ``into`` (h, w) of a view."""
-        a, b, ra, rb = self.project(self.views[view_index], A[None], B[None], radii)
-        for k in range(a.shape[1]):
-            draw_capsule(into, a[0, k], b[0, k], float(ra[0, k]), float(rb[0, k]), 1.0)
+    def fill(self, view_index: int, proj: Projected, into: np.ndarray, pose: int = 0) -> None:
+        """Set the pixels of one pose's projected capsules to 1 in ``into`` (h, w) of a view: exactly
+        the pixels the likelihood counts."""
+        a, b, ra, rb = proj.camera(view_index)
+        fill_capsules(into, a[pose], b[pose], ra[pose], rb[pose], 1.0)

@@ -29,12 +29,12 @@ def row_prefix(g: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True, inline="always")
-def _disc_span(y: float, cx: float, cy: float, r: float) -> tuple[float, float]:
+def _disc_span(y: float, cx: float, cy: float, r: float, lo: float, hi: float) -> tuple[float, float]:
     dy = y - cy
-    if abs(dy) > r:
-        return math.inf, -math.inf
-    h = math.sqrt(r * r - dy * dy)
-    return cx - h, cx + h
+    if abs(dy) <= r:
+        h = math.sqrt(r * r - dy * dy)
+        lo, hi = min(lo, cx - h), max(hi, cx + h)
+    return lo, hi
 
 
 @njit(cache=True, inline="always")
@@ -48,25 +48,81 @@ def _edge(y: float, x0: float, y0: float, x1: float, y1: float, lo: float, hi: f
     return lo, hi
 
 
-@njit(cache=True)
-def _capsule_span(y: float, ax: float, ay: float, bx: float, by: float, ra: float, rb: float) -> tuple[float, float]:
-    """Interval [lo, hi] of x covered by one capsule on row y (lo > hi: empty)."""
-    lo, hi = _disc_span(y, ax, ay, ra)
-    l2, h2 = _disc_span(y, bx, by, rb)
-    lo, hi = min(lo, l2), max(hi, h2)
+#: per-capsule geometry, computed once per particle: ax, ay, ra, bx, by, rb, then the
+#: quadrilateral's corners p0..p3 (x, y) and a flag (1: the quadrilateral exists)
+_G = 15
+
+
+@njit(cache=True, inline="always")
+def _geometry(ax: float, ay: float, bx: float, by: float, ra: float, rb: float, g: np.ndarray) -> None:
+    g[0], g[1], g[2], g[3], g[4], g[5] = ax, ay, ra, bx, by, rb
     dx, dy = bx - ax, by - ay
     L = math.sqrt(dx * dx + dy * dy)
+    g[14] = 0.0
     if L > 1e-9:
         nx, ny = -dy / L, dx / L
-        p0x, p0y = ax + nx * ra, ay + ny * ra
-        p1x, p1y = bx + nx * rb, by + ny * rb
-        p2x, p2y = bx - nx * rb, by - ny * rb
-        p3x, p3y = ax - nx * ra, ay - ny * ra
-        lo, hi = _edge(y, p0x, p0y, p1x, p1y, lo, hi)
-        lo, hi = _edge(y, p1x, p1y, p2x, p2y, lo, hi)
-        lo, hi = _edge(y, p2x, p2y, p3x, p3y, lo, hi)
-        lo, hi = _edge(y, p3x, p3y, p0x, p0y, lo, hi)
+        g[6], g[7] = ax + nx * ra, ay + ny * ra
+        g[8], g[9] = bx + nx * rb, by + ny * rb
+        g[10], g[11] = bx - nx * rb, by - ny * rb
+        g[12], g[13] = ax - nx * ra, ay - ny * ra
+        g[14] = 1.0
+
+
+@njit(cache=True, inline="always")
+def _span(y: float, g: np.ndarray) -> tuple[float, float]:
+    """Interval [lo, hi] of x covered by one capsule (geometry ``g``) on row y (lo > hi: empty)."""
+    lo, hi = _disc_span(y, g[0], g[1], g[2], math.inf, -math.inf)
+    lo, hi = _disc_span(y, g[3], g[4], g[5], lo, hi)
+    if g[14] > 0.0:
+        lo, hi = _edge(y, g[6], g[7], g[8], g[9], lo, hi)
+        lo, hi = _edge(y, g[8], g[9], g[10], g[11], lo, hi)
+        lo, hi = _edge(y, g[10], g[11], g[12], g[13], lo, hi)
+        lo, hi = _edge(y, g[12], g[13], g[6], g[7], lo, hi)
     return lo, hi
+
+
+@njit(cache=True, inline="always")
+def _row_range(g: np.ndarray, H: int) -> tuple[int, int]:
+    """Rows a capsule can touch, clipped to the image (empty: lo > hi); NaN ends touch none."""
+    if not (np.isfinite(g[0]) and np.isfinite(g[1]) and np.isfinite(g[3]) and np.isfinite(g[4])):
+        return 1, 0
+    r = max(g[2], g[5])
+    return max(0, int(math.ceil(min(g[1], g[4]) - r))), min(H - 1, int(math.floor(max(g[1], g[4]) + r)))
+
+
+@njit(cache=True)
+def _prepare(a, b, ra, rb, n: int, H: int, geo: np.ndarray, ylo: np.ndarray, yhi: np.ndarray) -> tuple[int, int]:
+    """Geometry and row ranges of particle n's capsules; returns the rows the particle spans."""
+    ymin, ymax = H, -1
+    for k in range(a.shape[1]):
+        _geometry(a[n, k, 0], a[n, k, 1], b[n, k, 0], b[n, k, 1], ra[n, k], rb[n, k], geo[k])
+        ylo[k], yhi[k] = _row_range(geo[k], H)
+        if ylo[k] <= yhi[k]:
+            ymin = min(ymin, ylo[k])
+            ymax = max(ymax, yhi[k])
+    return ymin, ymax
+
+
+@njit(cache=True)
+def _row_intervals(y: int, geo, ylo, yhi, W: int, lo: np.ndarray, hi: np.ndarray) -> int:
+    """The pixel intervals covered on row y, sorted by their left end; returns their count."""
+    m = 0
+    for k in range(geo.shape[0]):
+        if y < ylo[k] or y > yhi[k]:
+            continue
+        l, h = _span(float(y), geo[k])
+        xl, xh = max(0, int(math.ceil(l))), min(W - 1, int(math.floor(h)))
+        if xl > xh:
+            continue
+        j = m  # insertion sort by left end
+        while j > 0 and lo[j - 1] > xl:
+            lo[j] = lo[j - 1]
+            hi[j] = hi[j - 1]
+            j -= 1
+        lo[j] = xl
+        hi[j] = xh
+        m += 1
+    return m
 
 
 @njit(parallel=True, cache=True)
@@ -79,55 +135,48 @@ def capsule_sums(
     s1 = np.zeros(N)
     s2 = np.zeros(N)
     for n in prange(N):
-        lo = np.empty(K)
-        hi = np.empty(K)
-        ylo = np.empty(K, np.int64)  # rows each capsule can touch (empty range: skipped)
+        lo = np.empty(K, np.int64)
+        hi = np.empty(K, np.int64)
+        ylo = np.empty(K, np.int64)
         yhi = np.empty(K, np.int64)
-        ymin, ymax = H, -1
-        for k in range(K):
-            ylo[k], yhi[k] = 1, 0
-            if not (np.isfinite(a[n, k, 0]) and np.isfinite(a[n, k, 1]) and np.isfinite(b[n, k, 0])
-                    and np.isfinite(b[n, k, 1])):
-                continue
-            r = max(ra[n, k], rb[n, k])
-            ylo[k] = max(0, int(math.ceil(min(a[n, k, 1], b[n, k, 1]) - r)))
-            yhi[k] = min(H - 1, int(math.floor(max(a[n, k, 1], b[n, k, 1]) + r)))
-            if ylo[k] <= yhi[k]:
-                ymin = min(ymin, ylo[k])
-                ymax = max(ymax, yhi[k])
+        geo = np.empty((K, _G))
+        ymin, ymax = _prepare(a, b, ra, rb, n, H, geo, ylo, yhi)
         acc1 = 0.0
         acc2 = 0.0
         for y in range(ymin, ymax + 1):
-            m = 0
-            for k in range(K):
-                if y < ylo[k] or y > yhi[k]:
-                    continue
-                l, h = _capsule_span(float(y), a[n, k, 0], a[n, k, 1], b[n, k, 0], b[n, k, 1], ra[n, k], rb[n, k])
-                xl, xh = max(0, int(math.ceil(l))), min(W - 1, int(math.floor(h)))
-                if xl > xh:
-                    continue
-                j = m  # insertion sort by left end
-                while j > 0 and lo[j - 1] > xl:
-                    lo[j] = lo[j - 1]
-                    hi[j] = hi[j - 1]
-                    j -= 1
-                lo[j] = xl
-                hi[j] = xh
-                m += 1
+            m = _row_intervals(y, geo, ylo, yhi, W, lo, hi)
             if m == 0:
                 continue
-            cl, ch = int(lo[0]), int(hi[0])
+            cl, ch = lo[0], hi[0]
             for i in range(1, m + 1):
-                if i < m and int(lo[i]) <= ch + 1:
-                    ch = max(ch, int(hi[i]))
+                if i < m and lo[i] <= ch + 1:
+                    ch = max(ch, hi[i])
                     continue
                 acc1 += c1[y + 1, ch + 1] - c1[y + 1, cl] - c1[y, ch + 1] + c1[y, cl]
                 acc2 += c2[y + 1, ch + 1] - c2[y + 1, cl] - c2[y, ch + 1] + c2[y, cl]
                 if i < m:
-                    cl, ch = int(lo[i]), int(hi[i])
+                    cl, ch = lo[i], hi[i]
         s1[n] = acc1
         s2[n] = acc2
     return s1, s2
+
+
+@njit(cache=True)
+def fill_capsules(mask: np.ndarray, a: np.ndarray, b: np.ndarray, ra: np.ndarray, rb: np.ndarray, value: float) -> None:
+    """Set the pixels of the union of one pose's capsules a, b (K, 2), ra, rb (K,) to ``value``
+    in ``mask`` (H, W), in place: exactly the pixels :func:`capsule_sums` counts."""
+    H, W = mask.shape
+    K = a.shape[0]
+    lo = np.empty(K, np.int64)
+    hi = np.empty(K, np.int64)
+    ylo = np.empty(K, np.int64)
+    yhi = np.empty(K, np.int64)
+    geo = np.empty((K, _G))
+    ymin, ymax = _prepare(a[None], b[None], ra[None], rb[None], 0, H, geo, ylo, yhi)
+    for y in range(ymin, ymax + 1):
+        m = _row_intervals(y, geo, ylo, yhi, W, lo, hi)
+        for i in range(m):
+            mask[y, lo[i] : hi[i] + 1] = value
 
 
 def warm_up() -> None:
@@ -136,3 +185,4 @@ def warm_up() -> None:
     r = np.ones((1, 1))
     c = row_prefix(np.ones((4, 4), np.float32))
     capsule_sums(z, z + 1, r, r, c, c)
+    fill_capsules(np.zeros((4, 4), np.float32), z[0], z[0] + 1, r[0], r[0], 1.0)
