@@ -202,3 +202,42 @@ def test_camera_without_video_creates_no_output(embedded_session, tmp_path):
     assert result.exit_code == 1
     assert "no video for camera 'cam2' from calibration.toml" in result.output
     assert not out.exists()
+
+
+def test_shape_calibration_moves_a_wrong_thigh_towards_the_truth(embedded_session):
+    from gaitcap.tracking.factored_ipf import FactoredIPF
+    from gaitcap.tracking.shape import calibrate_shape
+
+    truth, rig, true_model = _truth_setup(embedded_session.session)
+    cfg = load_tracking_config()
+    cfg.factored_ipf.passes, cfg.factored_ipf.swap_hypothesis = 1, False
+    cfg.factored_ipf.particles, cfg.factored_ipf.root_particles = 60, 150
+    views = tracking_views(rig, cfg.scale)
+    lik = SilhouetteLikelihood(views, cfg.beta)
+    scales = {k: v.copy() for k, v in true_model.scales.items()}
+    for side in "lr":
+        scales[f"thigh_{side}"][2] *= 0.85  # a thigh 15 % too short
+    wrong = true_model.with_proportions(scales, true_model.shifts)
+    frames = [10, 14, 18]
+    obs = [observe(views, [truth.mask(c, t) for c in rig.names]) for t in frames]
+    result = calibrate_shape(wrong, lambda m: FactoredIPF(m, lik, cfg, np.random.default_rng(0)), obs,
+                             [truth.poses[t] for t in frames], {"thigh_length": ["thigh_l.z", "thigh_r.z"]},
+                             steps=[0.08, 0.04], bounds=(0.7, 1.4), samples=3)  # fmt: skip
+    assert result.fit_after >= result.fit_before
+    assert 1.0 < result.factors["thigh_length"] <= 1.4  # lengthened, towards 1 / 0.85
+    assert result.model.scales["thigh_l"][2] == pytest.approx(scales["thigh_l"][2] * result.factors["thigh_length"])
+    assert result.start.shape == (31,)
+
+
+def test_track_with_shape_calibration_records_it(embedded_session, tmp_path):
+    data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
+    data["shape"].update(enabled=True, frames=6, samples=2, steps=[0.08])
+    data["shape"]["parameters"] = {"thigh_length": ["thigh_l.z", "thigh_r.z"]}
+    data["factored_ipf"].update(particles=60, root_particles=150)
+    config = tmp_path / "tracking.yaml"
+    config.write_text(yaml.safe_dump(data))
+    summary = run_track(embedded_session.session, tmp_path / "out", config=config, progress=False, max_frames=8)
+    assert summary.status == "ok" and summary.n_frames == 8
+    with h5py.File(tmp_path / "out" / "trajectories.h5") as f:
+        note = f.attrs["shape"]
+    assert note.startswith("thigh_length x") and "mean fit" in note

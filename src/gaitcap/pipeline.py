@@ -40,6 +40,7 @@ from gaitcap.tracking.ipf import IntervalPF
 from gaitcap.tracking.likelihood import SilhouetteLikelihood
 from gaitcap.tracking.observation import Observation, observe, tracking_views
 from gaitcap.tracking.raster import warm_up
+from gaitcap.tracking.shape import calibrate_shape
 from gaitcap.tracking.smoothing import lowpass
 from gaitcap.trajectory import Trajectory
 from gaitcap.video import iter_synchronised
@@ -107,11 +108,12 @@ def run_track(
     height, height_source = _height(ses, height_m)
 
     frames = iter_synchronised({c: ses.videos[c] for c in rig.names}, 0, n_frames)
-    first: list[Observation] = []
+    first: list[Observation] = []  # the first frames, kept for initialisation and shape calibration
+    buffered = max(cfg.init.frames, cfg.shape.frames if cfg.shape.enabled else 0)
     for _, images in frames:
         masks = [extractors[c].process(images[c])[0] for c in rig.names]
         first.append(observe(views, masks))
-        if len(first) >= cfg.init.frames:
+        if len(first) >= buffered:
             break
     if not first:
         raise TrackingError(f"{session}: no frame could be read")
@@ -124,15 +126,18 @@ def run_track(
         height = est
         log.warning("subject height not given: estimated %.2f m from the silhouettes (give --height for accuracy)", height)
     model = load_body_model(height_m=height)
-    rng = np.random.default_rng(cfg.seed)
-    filt = TRACKERS[cfg.tracker](model, likelihood, cfg, rng)
+    filt = TRACKERS[cfg.tracker](model, likelihood, cfg, np.random.default_rng(cfg.seed))
+    start, shape_note = None, "off"
+    if cfg.shape.enabled:
+        filt, start, shape_note = _calibrate_shape(filt, likelihood, views, cfg, first)
     attrs = {"config": yaml.safe_dump(cfg.model_dump(), sort_keys=False), "tracker": cfg.tracker,
-             "height_m": float(height), "height_source": height_source, "session": str(session)}  # fmt: skip
+             "height_m": float(height), "height_source": height_source, "session": str(session),
+             "shape": shape_note}  # fmt: skip
     writer = TrackWriter(out / "trajectories.h5", model.point_names, model.dof_names, videos.fps, attrs)
     timing = FrameTiming()
     try:
         tracked = _track_frames(filt, likelihood, views, cfg, first, frames, extractors, rig.names, writer,
-                                n_frames, progress, timing, on_frame)  # fmt: skip
+                                n_frames, progress, timing, on_frame, start)  # fmt: skip
         raw, quality = writer.read_back()
         if not np.any((quality == QUALITY_OK) | (quality == QUALITY_POOR_FIT)):
             raise TrackingError(
@@ -158,9 +163,44 @@ def run_track(
     return summary
 
 
+def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[Observation]):
+    """Fit the subject's proportions on the buffered first frames (gaitcap.tracking.shape).
+
+    Returns the tracker to use (with the calibrated model), the pose of the first frame under it
+    (None: initialise as usual) and a note for the output's attributes. Skipped, with a warning,
+    when the subject is not in every view of the first frame or the window is too short.
+    """
+    window = [o for o in first if np.all(o.fractions() >= cfg.quality.min_silhouette_fraction)]
+    if len(window) < len(first) or len(first) < 2:
+        log.warning("shape calibration skipped: the subject is not in every view of the first %d frames; "
+                    "tracking with the proportions of body.yaml", len(first))  # fmt: skip
+        return filt, None, "skipped: subject not in view in the first frames"
+    cfg.shape.check_segments(filt.model)
+    try:
+        init = initialise(filt, likelihood, views, first[: cfg.init.frames], cfg.init.heading_step_deg,
+                          cfg.init.refine_passes, cfg.init.widen)  # fmt: skip
+    except TrackingError as e:
+        log.warning("shape calibration skipped: %s", e)
+        return filt, None, f"skipped: {e}"
+    filt.start(init.q)
+    poses = [filt.step(o).q for o in first]
+    refit_cfg = cfg.model_copy(deep=True)
+    refit_cfg.factored_ipf.passes, refit_cfg.factored_ipf.swap_hypothesis = 1, False
+    result = calibrate_shape(
+        filt.model, lambda m: FactoredIPF(m, likelihood, refit_cfg, np.random.default_rng(cfg.seed)), first, poses,
+        cfg.shape.parameters, cfg.shape.steps, cfg.shape.bounds, cfg.shape.samples, cfg.seed,
+    )  # fmt: skip
+    factors = ", ".join(f"{k} x{v:.3f}" for k, v in result.factors.items())
+    log.info("shape: %s (mean fit %.3f -> %.3f)", factors, result.fit_before, result.fit_after)
+    tracker = TRACKERS[cfg.tracker](result.model, likelihood, cfg, np.random.default_rng(cfg.seed))
+    note = f"{factors}; mean fit {result.fit_before:.4f} -> {result.fit_after:.4f} on {len(first)} frames"
+    return tracker, result.start, note
+
+
 def _track_frames(filt, likelihood, views, cfg: TrackingConfig, first, frames, extractors, cams, writer: TrackWriter,
-                  n_frames: int, progress: bool, timing: FrameTiming, on_frame) -> int:  # fmt: skip
-    """The per-frame loop (streaming): observe, (re)initialise, track, flag, append."""
+                  n_frames: int, progress: bool, timing: FrameTiming, on_frame, start=None) -> int:  # fmt: skip
+    """The per-frame loop (streaming): observe, (re)initialise, track, flag, append. ``start``: the
+    first frame's pose when already known (shape calibration)."""
     model = filt.model
     bar = tqdm(total=n_frames, desc=f"tracking ({cfg.tracker})", unit="frame", disable=not progress, leave=False)
     lost = True
@@ -185,6 +225,9 @@ def _track_frames(filt, likelihood, views, cfg: TrackingConfig, first, frames, e
             est_points = np.full((model.n_points, 3), np.nan)
             writer.append(est_points, np.full(model.n_points, np.nan), np.full(model.n_dofs, np.nan), np.nan, 0.0, quality)
         else:
+            if lost and count == 0 and start is not None:
+                filt.start(start)
+                lost = False
             if lost:
                 window = pending[count:] if count < len(pending) else [obs]
                 try:

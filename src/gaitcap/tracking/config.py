@@ -56,6 +56,46 @@ class InitConfig(Strict):
     widen: float = Field(default=2.5, ge=1, le=10)
 
 
+class ShapeConfig(Strict):
+    enabled: bool = False
+    frames: int = Field(default=25, ge=2, le=250)
+    samples: int = Field(default=8, ge=1, le=100)
+    steps: list[float] = Field(default_factory=lambda: [0.08, 0.04], min_length=1)
+    bounds: tuple[float, float] = (0.7, 1.4)
+    parameters: dict[str, list[str]] = Field(default_factory=dict)
+
+    @field_validator("steps")
+    @classmethod
+    def _check_steps(cls, v: list[float]) -> list[float]:
+        if not all(0 < s < 0.5 for s in v):
+            raise ValueError("every step must be in (0, 0.5)")
+        return v
+
+    @field_validator("bounds")
+    @classmethod
+    def _check_bounds(cls, v: tuple[float, float]) -> tuple[float, float]:
+        if not (0 < v[0] <= 1 <= v[1]):
+            raise ValueError("bounds must satisfy 0 < low <= 1 <= high")
+        return v
+
+    @field_validator("parameters")
+    @classmethod
+    def _check_targets(cls, v: dict[str, list[str]]) -> dict[str, list[str]]:
+        for name, targets in v.items():
+            for t in targets:
+                if not re.fullmatch(r"(1/)?\w+\.[xyz]", t):
+                    raise ValueError(f"{name}: '{t}' is not 'segment.axis' (axis x, y or z; '1/' divides)")
+        return v
+
+    def check_segments(self, model: BodyModel) -> None:
+        known = {s.name for s in model.segments}
+        for name, targets in self.parameters.items():
+            for t in targets:
+                seg = t.removeprefix("1/").split(".")[0]
+                if seg not in known:
+                    raise ConfigError(f"tracking config: shape.parameters.{name}: unknown segment '{seg}'")
+
+
 class SmoothingConfig(Strict):
     cutoff_hz: float | None = Field(default=6.0, gt=0)
     order: int = Field(default=4, ge=1, le=8)
@@ -73,6 +113,7 @@ class TrackingConfig(Strict):
     quality: QualityConfig = Field(default_factory=QualityConfig)
     init: InitConfig = Field(default_factory=InitConfig)
     smoothing: SmoothingConfig = Field(default_factory=SmoothingConfig)
+    shape: ShapeConfig = Field(default_factory=ShapeConfig)
     seed: int = 0
 
     @field_validator("intervals", "prior")
