@@ -42,9 +42,9 @@ def test_likelihood_prefers_the_true_pose(embedded_session, rng):
         Q[:, 6:] += rng.normal(0, np.radians(8), size=(300, 25))
         Q[:, :2] += rng.normal(0, 0.03, size=(300, 2))
         A, B, r = model.capsules(np.vstack([q[None], Q]))
-        ll = lik.log_likelihood(obs, A, B, r)
+        ll = lik.score(obs, lik.projected(A, B, r))
         assert np.all(ll[0] > ll[1:]), f"frame {frame}: {np.sum(ll[1:] >= ll[0])} perturbed poses score as well"
-        fit = lik.fit(obs, A[:1], B[:1], r)[0]
+        fit = lik.fit_of(obs, lik.projected(A[:1], B[:1], r))[0]
         assert fit > 0.9
 
 

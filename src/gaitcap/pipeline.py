@@ -170,8 +170,8 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
     (None: initialise as usual) and a note for the output's attributes. Skipped, with a warning,
     when the subject is not in every view of the first frame or the window is too short.
     """
-    window = [o for o in first if np.all(o.fractions() >= cfg.quality.min_silhouette_fraction)]
-    if len(window) < len(first) or len(first) < 2:
+    in_view = all(np.all(o.fractions() >= cfg.quality.min_silhouette_fraction) for o in first)
+    if not in_view or len(first) < 2:
         log.warning("shape calibration skipped: the subject is not in every view of the first %d frames; "
                     "tracking with the proportions of body.yaml", len(first))  # fmt: skip
         return filt, None, "skipped: subject not in view in the first frames"

@@ -82,5 +82,5 @@ class Tracker:
 
     def full_fit(self, obs: Observation, q: np.ndarray) -> tuple[float, float]:
         """(log-likelihood, fit) of one pose against the full silhouettes."""
-        proj = self.projector.capsules(q[None])
-        return float(self.likelihood.score(obs, proj)[0]), float(self.likelihood.fit_of(obs, proj)[0])
+        ll, fit = self.likelihood.evaluate(obs, self.projector.capsules(q[None]))
+        return float(ll[0]), float(fit[0])

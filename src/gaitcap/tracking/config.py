@@ -160,9 +160,10 @@ class TrackingConfig(Strict):
         ``coupled`` DOF of segments below it (which its subtree score sees)."""
         out = [np.arange(seg.dof_start, seg.dof_stop) for seg in model.segments]
         for name, dofs in self.factored_ipf.coupled.items():
-            seg = model.segment(name) if name in {s.name for s in model.segments} else None
-            if seg is None:
-                raise ConfigError(f"tracking config: factored_ipf.coupled: unknown segment '{name}'")
+            try:
+                seg = model.segment(name)
+            except ConfigError:
+                raise ConfigError(f"tracking config: factored_ipf.coupled: unknown segment '{name}'") from None
             for dof in dofs:
                 if dof not in model.dof_names:
                     raise ConfigError(f"tracking config: factored_ipf.coupled.{name}: unknown DOF '{dof}'")

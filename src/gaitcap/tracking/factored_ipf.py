@@ -78,8 +78,8 @@ class FactoredIPF(Tracker):
     def _legs_close(self, q: np.ndarray) -> bool:
         """Whether the legs are near enough to each other to be confused: their hip flexions differ
         by less than ``swap_within_deg`` (a swap was seen to win only below 18 degrees)."""
-        limit = np.radians(self.config.factored_ipf.swap_within_deg)
-        return bool(np.all(np.abs(q[self._hip_flex[0]] - q[self._hip_flex[1]]) < limit))
+        left, right = self._hip_flex
+        return bool(abs(q[left] - q[right]) < np.radians(self.config.factored_ipf.swap_within_deg))
 
     def _search(self, obs: Observation, start: np.ndarray, widen: float, first: int, stop: int) -> Estimate:
         """Passes ``first`` to ``stop - 1`` of the factored search from ``start``

@@ -66,27 +66,26 @@ class SilhouetteLikelihood:
         self, obs: Observation, proj: Projected, free: list[tuple[np.ndarray, np.ndarray]] | None = None
     ) -> np.ndarray:
         """log p(z | x) of N particles' projected capsules: shape (N,)."""
-        I, M = self.terms(obs, proj, free)
-        areas = np.maximum(obs.areas, 1.0)[:, None]
-        return self.beta * np.mean((2 * I - M) / areas, axis=0)
+        return self._log_likelihood(*self.terms(obs, proj, free), obs)
 
     def fit_of(self, obs: Observation, proj: Projected) -> np.ndarray:
         """1 - xor/|S| averaged over the cameras, shape (N,): 1 is a perfect fit, <= 0 no overlap."""
+        return self._fit(*self.terms(obs, proj), obs)
+
+    def evaluate(self, obs: Observation, proj: Projected) -> tuple[np.ndarray, np.ndarray]:
+        """(:meth:`score`, :meth:`fit_of`) against the full silhouettes, from one pass of the kernel."""
         I, M = self.terms(obs, proj)
+        return self._log_likelihood(I, M, obs), self._fit(I, M, obs)
+
+    def _log_likelihood(self, I: np.ndarray, M: np.ndarray, obs: Observation) -> np.ndarray:
+        areas = np.maximum(obs.areas, 1.0)[:, None]
+        return self.beta * np.mean((2 * I - M) / areas, axis=0)
+
+    @staticmethod
+    def _fit(I: np.ndarray, M: np.ndarray, obs: Observation) -> np.ndarray:
         areas = np.maximum(obs.areas, 1.0)[:, None]
         xor = areas + M - 2 * I
         return np.mean(1.0 - xor / areas, axis=0)
-
-    def log_likelihood(
-        self, obs: Observation, A: np.ndarray, B: np.ndarray, radii: np.ndarray,
-        free: list[tuple[np.ndarray, np.ndarray]] | None = None,
-    ) -> np.ndarray:  # fmt: skip
-        """log p(z | x) for N particles' capsules A, B (N, K, 3) with radii (K, 2): shape (N,)."""
-        return self.score(obs, self.projected(A, B, radii), free)
-
-    def fit(self, obs: Observation, A: np.ndarray, B: np.ndarray, radii: np.ndarray) -> np.ndarray:
-        """:meth:`fit_of` for world capsules A, B (N, K, 3), radii (K, 2)."""
-        return self.fit_of(obs, self.projected(A, B, radii))
 
     def fill(self, view_index: int, proj: Projected, into: np.ndarray, pose: int = 0) -> None:
         """Set the pixels of one pose's projected capsules to 1 in ``into`` (h, w) of a view: exactly

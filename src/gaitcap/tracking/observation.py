@@ -10,6 +10,7 @@ intrinsics, so no distortion is evaluated per particle.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import cv2
 import numpy as np
@@ -83,8 +84,9 @@ class Observation:
             self._prefix[c] = (row_prefix(s), row_prefix(np.ones_like(s)))
         return self._prefix[c]
 
-    @property
+    @cached_property
     def areas(self) -> np.ndarray:
+        """|S_c| per camera (C,) (cached: the likelihood reads it at every layer)."""
         return np.array([float(s.sum()) for s in self.silhouettes])
 
     def fractions(self) -> np.ndarray:

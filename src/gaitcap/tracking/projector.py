@@ -51,9 +51,12 @@ def _rotate(R: np.ndarray, axis: int, angle: float) -> None:
 
 
 @njit(cache=True)
-def _frames(q, parent, origin, dof_start, dof_stop, axis, sign, trans, R, o) -> None:
-    """World frames of every segment for one pose q (D,): R (S, 3, 3), o (S, 3), in place."""
-    for s in range(parent.shape[0]):
+def _frames(q, parent, origin, dof_start, dof_stop, axis, sign, trans) -> tuple[np.ndarray, np.ndarray]:
+    """World frames of every segment for one pose q (D,): R (S, 3, 3), o (S, 3)."""
+    S = parent.shape[0]
+    R = np.empty((S, 3, 3))
+    o = np.empty((S, 3))
+    for s in range(S):
         p = parent[s]
         if p < 0:
             for i in range(3):
@@ -70,27 +73,30 @@ def _frames(q, parent, origin, dof_start, dof_stop, axis, sign, trans, R, o) -> 
                 o[s, axis[d]] += sign[d] * q[d]
             else:
                 _rotate(R[s], axis[d], sign[d] * q[d])
+    return R, o
+
+
+@njit(cache=True, inline="always")
+def _world(R: np.ndarray, o: np.ndarray, s: int, loc: np.ndarray, i: int) -> float:
+    """Coordinate i of the point with coordinates ``loc`` in segment s's frame."""
+    return o[s, i] + R[s, i, 0] * loc[0] + R[s, i, 1] * loc[1] + R[s, i, 2] * loc[2]
 
 
 @njit(parallel=True, cache=True)
 def _project(Q, parent, origin, dof_start, dof_stop, axis, sign, trans, cap_seg, cap_a, cap_b, cap_r,
              cam_R, cam_t, cam_k):  # fmt: skip
-    N, K, C, S = Q.shape[0], cap_seg.shape[0], cam_R.shape[0], parent.shape[0]
+    N, K, C = Q.shape[0], cap_seg.shape[0], cam_R.shape[0]
     a = np.empty((C, N, K, 2))
     b = np.empty((C, N, K, 2))
     ra = np.empty((C, N, K))
     rb = np.empty((C, N, K))
     for n in prange(N):
-        R = np.empty((S, 3, 3))
-        o = np.empty((S, 3))
-        _frames(Q[n], parent, origin, dof_start, dof_stop, axis, sign, trans, R, o)
+        R, o = _frames(Q[n], parent, origin, dof_start, dof_stop, axis, sign, trans)
         for k in range(K):
             s = cap_seg[k]
             for end in range(2):
                 loc = cap_a[k] if end == 0 else cap_b[k]
-                X0 = o[s, 0] + R[s, 0, 0] * loc[0] + R[s, 0, 1] * loc[1] + R[s, 0, 2] * loc[2]
-                X1 = o[s, 1] + R[s, 1, 0] * loc[0] + R[s, 1, 1] * loc[1] + R[s, 1, 2] * loc[2]
-                X2 = o[s, 2] + R[s, 2, 0] * loc[0] + R[s, 2, 1] * loc[1] + R[s, 2, 2] * loc[2]
+                X0, X1, X2 = _world(R, o, s, loc, 0), _world(R, o, s, loc, 1), _world(R, o, s, loc, 2)
                 for c in range(C):
                     Rc = cam_R[c]
                     px = Rc[0, 0] * X0 + Rc[0, 1] * X1 + Rc[0, 2] * X2 + cam_t[c, 0]
@@ -107,16 +113,13 @@ def _project(Q, parent, origin, dof_start, dof_stop, axis, sign, trans, cap_seg,
 
 @njit(parallel=True, cache=True)
 def _points(Q, parent, origin, dof_start, dof_stop, axis, sign, trans, pt_seg, pt_local):  # fmt: skip
-    N, P, S = Q.shape[0], pt_seg.shape[0], parent.shape[0]
+    N, P = Q.shape[0], pt_seg.shape[0]
     out = np.empty((N, P, 3))
     for n in prange(N):
-        R = np.empty((S, 3, 3))
-        o = np.empty((S, 3))
-        _frames(Q[n], parent, origin, dof_start, dof_stop, axis, sign, trans, R, o)
+        R, o = _frames(Q[n], parent, origin, dof_start, dof_stop, axis, sign, trans)
         for p in range(P):
-            s = pt_seg[p]
             for i in range(3):
-                out[n, p, i] = o[s, i] + R[s, i, 0] * pt_local[p, 0] + R[s, i, 1] * pt_local[p, 1] + R[s, i, 2] * pt_local[p, 2]
+                out[n, p, i] = _world(R, o, pt_seg[p], pt_local[p], i)
     return out
 
 
