@@ -204,6 +204,22 @@ def test_camera_without_video_creates_no_output(embedded_session, tmp_path):
     assert not out.exists()
 
 
+def test_config_naming_an_unknown_segment_creates_no_output(embedded_session, tmp_path):
+    from click.testing import CliRunner
+
+    from gaitcap.cli.main import cli
+
+    data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
+    data["factored_ipf"]["coupled"]["thihg_l"] = data["factored_ipf"]["coupled"].pop("thigh_l")
+    config = tmp_path / "tracking.yaml"
+    config.write_text(yaml.safe_dump(data))
+    out = tmp_path / "out"
+    result = CliRunner().invoke(cli, ["-q", "track", str(embedded_session.session), "-o", str(out), "-c", str(config)])
+    assert result.exit_code == 1
+    assert f"{config}: tracking config: factored_ipf.coupled: unknown segment 'thihg_l'" in result.output
+    assert not out.exists()
+
+
 def test_shape_calibration_moves_a_wrong_thigh_towards_the_truth(embedded_session):
     from gaitcap.tracking.factored_ipf import FactoredIPF
     from gaitcap.tracking.shape import calibrate_shape

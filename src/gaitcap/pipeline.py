@@ -89,7 +89,7 @@ def run_track(
     """Track one session into ``out`` (see the module docstring). Returns the run's summary."""
     t_start = time.perf_counter()
     session, out = Path(session), Path(out)
-    cfg = load_tracking_config(config)
+    cfg = load_tracking_config(config, model=load_body_model())  # names only: the height comes later
     if tracker is not None:
         cfg.tracker = tracker  # validated by the schema
     ses = Session.open(session)
@@ -175,7 +175,6 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
         log.warning("shape calibration skipped: the subject is not in every view of the first %d frames; "
                     "tracking with the proportions of body.yaml", len(first))  # fmt: skip
         return filt, None, "skipped: subject not in view in the first frames"
-    cfg.shape.check_segments(filt.model)
     try:
         init = initialise(filt, likelihood, views, first[: cfg.init.frames], cfg.init.heading_step_deg,
                           cfg.init.refine_passes, cfg.init.widen)  # fmt: skip

@@ -12,6 +12,7 @@ from pydantic import Field, field_validator
 from gaitcap.body.model import BodyModel
 from gaitcap.config import Strict, default_config_path, load_yaml_model
 from gaitcap.errors import ConfigError
+from gaitcap.tracking.chain import Subtree, subtrees
 
 TrackerName = Literal["condensation", "ipf", "factored-ipf"]
 
@@ -128,6 +129,15 @@ class TrackingConfig(Strict):
                 raise ValueError(f"'{pattern}': must be a positive number")
         return v
 
+    def check(self, model: BodyModel) -> None:
+        """Every check that needs the body model (DOF and segment names), at once: raises
+        :class:`ConfigError` naming the key."""
+        self.half_widths(model)
+        self.prior_sigmas(model)
+        self.order_indices(model)
+        self.explored_dofs(model, subtrees(model))
+        self.shape.check_segments(model)
+
     def half_widths(self, model: BodyModel) -> np.ndarray:
         """Interval half-width per DOF (D,), radians / metres. Each DOF must match one pattern."""
         return _per_dof("intervals", self.intervals, model, required=True)
@@ -155,7 +165,7 @@ class TrackingConfig(Strict):
             seen.add(i)
         return idx
 
-    def explored_dofs(self, model: BodyModel, subtrees: list) -> list[np.ndarray]:
+    def explored_dofs(self, model: BodyModel, trees: list[Subtree]) -> list[np.ndarray]:
         """DOF indices each node of the factored chain explores: its segment's own, then the
         ``coupled`` DOF of segments below it (which its subtree score sees)."""
         out = [np.arange(seg.dof_start, seg.dof_stop) for seg in model.segments]
@@ -169,7 +179,7 @@ class TrackingConfig(Strict):
                     raise ConfigError(f"tracking config: factored_ipf.coupled.{name}: unknown DOF '{dof}'")
                 i = model.dof_index(dof)
                 owner = next(s.index for s in model.segments if s.dof_start <= i < s.dof_stop)
-                if owner == seg.index or owner not in subtrees[seg.index].segments:
+                if owner == seg.index or owner not in trees[seg.index].segments:
                     raise ConfigError(f"tracking config: factored_ipf.coupled.{name}: '{dof}' is not a DOF of a "
                                       f"segment below {name}")  # fmt: skip
                 out[seg.index] = np.r_[out[seg.index], i]
@@ -191,5 +201,14 @@ def _per_dof(key: str, patterns: dict[str, float], model: BodyModel, required: b
     return out
 
 
-def load_tracking_config(path: str | Path | None = None) -> TrackingConfig:
-    return load_yaml_model(TrackingConfig, path or default_config_path("tracking.yaml"))
+def load_tracking_config(path: str | Path | None = None, model: BodyModel | None = None) -> TrackingConfig:
+    """Load and validate ``tracking.yaml`` (the shipped one by default); with ``model``, also check
+    it against the body model's DOF and segments, the file named in any error."""
+    path = path or default_config_path("tracking.yaml")
+    cfg = load_yaml_model(TrackingConfig, path)
+    if model is not None:
+        try:
+            cfg.check(model)
+        except ConfigError as e:
+            raise ConfigError(f"{path}: {e}") from None
+    return cfg
