@@ -94,7 +94,7 @@ def qualisys_scene(data: Path, overlay: Path | None = None) -> None:
     vs = {k: scene_reprojection(qual, ref) for k, ref in refs.items()}
     noise = scene_pixel_disagreement(*refs.values())
     print("\n## Imported Qualisys calibration (calibration.toml) vs the 8 floor points clicked for Pose2Sim's scene calibrations (px)")
-    print(f"{'':6}" + "".join(f"{'vs ' + k:>14}" for k in refs) + f"{'click noise':>14}")
+    print(f"{'':6}" + "".join(f"{'vs ' + k:>17}" for k in refs) + f"{'click noise':>14}")
     print(f"{'cam':6}" + f"{'mean    max':>17}" * len(refs) + f"{'mean    max':>14}")
     for cam in qual.names:
         print(f"{cam:6}" + "".join(f"{_mean_max(vs[k][cam]):>17}" for k in refs) + f"{_mean_max(noise[cam]):>14}")
