@@ -1,12 +1,13 @@
 """Measure gaitcap's calibration against the references in ../shared/data (prints a table).
 
-    python scripts/check_calibration.py [--data PATH]
+    python scripts/check_calibration.py [--data PATH] [--only qualisys] [--overlay DIR]
 """
 
 from __future__ import annotations
 
 import argparse
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -17,13 +18,20 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "src"))
 
 from gaitcap.calibration.boards import Board, detect_board  # noqa: E402
-from gaitcap.calibration.extrinsics import ScenePoints, calibrate_from_board, calibrate_stereo, scene_reprojection  # noqa: E402
+from gaitcap.calibration.extrinsics import (  # noqa: E402
+    ScenePoints,
+    calibrate_from_board,
+    calibrate_stereo,
+    scene_pixel_disagreement,
+    scene_reprojection,
+)
 from gaitcap.calibration.formats import read_opencv_camera, read_qualisys  # noqa: E402
 from gaitcap.calibration.intrinsics import calibrate_intrinsics  # noqa: E402
 from gaitcap.calibration.synthetic import render_board_view  # noqa: E402
 from gaitcap.calibration.views import detect_views  # noqa: E402
 from gaitcap.camera import Camera  # noqa: E402
 from gaitcap.config import load_yaml_model  # noqa: E402
+from gaitcap.io.calibration_toml import read_calibration, write_calibration  # noqa: E402
 
 DEFAULT_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 
@@ -63,12 +71,37 @@ def pose2sim_intrinsics(data: Path) -> None:
               f"{K[0, 2] - R[0, 2]:8.1f}{K[1, 2] - R[1, 2]:8.1f}{res.rms_px:7.3f}")
 
 
-def qualisys_scene(data: Path) -> None:
-    qual = read_qualisys(data / "calibration" / "pose2sim_qualisys_4cam" / "calibration" / "Calib.qca.txt")
-    scene = load_yaml_model(ScenePoints, REPO / "tests" / "fixtures" / "calibration" / "pose2sim_qualisys" / "scene_points.yaml")
-    print("\n## Imported Qualisys calibration: reprojection of the located scene points (px)")
+QUALISYS_FIX = REPO / "tests" / "fixtures" / "calibration" / "pose2sim_qualisys"
+# Floor-point pixels derived from Pose2Sim's two scene calibrations (scripts/derive_floor_reference.py).
+FLOOR_REFERENCES = {"Demo": QUALISYS_FIX / "floor_points_demo.yaml", "SinglePerson": QUALISYS_FIX / "floor_points_singleperson.yaml"}
+
+
+def _mean_max(errs: dict[str, float]) -> str:
+    v = list(errs.values())
+    return f"{np.mean(v):6.1f} {np.max(v):6.1f}"
+
+
+def qualisys_scene(data: Path, overlay: Path | None = None) -> None:
+    calib = data / "calibration" / "pose2sim_qualisys_4cam" / "calibration"
+    with tempfile.TemporaryDirectory() as tmp:  # the imported calibration as the session would hold it
+        write_calibration(Path(tmp) / "calibration.toml", read_qualisys(calib / "Calib.qca.txt"))
+        qual = read_calibration(Path(tmp) / "calibration.toml")
+    scene = load_yaml_model(ScenePoints, QUALISYS_FIX / "scene_points.yaml")
+    print("\n## Imported Qualisys calibration: reprojection of the hand-located scene points (px)")
     for cam, errs in scene_reprojection(qual, scene).items():
         print(f"{cam:6} " + "  ".join(f"{k} {v:5.1f}" for k, v in errs.items()) + f"   mean {np.mean(list(errs.values())):5.1f}")
+    refs = {k: load_yaml_model(ScenePoints, p) for k, p in FLOOR_REFERENCES.items()}
+    vs = {k: scene_reprojection(qual, ref) for k, ref in refs.items()}
+    noise = scene_pixel_disagreement(*refs.values())
+    print("\n## Imported Qualisys calibration (calibration.toml) vs the 8 floor points clicked for Pose2Sim's scene calibrations (px)")
+    print(f"{'':6}" + "".join(f"{'vs ' + k:>17}" for k in refs) + f"{'click noise':>14}")
+    print(f"{'cam':6}" + f"{'mean    max':>17}" * len(refs) + f"{'mean    max':>14}")
+    for cam in qual.names:
+        print(f"{cam:6}" + "".join(f"{_mean_max(vs[k][cam]):>17}" for k in refs) + f"{_mean_max(noise[cam]):>14}")
+    every = [v for table in noise.values() for v in table.values()]
+    print(f"click noise over all cameras: mean {np.mean(every):.1f} px, max {np.max(every):.1f} px")
+    if overlay is not None:
+        _draw_floor_points(qual, refs, calib / "extrinsics", overlay)
     vids = data / "calibration" / "pose2sim_qualisys_4cam" / "videos"
     for cam in qual:
         cap = cv2.VideoCapture(str(vids / f"{cam.name}.mp4"))
@@ -76,6 +109,29 @@ def qualisys_scene(data: Path) -> None:
         cap.release()
         if ok:
             print(f"{cam.name}: video {frame.shape[1]}x{frame.shape[0]}, calibration {cam.width}x{cam.height}")
+
+
+def _draw_floor_points(rig, refs: dict[str, ScenePoints], ext_dir: Path, out_dir: Path) -> None:
+    """camNN_ext.png with the references (circles: green, blue) and our projection (red crosses)."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    colours = [(0, 200, 0), (255, 128, 0)]
+    names = list(next(iter(refs.values())).points)
+    for cam in rig:
+        img = cv2.imread(str(ext_dir / f"{cam.name}_ext.png"))
+        if img is None:
+            print(f"{cam.name}: no {cam.name}_ext.png in {ext_dir}")
+            continue
+        for colour, ref in zip(colours, refs.values()):
+            for uv in ref.pixels[cam.name].values():
+                if uv is not None:
+                    cv2.circle(img, tuple(int(round(c)) for c in uv), 9, colour, 2, cv2.LINE_AA)
+        ours = cam.project(np.array([refs["Demo"].points[n] for n in names]))
+        for n, uv in zip(names, ours):
+            p = tuple(int(round(c)) for c in uv)
+            cv2.drawMarker(img, p, (0, 0, 255), cv2.MARKER_CROSS, 18, 2, cv2.LINE_AA)
+            cv2.putText(img, n, (p[0] + 8, p[1] - 8), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (0, 0, 255), 1, cv2.LINE_AA)
+        cv2.imwrite(str(out_dir / f"{cam.name}_floor_points.png"), img)
+    print(f"overlays (green: Demo, blue: SinglePerson, red: ours) in {out_dir}")
 
 
 def synthetic_floor(seed: int = 0) -> None:
@@ -105,11 +161,18 @@ def synthetic_floor(seed: int = 0) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--data", type=Path, default=DEFAULT_DATA)
+    ap.add_argument("--only", choices=["opencv", "pose2sim", "qualisys", "synthetic"], help="run one section only")
+    ap.add_argument("--overlay", type=Path, help="write camNN_floor_points.png overlays of the floor points here")
     args = ap.parse_args()
-    opencv_sample(args.data)
-    pose2sim_intrinsics(args.data)
-    qualisys_scene(args.data)
-    synthetic_floor()
+    sections = {
+        "opencv": lambda: opencv_sample(args.data),
+        "pose2sim": lambda: pose2sim_intrinsics(args.data),
+        "qualisys": lambda: qualisys_scene(args.data, args.overlay),
+        "synthetic": synthetic_floor,
+    }
+    for name, run in sections.items():
+        if args.only in (None, name):
+            run()
 
 
 if __name__ == "__main__":

@@ -374,6 +374,21 @@ def scene_reprojection(rig: CameraRig, scene: ScenePoints) -> dict[str, dict[str
     return out
 
 
+
+def scene_pixel_disagreement(a: ScenePoints, b: ScenePoints) -> dict[str, dict[str, float]]:
+    """``camera -> {point: pixel distance}`` between two pixel tables of the same points.
+
+    Only the points located (not null) in both tables count; e.g. two clickings of the same scene
+    points, whose disagreement is their click noise.
+    """
+    out: dict[str, dict[str, float]] = {}
+    for cam, table in a.pixels.items():
+        other = b.pixels.get(cam, {})
+        for n, uv in table.items():
+            if uv is not None and other.get(n) is not None:
+                out.setdefault(cam, {})[n] = float(np.linalg.norm(np.subtract(uv, other[n])))
+    return out
+
 # ------------------------------------------------------------------------------ stereo
 @dataclass
 class StereoResult:

@@ -13,7 +13,13 @@ against its scene images (see ``scripts/check_calibration.py``):
   major) is the matrix M whose rows are the camera axes in the lab frame for a camera that looks
   along its -z axis with y up in the image. OpenCV's camera looks along +z with y down, so
   ``R_world->cam = diag(1, -1, -1) @ M`` and ``t = -R @ C``. (The other candidates put the lab's
-  floor points behind the cameras or 180° off in the images.)
+  floor points behind the cameras or 180° off in the images.) Checked again against the 8 floor
+  points clicked for Pose2Sim's two scene calibrations (``tests/test_calibration_floor_points.py``):
+  the points' layout in each image agrees within the click noise (19.2 px), the wrong candidates
+  miss by 580-900 px or fall behind; the whole pattern is offset by 8-27 px per camera (the lab
+  frame realised by each system). Those clicks cannot decide the distortion scaling (k/64, as
+  Pose2Sim's qca reader has it, moves them < 1 px); Pose2Sim's own checkerboard calibration of
+  these cameras (k1 = -0.053, k2 = 0.151 for cam01) supports taking them as they are.
 """
 
 from __future__ import annotations
