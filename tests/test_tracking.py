@@ -118,6 +118,15 @@ def test_tracking_config_rejects_unknown_keys(tmp_path):
         load_tracking_config(path)
 
 
+def test_shape_refit_budget_below_two_particles_is_rejected(tmp_path):
+    data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
+    data["shape"]["refit_particles"] = [60, 1]
+    path = tmp_path / "tracking.yaml"
+    path.write_text(yaml.safe_dump(data))
+    with pytest.raises(ConfigError, match=r"shape\.refit_particles: .*at least 2"):
+        load_tracking_config(path)
+
+
 def test_every_dof_has_an_interval():
     cfg = load_tracking_config()
     model = load_body_model()

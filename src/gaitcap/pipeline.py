@@ -185,6 +185,7 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
     poses = [filt.step(o).q for o in first]
     refit_cfg = cfg.model_copy(deep=True)
     refit_cfg.factored_ipf.passes, refit_cfg.factored_ipf.swap_hypothesis = 1, False
+    refit_cfg.factored_ipf.particles, refit_cfg.factored_ipf.root_particles = cfg.shape.refit_particles
     result = calibrate_shape(
         filt.model, lambda m: FactoredIPF(m, likelihood, refit_cfg, np.random.default_rng(cfg.seed)), first, poses,
         cfg.shape.parameters, cfg.shape.steps, cfg.shape.bounds, cfg.shape.samples, cfg.seed,

@@ -64,6 +64,16 @@ class ShapeConfig(Strict):
     steps: list[float] = Field(default_factory=lambda: [0.08, 0.04], min_length=1)
     bounds: tuple[float, float] = (0.7, 1.4)
     parameters: dict[str, list[str]] = Field(default_factory=dict)
+    #: particles / root particles of the one-pass re-fit that scores each candidate (the search
+    #: compares candidates on a paired random stream, so a small budget is enough)
+    refit_particles: tuple[int, int] = (60, 150)
+
+    @field_validator("refit_particles")
+    @classmethod
+    def _check_refit(cls, v: tuple[int, int]) -> tuple[int, int]:
+        if min(v) < 2:
+            raise ValueError("refit_particles: both budgets must be at least 2")
+        return v
 
     @field_validator("steps")
     @classmethod
