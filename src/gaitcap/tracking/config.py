@@ -67,6 +67,8 @@ class ShapeConfig(Strict):
     #: particles / root particles of the one-pass re-fit that scores each candidate (the search
     #: compares candidates on a paired random stream, so a small budget is enough)
     refit_particles: tuple[int, int] = (60, 150)
+    #: moves of one parameter in one round while the fit keeps improving (pattern search)
+    max_moves: int = Field(default=1, ge=1)
 
     @field_validator("refit_particles")
     @classmethod

@@ -66,6 +66,7 @@ def calibrate_shape(
     bounds: tuple[float, float],
     samples: int,
     seed: int = 0,
+    max_moves: int = 1,
 ) -> ShapeResult:
     """Coordinate search of the shape ``parameters`` (see the module docstring).
 
@@ -92,18 +93,29 @@ def calibrate_shape(
     current = [poses[i] for i in pick]
     best_fit, current = refit(model, current)
     fit_before = best_fit
+    def try_factor(name: str, f: float) -> tuple[float, list[np.ndarray]] | None:
+        if not (bounds[0] <= f <= bounds[1]):
+            return None
+        return refit(_scaled(model, parameters, {**factors, name: f}), current)
+
     for delta in steps:
         for name in parameters:
             trial_best = None
-            for f in (factors[name] * (1 - delta), factors[name] * (1 + delta)):
-                if not (bounds[0] <= f <= bounds[1]):
-                    continue
-                candidate = _scaled(model, parameters, {**factors, name: f})
-                fit, refitted = refit(candidate, current)
-                if fit > best_fit and (trial_best is None or fit > trial_best[0]):
-                    trial_best = (fit, f, refitted)
-            if trial_best is not None:
-                best_fit, factors[name], current = trial_best
-                log.debug("shape: %s x%.3f (fit %.4f)", name, factors[name], best_fit)
+            for direction in (-1, 1):
+                tried = try_factor(name, factors[name] * (1 + direction * delta))
+                if tried is not None and tried[0] > best_fit and (trial_best is None or tried[0] > trial_best[0]):
+                    trial_best = (tried[0], direction, tried[1])
+            if trial_best is None:
+                continue
+            fit, direction, refitted = trial_best
+            factors[name] *= 1 + direction * delta
+            best_fit, current = fit, refitted
+            for _ in range(max_moves - 1):  # pattern search: keep going while the fit improves
+                tried = try_factor(name, factors[name] * (1 + direction * delta))
+                if tried is None or tried[0] <= best_fit:
+                    break
+                factors[name] *= 1 + direction * delta
+                best_fit, current = tried
+            log.debug("shape: %s x%.3f (fit %.4f)", name, factors[name], best_fit)
     return ShapeResult(model=_scaled(model, parameters, factors), start=current[0], factors=factors,
                        fit_before=fit_before, fit_after=best_fit)
