@@ -50,6 +50,20 @@ def test_default_options_keep_events_within_a_few_frames() -> None:
     assert max(_match(events, w.truth_events())) <= 4.0 / w.rate_hz
 
 
+def test_refinement_only_at_rates_that_resolve_the_landing() -> None:
+    from gaitcap.gait.events import SOURCE, SOURCE_REFINED
+
+    fast, slow = Walker(), Walker(rate_hz=25.0, duration=5.0)
+    assert fast.rate_hz >= GaitOptions().refine_min_rate_hz > slow.rate_hz
+    fast_events, _ = detect_events(fast.trajectory())
+    assert any(e.source == SOURCE_REFINED for e in fast_events)
+    slow_events, _ = detect_events(slow.trajectory())
+    assert slow_events and all(e.source == SOURCE for e in slow_events)
+    # the threshold is an option: lowered, the 25 fps walk is refined too
+    forced, _ = detect_events(slow.trajectory(), GaitOptions(refine_min_rate_hz=20.0))
+    assert any(e.source == SOURCE_REFINED for e in forced)
+
+
 @pytest.mark.parametrize("walker", [Walker(), Walker(in_place=True, heading_deg=200.0), Walker(rate_hz=25.0, duration=5.0)])
 def test_parameters_match_the_closed_form_truth(walker: Walker) -> None:
     tr = walker.trajectory()

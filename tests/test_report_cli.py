@@ -33,7 +33,8 @@ def test_report_on_a_tracking_folder_writes_every_output(tmp_path) -> None:
     assert all((gait / f).is_file() for f in FILES)
     rows = list(csv.DictReader((gait / "events.csv").open()))
     assert {r["side"] for r in rows} == {"left", "right"} and {r["event"] for r in rows} == {"foot_strike", "foot_off"}
-    assert all(int(r["frame"]) == round(float(r["time_s"]) * 25.0) for r in rows)
+    # the nearest frame (time_s is written to 0.1 ms, so a time within 0.05 ms of a half frame may round either way)
+    assert all(abs(int(r["frame"]) - float(r["time_s"]) * 25.0) <= 0.5 + 25.0 * 5e-5 for r in rows)
     p = json.loads((gait / "parameters.json").read_text())
     assert p["status"] == "ok"
     assert p["overall"]["cadence_steps_per_min"] == pytest.approx(120 / w.stride_time, rel=0.02)

@@ -22,6 +22,8 @@ class GaitOptions(Strict):
             removed) when the pelvis net speed is below this fraction of the swing-foot speed.
         refine: refine the Zeni anchors locally (heel lowest point for foot strikes, toe peak
             forward acceleration for foot offs, see :mod:`gaitcap.gait.events`).
+        refine_min_rate_hz: the refinement is applied only to trajectories sampled at least this
+            fast (at 25 fps it makes events worse, see :mod:`gaitcap.gait.events`).
         strike_window_s: the foot-strike refinement looks this far after the anchor.
         off_window_s: the foot-off refinement looks this far after (and half as far before) it.
     """
@@ -32,5 +34,6 @@ class GaitOptions(Strict):
     min_event_interval_s: float = Field(0.35, gt=0.0)
     treadmill_speed_ratio: float = Field(0.15, gt=0.0, lt=1.0)
     refine: bool = True
+    refine_min_rate_hz: float = Field(50.0, ge=0.0)
     strike_window_s: float = Field(0.12, gt=0.0)
     off_window_s: float = Field(0.1, gt=0.0)
