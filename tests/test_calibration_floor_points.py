@@ -111,10 +111,30 @@ def test_wrong_orientation_convention_fails_the_floor_points(refs, imported, cli
     strict=True,
     reason="measured: per-camera mean error 19.5/26.3/24.2/7.9 px (vs Demo) and 18.3/23.6/26.7/8.8 px "
     "(vs SinglePerson) against a click noise of at most 19.2 px: the Qualisys lab frame and the clicked "
-    "floor points do not coincide to click precision (scripts/check_calibration.py --only qualisys)",
+    "floor points do not coincide to click precision (scripts/check_calibration.py --only qualisys); the "
+    "import equals Pose2Sim's own conversion of the file (test below), so the offsets are the data's",
 )
 def test_floor_points_land_within_click_noise(refs, imported, click_noise_px):
     for ref in refs:
         for cam in imported:
             mean = float(np.mean(np.linalg.norm(_residuals(cam, ref), axis=1)))
             assert mean <= click_noise_px, f"{cam.name}: {mean:.1f} px"
+
+
+def test_import_equals_pose2sims_own_conversion_of_the_same_file(refs, imported):
+    # Pose2Sim's Calib_qualisys.toml (its conversion of this Calib.qca.txt, fixture README): the
+    # same intrinsics and the same world->camera rotation and translation. So the floor-point
+    # offsets of the xfail below belong to the data (the Qualisys calibration vs the clicked scene
+    # calibrations), not to the import. Pose2Sim divides the distortion coefficients by 64 as well;
+    # we keep them as written (the file's units for them are undocumented): on the 8 floor points
+    # the two readings differ by at most 2.7 px (measured), against offsets of 8-27 px.
+    theirs = read_calibration(QUALISYS / "Calib_qualisys_pose2sim.toml")
+    assert theirs.names == imported.names
+    for ours, ref in zip(imported, theirs, strict=True):
+        assert ours.size == ref.size
+        np.testing.assert_allclose(ours.matrix, ref.matrix, atol=1e-6)
+        np.testing.assert_allclose(ours.R, ref.R, atol=1e-7)
+        np.testing.assert_allclose(ours.tvec, ref.tvec, atol=1e-7)
+        np.testing.assert_allclose(np.asarray(ours.dist)[:4] / 64.0, np.asarray(ref.dist)[:4], rtol=1e-6)
+        pts = np.array(list(refs[0].points.values()))
+        assert np.max(np.linalg.norm(ours.project(pts) - ref.project(pts), axis=1)) <= 3.0
