@@ -184,6 +184,53 @@ def capsule_sums(
     return s1, s2
 
 
+@njit(parallel=True, cache=True, nogil=True)
+def capsule_sums_views(a: np.ndarray, b: np.ndarray, ra: np.ndarray, rb: np.ndarray, c1s: tuple, c2s: tuple
+                       ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """:func:`capsule_sums` for C views in one call (one parallel loop over C x N instead of C):
+    a, b (C, N, K, 2); ra, rb (C, N, K); c1s, c2s: C integral images each -> s1, s2 (C, N)."""
+    C, N, K = a.shape[0], a.shape[1], a.shape[2]
+    s1 = np.zeros((C, N))
+    s2 = np.zeros((C, N))
+    for i in prange(C * N):
+        c, n = i // N, i % N
+        lo = np.empty(K, np.int64)
+        hi = np.empty(K, np.int64)
+        ylo = np.empty(K, np.int64)
+        yhi = np.empty(K, np.int64)
+        geo = np.empty((K, _G))
+        s1[c, n], s2[c, n] = _particle_sums(a[c], b[c], ra[c], rb[c], n, c1s[c], c2s[c], geo, ylo, yhi, lo, hi)
+    return s1, s2
+
+
+@njit(cache=True, nogil=True)
+def free_prefixes(silhouette: np.ndarray, placed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Integral images (H + 1, W + 1) of silhouette x free and of free, free = 1 - placed, for
+    silhouette and placed (H, W) float32, in one pass without temporaries: equal bit for bit to
+    :func:`row_prefix` of ``silhouette * (1 - placed)`` and ``1 - placed`` computed by numpy
+    (float32 products; cv2.integral adds the float64 running sum of row y, left to right, to the
+    row above, as here)."""
+    H, W = silhouette.shape
+    C1 = np.empty((H + 1, W + 1))
+    C2 = np.empty((H + 1, W + 1))
+    one = np.float32(1.0)
+    for x in range(W + 1):
+        C1[0, x] = 0.0
+        C2[0, x] = 0.0
+    for y in range(H):
+        C1[y + 1, 0] = 0.0
+        C2[y + 1, 0] = 0.0
+        r1 = 0.0
+        r2 = 0.0
+        for x in range(W):
+            f = one - placed[y, x]
+            r1 += silhouette[y, x] * f
+            r2 += f
+            C1[y + 1, x + 1] = C1[y, x + 1] + r1
+            C2[y + 1, x + 1] = C2[y, x + 1] + r2
+    return C1, C2
+
+
 @njit(cache=True, nogil=True)
 def fill_capsules(mask: np.ndarray, a: np.ndarray, b: np.ndarray, ra: np.ndarray, rb: np.ndarray, value: float) -> None:
     """Set the pixels of the union of one pose's capsules a, b (K, 2), ra, rb (K,) to ``value``
@@ -208,4 +255,6 @@ def warm_up() -> None:
     r = np.ones((1, 1))
     c = row_prefix(np.ones((4, 4), np.float32))
     capsule_sums(z, z + 1, r, r, c, c)
+    capsule_sums_views(z[None], z[None] + 1, r[None], r[None], (c,), (c,))
+    free_prefixes(np.ones((4, 4), np.float32), np.zeros((4, 4), np.float32))
     fill_capsules(np.zeros((4, 4), np.float32), z[0], z[0] + 1, r[0], r[0], 1.0)
