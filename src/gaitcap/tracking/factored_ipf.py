@@ -118,6 +118,7 @@ class FactoredIPF(Tracker):
         model = self.model
         base = np.repeat(q[None], n, axis=0)
         X = base[:, idx].copy()
+        clipped = model.clip(base)  # the DOF outside idx, as every layer's clip leaves them
         logw = np.zeros(n)
         best_x, best_ll = q[idx].copy(), -np.inf
         for li, layer in enumerate(layers):
@@ -126,10 +127,9 @@ class FactoredIPF(Tracker):
                 X = X[systematic(W, n, self.rng)]
             X = X + self.grid_offsets(n, idx, layer, widen)
             X[0] = best_x  # the best so far competes unchanged
-            Q = base.copy()
+            X = model.clip(X, idx)
+            Q = clipped.copy()
             Q[:, idx] = X
-            Q = model.clip(Q)
-            X = Q[:, idx]
             logw = self.likelihood.score(obs, self.projector.capsules(Q, sub.capsules), free) + self.log_prior(Q, idx)
             i = int(np.argmax(logw))
             if logw[i] > best_ll:
