@@ -13,6 +13,7 @@ import io
 import logging
 import time
 from collections.abc import Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -39,7 +40,7 @@ from gaitcap.tracking.factored_ipf import FactoredIPF
 from gaitcap.tracking.init import estimate_height, initialise, subject_positions
 from gaitcap.tracking.ipf import IntervalPF
 from gaitcap.tracking.likelihood import SilhouetteLikelihood
-from gaitcap.tracking.observation import Observation, observe, tracking_views
+from gaitcap.tracking.observation import Observation, tracking_views
 from gaitcap.tracking.raster import warm_up
 from gaitcap.tracking.shape import calibrate_shape
 from gaitcap.tracking.smoothing import lowpass
@@ -113,17 +114,23 @@ def _observations(ses: Session, cams: tuple[str, ...], views, sil_cfg: Silhouett
                   n_frames: int) -> Iterator[Observation]:  # fmt: skip
     """The session's observations, frame by frame (run by the prefetch thread): each camera's
     background is fitted first, then each frame's silhouettes are extracted and prepared, with
-    the integral images and areas the likelihood reads."""
-    extractors = {}
-    for cam in cams:
-        ex, _ = prepare_extractor(Source(cam, ses.videos[cam], ses.backgrounds.get(cam)), sil_cfg)
-        extractors[cam] = ex
-    for _, images in iter_synchronised({c: ses.videos[c] for c in cams}, 0, n_frames):
-        obs = observe(views, [extractors[c].process(images[c])[0] for c in cams])
-        for c in range(len(cams)):
-            obs.prefix(c)
-        obs.areas  # noqa: B018 - cached here, off the tracking thread
-        yield obs
+    the integral images and areas the likelihood reads. The cameras are processed side by side,
+    one thread each (OpenCV and numpy release the GIL); each camera's frames stay in order, and
+    an error is raised for the first camera (rig order) that has one, as one after the other."""
+    with ThreadPoolExecutor(max_workers=len(cams), thread_name_prefix="gaitcap-camera") as pool:
+        fitted = pool.map(lambda cam: prepare_extractor(Source(cam, ses.videos[cam], ses.backgrounds.get(cam)),
+                                                        sil_cfg)[0], cams)  # fmt: skip
+        extractors = dict(zip(cams, fitted))
+
+        def silhouette(c: int, image: np.ndarray) -> np.ndarray:
+            return views[c].prepare(extractors[cams[c]].process(image)[0])
+
+        for _, images in iter_synchronised({c: ses.videos[c] for c in cams}, 0, n_frames):
+            obs = Observation(list(pool.map(silhouette, range(len(cams)), [images[c] for c in cams])))
+            for c in range(len(cams)):
+                obs.prefix(c)
+            obs.areas  # noqa: B018 - cached here, off the tracking thread
+            yield obs
 
 
 def _track_session(session: Path, out: Path, ses: Session, videos, cfg: TrackingConfig, views, likelihood,
