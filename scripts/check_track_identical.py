@@ -10,8 +10,9 @@ uncertainty, poses, likelihood, fit, quality, times) and the root attributes ``s
 with exact equality (``np.array_equal``, NaN equal to NaN). Prints one line per case with its wall
 seconds and exits 1 at the first difference.
 
-Cases: the whole session (56 frames: shape calibration on the first 25, then tracking), and
-``--max-frames 12`` (the shape window cut short). ``--quick`` runs the short case only.
+Cases (``--cases``): ``full``, the whole session (56 frames: shape calibration on the first 25, then
+tracking); ``max12``, ``--max-frames 12`` (the shape window cut short); ``ipf6`` and
+``condensation6``, the other trackers on 6 frames. Default: full and max12; ``--quick``: max12.
 """
 
 from __future__ import annotations
@@ -27,7 +28,8 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-CASES = {"full": [], "max12": ["--max-frames", "12"]}
+CASES = {"full": [], "max12": ["--max-frames", "12"], "ipf6": ["--tracker", "ipf", "--max-frames", "6"],
+         "condensation6": ["--tracker", "condensation", "--max-frames", "6"]}
 ATTRS = ("shape", "height_m", "tracker")
 
 
@@ -75,14 +77,16 @@ def main() -> int:
     g.add_argument("--save", type=Path, help="save the reference outputs here")
     g.add_argument("--against", type=Path, help="compare with the reference outputs saved here")
     p.add_argument("--work", type=Path, default=Path("/tmp/gaitcap-identical"))
-    p.add_argument("--quick", action="store_true", help="the --max-frames case only")
+    p.add_argument("--cases", nargs="+", choices=sorted(CASES), default=["full", "max12"])
+    p.add_argument("--quick", action="store_true", help="the max12 case only")
     args = p.parse_args()
+    if args.quick:
+        args.cases = ["max12"]
     os.environ.setdefault("OMP_WAIT_POLICY", "passive")
     ses = session(args.work)
     failed = False
-    for name, extra in CASES.items():
-        if args.quick and name == "full":
-            continue
+    for name in args.cases:
+        extra = CASES[name]
         if args.save:
             out = args.save / name
             shutil.rmtree(out, ignore_errors=True)
