@@ -217,13 +217,19 @@ class BodyModel:
                 {k: tuple(map(float, v)) for k, v in self.shifts.items()})
 
     # ---------------------------------------------------------------- limits
-    def clip(self, q: np.ndarray) -> np.ndarray:
-        """Wrap heading DOF to [-pi, pi) and clip every other DOF to its limits. (N, D) -> (N, D)."""
+    def clip(self, q: np.ndarray, dofs: np.ndarray | None = None) -> np.ndarray:
+        """Wrap heading DOF to [-pi, pi) and clip every other DOF to its limits. (N, D) -> (N, D);
+        with ``dofs`` (M,), q (N, M) holds only those DOF (each DOF is clipped on its own, so this
+        equals the same columns of a clipped full pose)."""
         q = np.array(q, dtype=np.float64, copy=True)
-        if self.wrap.any():
-            q[..., self.wrap] = (q[..., self.wrap] + np.pi) % (2 * np.pi) - np.pi
-        nw = ~self.wrap
-        q[..., nw] = np.clip(q[..., nw], self.lower[nw], self.upper[nw])
+        if dofs is None:
+            wrap, lower, upper = self.wrap, self.lower, self.upper
+        else:
+            wrap, lower, upper = self.wrap[dofs], self.lower[dofs], self.upper[dofs]
+        if wrap.any():
+            q[..., wrap] = (q[..., wrap] + np.pi) % (2 * np.pi) - np.pi
+        nw = ~wrap
+        q[..., nw] = np.clip(q[..., nw], lower[nw], upper[nw])
         return q
 
     def within_limits(self, q: np.ndarray, tol: float = 1e-9) -> np.ndarray:

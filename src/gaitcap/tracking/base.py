@@ -47,6 +47,7 @@ class Tracker:
         self.prior_sigma = config.prior_sigmas(model)
         self.projector = PoseProjector(model, likelihood.views)
         self.q = model.neutral_pose()
+        self._grids: dict[tuple, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}  # grid_offsets' cache
 
     def start(self, q0: np.ndarray) -> None:
         """Set the previous estimate (after initialisation or recovery)."""
@@ -62,11 +63,15 @@ class Tracker:
         The interval [-h, h] (h: the DOF's half-width x shrink x widen) is cut into steps of
         ``layer.step_deg`` (``step_m`` for translations); each offset is a whole number of steps.
         """
-        rot = self.model.is_rotation[dofs]
-        step = np.where(rot, np.radians(layer.step_deg), layer.step_m)
-        h = self.half_width[dofs] * layer.shrink * widen
-        m = np.maximum(1, np.floor(h / step + 1e-9)).astype(int)
-        k = self.rng.integers(-m, m + 1, size=(n, len(dofs)))
+        key = (np.asarray(dofs).dtype.str, np.asarray(dofs).tobytes(), layer.step_deg, layer.step_m, layer.shrink, widen)
+        if key not in self._grids:  # the grid of a node's DOF and layer, built once
+            rot = self.model.is_rotation[dofs]
+            step = np.where(rot, np.radians(layer.step_deg), layer.step_m)
+            h = self.half_width[dofs] * layer.shrink * widen
+            m = np.maximum(1, np.floor(h / step + 1e-9)).astype(int)
+            self._grids[key] = (step, -m, m + 1)
+        step, lo, hi = self._grids[key]
+        k = self.rng.integers(lo, hi, size=(n, len(step)))
         return k * step
 
     def log_prior(self, Q: np.ndarray, dofs: np.ndarray | slice = slice(None)) -> np.ndarray:

@@ -100,12 +100,9 @@ class FactoredIPF(Tracker):
             for s in self.order:
                 sub = self.subtrees[s]
                 n = cfg.root_particles if model.segments[s].parent < 0 else cfg.particles
-                if p == 0:
-                    free = [1.0 - m for m in placed]
-                else:
-                    free = self._free_outside(q, s, obs)
+                explained = placed if p == 0 else self._placed_outside(q, s, obs)
                 q, W, pts = self._node(obs, q, self._explored[s], sub,
-                                       self.likelihood.free_prefixes(obs, free), n, widen, layers)  # fmt: skip
+                                       self.likelihood.free_prefixes(obs, explained), n, widen, layers)  # fmt: skip
                 evaluations += n * len(layers)
                 variance[sub.points] += weighted_spread(pts, W)
                 if p == 0:
@@ -121,6 +118,7 @@ class FactoredIPF(Tracker):
         model = self.model
         base = np.repeat(q[None], n, axis=0)
         X = base[:, idx].copy()
+        clipped = model.clip(base)  # the DOF outside idx, as every layer's clip leaves them
         logw = np.zeros(n)
         best_x, best_ll = q[idx].copy(), -np.inf
         for li, layer in enumerate(layers):
@@ -129,10 +127,9 @@ class FactoredIPF(Tracker):
                 X = X[systematic(W, n, self.rng)]
             X = X + self.grid_offsets(n, idx, layer, widen)
             X[0] = best_x  # the best so far competes unchanged
-            Q = base.copy()
+            X = model.clip(X, idx)
+            Q = clipped.copy()
             Q[:, idx] = X
-            Q = model.clip(Q)
-            X = Q[:, idx]
             logw = self.likelihood.score(obs, self.projector.capsules(Q, sub.capsules), free) + self.log_prior(Q, idx)
             i = int(np.argmax(logw))
             if logw[i] > best_ll:
@@ -141,11 +138,11 @@ class FactoredIPF(Tracker):
         q[idx] = best_x
         return q, normalise_log_weights(logw), self.projector.points(Q, sub.points)
 
-    def _free_outside(self, q: np.ndarray, s: int, obs: Observation) -> list[np.ndarray]:
-        """1 - (all segments outside segment s's subtree, drawn at the estimate), per view."""
+    def _placed_outside(self, q: np.ndarray, s: int, obs: Observation) -> list[np.ndarray]:
+        """All segments outside segment s's subtree, drawn at the estimate, per view (1 inside)."""
         placed = [np.zeros_like(m) for m in obs.silhouettes]
         self._draw(q, self._outside[s], placed)
-        return [1.0 - m for m in placed]
+        return placed
 
     def _draw(self, q: np.ndarray, caps: np.ndarray, masks: list[np.ndarray]) -> None:
         """Fill capsules ``caps`` at pose q into every view's mask."""

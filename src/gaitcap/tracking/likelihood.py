@@ -21,7 +21,7 @@ import numpy as np
 
 from gaitcap.tracking.observation import Observation, TrackingView
 from gaitcap.tracking.projector import Projected
-from gaitcap.tracking.raster import capsule_sums, fill_capsules, row_prefix
+from gaitcap.tracking.raster import capsule_sums_views, fill_capsules, free_prefixes
 
 
 class SilhouetteLikelihood:
@@ -39,9 +39,10 @@ class SilhouetteLikelihood:
         return a, b, f * radii[:, 0] / za, f * radii[:, 1] / zb
 
     @staticmethod
-    def free_prefixes(obs: Observation, free: list[np.ndarray]) -> list[tuple[np.ndarray, np.ndarray]]:
-        """Row prefix sums of (silhouette x free, free) per camera, for :meth:`terms`."""
-        return [(row_prefix(s * f), row_prefix(f)) for s, f in zip(obs.silhouettes, free)]
+    def free_prefixes(obs: Observation, placed: list[np.ndarray]) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Row prefix sums of (silhouette x free, free) per camera, free = 1 - placed (placed: the
+        pixels already explained, (h, w) float32 0/1 masks, one per camera), for :meth:`terms`."""
+        return [free_prefixes(s, p) for s, p in zip(obs.silhouettes, placed)]
 
     def projected(self, A: np.ndarray, B: np.ndarray, radii: np.ndarray) -> Projected:
         """World capsules A, B (N, K, 3), radii (K, 2) -> every view's 2D capsules (numpy path;
@@ -54,13 +55,9 @@ class SilhouetteLikelihood:
     ) -> tuple[np.ndarray, np.ndarray]:
         """Per camera overlap I (C, N) and model area A (C, N) of projected capsules, over the free
         pixels when ``free`` (from :meth:`free_prefixes`) is given."""
-        I_all, A_all = [], []
-        for c in range(len(self.views)):
-            c1, c2 = obs.prefix(c) if free is None else free[c]
-            s1, s2 = capsule_sums(*proj.camera(c), c1, c2)
-            I_all.append(s1)
-            A_all.append(s2)
-        return np.asarray(I_all), np.asarray(A_all)
+        prefixes = [obs.prefix(c) for c in range(len(self.views))] if free is None else free
+        return capsule_sums_views(proj.a, proj.b, proj.ra, proj.rb, tuple(p[0] for p in prefixes),
+                                  tuple(p[1] for p in prefixes))  # fmt: skip
 
     def score(
         self, obs: Observation, proj: Projected, free: list[tuple[np.ndarray, np.ndarray]] | None = None

@@ -40,68 +40,73 @@ class Projected:
 
 
 @njit(cache=True, inline="always")
-def _rotate(R: np.ndarray, axis: int, angle: float) -> None:
-    """R <- R · R_axis(angle), in place (R: 3 x 3)."""
-    c, s = np.cos(angle), np.sin(angle)
+def _rotate(R: np.ndarray, n: int, s: int, axis: int, angle: float) -> None:
+    """R[n, s] <- R[n, s] · R_axis(angle), in place (R: (N, S, 3, 3))."""
+    c, sn = np.cos(angle), np.sin(angle)
     i, j = (1, 2) if axis == 0 else ((2, 0) if axis == 1 else (0, 1))
     for r in range(3):
-        ri, rj = R[r, i], R[r, j]
-        R[r, i] = ri * c + rj * s
-        R[r, j] = -ri * s + rj * c
-
-
-@njit(cache=True)
-def _frames(q, parent, origin, dof_start, dof_stop, axis, sign, trans) -> tuple[np.ndarray, np.ndarray]:
-    """World frames of every segment for one pose q (D,): R (S, 3, 3), o (S, 3)."""
-    S = parent.shape[0]
-    R = np.empty((S, 3, 3))
-    o = np.empty((S, 3))
-    for s in range(S):
-        p = parent[s]
-        if p < 0:
-            for i in range(3):
-                o[s, i] = 0.0
-                for j in range(3):
-                    R[s, i, j] = 1.0 if i == j else 0.0
-        else:
-            for i in range(3):
-                o[s, i] = o[p, i] + R[p, i, 0] * origin[s, 0] + R[p, i, 1] * origin[s, 1] + R[p, i, 2] * origin[s, 2]
-                for j in range(3):
-                    R[s, i, j] = R[p, i, j]
-        for d in range(dof_start[s], dof_stop[s]):
-            if trans[d]:
-                o[s, axis[d]] += sign[d] * q[d]
-            else:
-                _rotate(R[s], axis[d], sign[d] * q[d])
-    return R, o
+        ri, rj = R[n, s, r, i], R[n, s, r, j]
+        R[n, s, r, i] = ri * c + rj * sn
+        R[n, s, r, j] = -ri * sn + rj * c
 
 
 @njit(cache=True, inline="always")
-def _world(R: np.ndarray, o: np.ndarray, s: int, loc: np.ndarray, i: int) -> float:
-    """Coordinate i of the point with coordinates ``loc`` in segment s's frame."""
-    return o[s, i] + R[s, i, 0] * loc[0] + R[s, i, 1] * loc[1] + R[s, i, 2] * loc[2]
+def _frames(Q, n, need, parent, origin, dof_start, dof_stop, axis, sign, trans, R, o) -> None:
+    """World frames of the segments ``need`` (S,) bool (closed under parents) for pose Q[n]:
+    R[n] (S, 3, 3), o[n] (S, 3), in place. The other segments are left unset.
+
+    Indexes the arrays element by element: taking row views (Q[n], R[s]) costs two atomic
+    reference-count updates each, more than the arithmetic."""
+    S = parent.shape[0]
+    for s in range(S):
+        if not need[s]:
+            continue
+        p = parent[s]
+        if p < 0:
+            for i in range(3):
+                o[n, s, i] = 0.0
+                for j in range(3):
+                    R[n, s, i, j] = 1.0 if i == j else 0.0
+        else:
+            for i in range(3):
+                o[n, s, i] = (o[n, p, i] + R[n, p, i, 0] * origin[s, 0] + R[n, p, i, 1] * origin[s, 1]
+                              + R[n, p, i, 2] * origin[s, 2])  # fmt: skip
+                for j in range(3):
+                    R[n, s, i, j] = R[n, p, i, j]
+        for d in range(dof_start[s], dof_stop[s]):
+            if trans[d]:
+                o[n, s, axis[d]] += sign[d] * Q[n, d]
+            else:
+                _rotate(R, n, s, axis[d], sign[d] * Q[n, d])
 
 
-@njit(parallel=True, cache=True)
-def _project(Q, parent, origin, dof_start, dof_stop, axis, sign, trans, cap_seg, cap_a, cap_b, cap_r,
+@njit(cache=True, inline="always")
+def _world(R: np.ndarray, o: np.ndarray, n: int, s: int, loc: np.ndarray, k: int, i: int) -> float:
+    """Coordinate i of the point with coordinates loc[k] (3,) in segment s's frame of pose n."""
+    return o[n, s, i] + R[n, s, i, 0] * loc[k, 0] + R[n, s, i, 1] * loc[k, 1] + R[n, s, i, 2] * loc[k, 2]
+
+
+@njit(parallel=True, cache=True, nogil=True)
+def _project(Q, need, parent, origin, dof_start, dof_stop, axis, sign, trans, cap_seg, cap_a, cap_b, cap_r,
              cam_R, cam_t, cam_k):  # fmt: skip
-    N, K, C = Q.shape[0], cap_seg.shape[0], cam_R.shape[0]
+    N, K, C, S = Q.shape[0], cap_seg.shape[0], cam_R.shape[0], parent.shape[0]
     a = np.empty((C, N, K, 2))
     b = np.empty((C, N, K, 2))
     ra = np.empty((C, N, K))
     rb = np.empty((C, N, K))
+    R = np.empty((N, S, 3, 3))
+    o = np.empty((N, S, 3))
     for n in prange(N):
-        R, o = _frames(Q[n], parent, origin, dof_start, dof_stop, axis, sign, trans)
+        _frames(Q, n, need, parent, origin, dof_start, dof_stop, axis, sign, trans, R, o)
         for k in range(K):
             s = cap_seg[k]
             for end in range(2):
-                loc = cap_a[k] if end == 0 else cap_b[k]
-                X0, X1, X2 = _world(R, o, s, loc, 0), _world(R, o, s, loc, 1), _world(R, o, s, loc, 2)
+                loc = cap_a if end == 0 else cap_b
+                X0, X1, X2 = _world(R, o, n, s, loc, k, 0), _world(R, o, n, s, loc, k, 1), _world(R, o, n, s, loc, k, 2)
                 for c in range(C):
-                    Rc = cam_R[c]
-                    px = Rc[0, 0] * X0 + Rc[0, 1] * X1 + Rc[0, 2] * X2 + cam_t[c, 0]
-                    py = Rc[1, 0] * X0 + Rc[1, 1] * X1 + Rc[1, 2] * X2 + cam_t[c, 1]
-                    pz = max(Rc[2, 0] * X0 + Rc[2, 1] * X1 + Rc[2, 2] * X2 + cam_t[c, 2], 1e-3)
+                    px = cam_R[c, 0, 0] * X0 + cam_R[c, 0, 1] * X1 + cam_R[c, 0, 2] * X2 + cam_t[c, 0]
+                    py = cam_R[c, 1, 0] * X0 + cam_R[c, 1, 1] * X1 + cam_R[c, 1, 2] * X2 + cam_t[c, 1]
+                    pz = max(cam_R[c, 2, 0] * X0 + cam_R[c, 2, 1] * X1 + cam_R[c, 2, 2] * X2 + cam_t[c, 2], 1e-3)
                     fx, fy, cx, cy = cam_k[c, 0], cam_k[c, 1], cam_k[c, 2], cam_k[c, 3]
                     u, v, rad = fx * px / pz + cx, fy * py / pz + cy, 0.5 * (fx + fy) * cap_r[k, end] / pz
                     if end == 0:
@@ -111,15 +116,17 @@ def _project(Q, parent, origin, dof_start, dof_stop, axis, sign, trans, cap_seg,
     return a, b, ra, rb
 
 
-@njit(parallel=True, cache=True)
-def _points(Q, parent, origin, dof_start, dof_stop, axis, sign, trans, pt_seg, pt_local):  # fmt: skip
-    N, P = Q.shape[0], pt_seg.shape[0]
+@njit(parallel=True, cache=True, nogil=True)
+def _points(Q, need, parent, origin, dof_start, dof_stop, axis, sign, trans, pt_seg, pt_local):  # fmt: skip
+    N, P, S = Q.shape[0], pt_seg.shape[0], parent.shape[0]
     out = np.empty((N, P, 3))
+    R = np.empty((N, S, 3, 3))
+    o = np.empty((N, S, 3))
     for n in prange(N):
-        R, o = _frames(Q[n], parent, origin, dof_start, dof_stop, axis, sign, trans)
+        _frames(Q, n, need, parent, origin, dof_start, dof_stop, axis, sign, trans, R, o)
         for p in range(P):
             for i in range(3):
-                out[n, p, i] = _world(R, o, pt_seg[p], pt_local[p], i)
+                out[n, p, i] = _world(R, o, n, pt_seg[p], pt_local, p, i)
     return out
 
 
@@ -146,19 +153,46 @@ class PoseProjector:
         self._radii = np.ascontiguousarray(model.capsule_radii, np.float64)
         self._all_capsules = np.arange(len(model.capsule_segment))
         self._all_points = np.arange(model.n_points)
+        self._capsule_args: dict[bytes, tuple] = {}  # per selection (dtype + indices), built once
+        self._point_args: dict[bytes, tuple] = {}
+
+    def _needed(self, segments: np.ndarray) -> np.ndarray:
+        """(S,) bool: the segments ``segments`` and their ancestors, whose frames the kinematics computes."""
+        need = np.zeros(len(self.model.segments), np.bool_)
+        for s in np.asarray(segments, np.int64):
+            while s >= 0 and not need[s]:
+                need[s] = True
+                s = self.model.segments[s].parent
+        return need
+
+    def _for_capsules(self, caps: np.ndarray) -> tuple:
+        key = caps.dtype.str.encode() + caps.tobytes()
+        if key not in self._capsule_args:
+            m = self.model
+            seg = np.ascontiguousarray(m.capsule_segment[caps])
+            self._capsule_args[key] = (self._needed(seg), seg, np.ascontiguousarray(m.capsule_a[caps]),
+                                       np.ascontiguousarray(m.capsule_b[caps]), self._radii[caps])  # fmt: skip
+        return self._capsule_args[key]
+
+    def _for_points(self, pts: np.ndarray) -> tuple:
+        key = pts.dtype.str.encode() + pts.tobytes()
+        if key not in self._point_args:
+            m = self.model
+            seg = np.ascontiguousarray(m.point_segment[pts])
+            self._point_args[key] = (self._needed(seg), seg, np.ascontiguousarray(m.point_local[pts]))
+        return self._point_args[key]
 
     def capsules(self, Q: np.ndarray, caps: np.ndarray | None = None) -> Projected:
         """Poses Q (N, D) -> the capsules ``caps`` (default: all) projected in every view."""
-        m = self.model
         caps = self._all_capsules if caps is None else np.asarray(caps)
+        need, seg, cap_a, cap_b, radii = self._for_capsules(caps)
         Q = np.ascontiguousarray(np.atleast_2d(Q), np.float64)
-        a, b, ra, rb = _project(Q, *self._chain, m.capsule_segment[caps], np.ascontiguousarray(m.capsule_a[caps]),
-                                np.ascontiguousarray(m.capsule_b[caps]), self._radii[caps], *self._cams)  # fmt: skip
+        a, b, ra, rb = _project(Q, need, *self._chain, seg, cap_a, cap_b, radii, *self._cams)
         return Projected(a, b, ra, rb)
 
     def points(self, Q: np.ndarray, pts: np.ndarray | None = None) -> np.ndarray:
         """Poses Q (N, D) -> positions (N, len(pts), 3) of the points ``pts`` (default: all)."""
-        m = self.model
         pts = self._all_points if pts is None else np.asarray(pts)
+        need, seg, local = self._for_points(pts)
         Q = np.ascontiguousarray(np.atleast_2d(Q), np.float64)
-        return _points(Q, *self._chain, m.point_segment[pts], np.ascontiguousarray(m.point_local[pts]))
+        return _points(Q, need, *self._chain, seg, local)

@@ -49,69 +49,87 @@ def _edge(y: float, x0: float, y0: float, x1: float, y1: float, lo: float, hi: f
 
 
 #: per-capsule geometry, computed once per particle: ax, ay, ra, bx, by, rb, then the
-#: quadrilateral's corners p0..p3 (x, y) and a flag (1: the quadrilateral exists)
+#: quadrilateral's corners p0..p3 (x, y) and a flag (1: the quadrilateral exists). The kernels
+#: index the table geo (K, _G) by (k, field) and never take a row view of it: a view costs two
+#: atomic reference-count updates, which took more time than the geometry itself.
 _G = 15
 
 
 @njit(cache=True, inline="always")
-def _geometry(ax: float, ay: float, bx: float, by: float, ra: float, rb: float, g: np.ndarray) -> None:
-    g[0], g[1], g[2], g[3], g[4], g[5] = ax, ay, ra, bx, by, rb
+def _geometry(ax: float, ay: float, bx: float, by: float, ra: float, rb: float, g: np.ndarray, k: int) -> None:
+    g[k, 0], g[k, 1], g[k, 2], g[k, 3], g[k, 4], g[k, 5] = ax, ay, ra, bx, by, rb
     dx, dy = bx - ax, by - ay
     L = math.sqrt(dx * dx + dy * dy)
-    g[14] = 0.0
+    g[k, 14] = 0.0
     if L > 1e-9:
         nx, ny = -dy / L, dx / L
-        g[6], g[7] = ax + nx * ra, ay + ny * ra
-        g[8], g[9] = bx + nx * rb, by + ny * rb
-        g[10], g[11] = bx - nx * rb, by - ny * rb
-        g[12], g[13] = ax - nx * ra, ay - ny * ra
-        g[14] = 1.0
+        g[k, 6], g[k, 7] = ax + nx * ra, ay + ny * ra
+        g[k, 8], g[k, 9] = bx + nx * rb, by + ny * rb
+        g[k, 10], g[k, 11] = bx - nx * rb, by - ny * rb
+        g[k, 12], g[k, 13] = ax - nx * ra, ay - ny * ra
+        g[k, 14] = 1.0
 
 
 @njit(cache=True, inline="always")
-def _span(y: float, g: np.ndarray) -> tuple[float, float]:
-    """Interval [lo, hi] of x covered by one capsule (geometry ``g``) on row y (lo > hi: empty)."""
-    lo, hi = _disc_span(y, g[0], g[1], g[2], math.inf, -math.inf)
-    lo, hi = _disc_span(y, g[3], g[4], g[5], lo, hi)
-    if g[14] > 0.0:
-        lo, hi = _edge(y, g[6], g[7], g[8], g[9], lo, hi)
-        lo, hi = _edge(y, g[8], g[9], g[10], g[11], lo, hi)
-        lo, hi = _edge(y, g[10], g[11], g[12], g[13], lo, hi)
-        lo, hi = _edge(y, g[12], g[13], g[6], g[7], lo, hi)
+def _span(y: float, g: np.ndarray, k: int) -> tuple[float, float]:
+    """Interval [lo, hi] of x covered by capsule k (geometry table ``g``) on row y (lo > hi: empty)."""
+    lo, hi = _disc_span(y, g[k, 0], g[k, 1], g[k, 2], math.inf, -math.inf)
+    lo, hi = _disc_span(y, g[k, 3], g[k, 4], g[k, 5], lo, hi)
+    if g[k, 14] > 0.0:
+        lo, hi = _edge(y, g[k, 6], g[k, 7], g[k, 8], g[k, 9], lo, hi)
+        lo, hi = _edge(y, g[k, 8], g[k, 9], g[k, 10], g[k, 11], lo, hi)
+        lo, hi = _edge(y, g[k, 10], g[k, 11], g[k, 12], g[k, 13], lo, hi)
+        lo, hi = _edge(y, g[k, 12], g[k, 13], g[k, 6], g[k, 7], lo, hi)
     return lo, hi
 
 
 @njit(cache=True, inline="always")
-def _row_range(g: np.ndarray, H: int) -> tuple[int, int]:
-    """Rows a capsule can touch, clipped to the image (empty: lo > hi); NaN ends touch none."""
-    if not (np.isfinite(g[0]) and np.isfinite(g[1]) and np.isfinite(g[3]) and np.isfinite(g[4])):
+def _clamped_int(v: float, lo: int, hi: int) -> int:
+    """int(v) clamped to [lo, hi], v integral-valued; casting inf, NaN or |v| >= 2**63 to an int is
+    undefined behaviour, so the clamp happens before the cast (NaN: lo)."""
+    if not (v > lo):
+        return lo
+    if v >= hi:
+        return hi
+    return int(v)
+
+
+@njit(cache=True, inline="always")
+def _row_range(g: np.ndarray, k: int, H: int) -> tuple[int, int]:
+    """Rows capsule k can touch, clipped to the image (empty: lo > hi); NaN or infinite ends or
+    radii touch none."""
+    r = max(g[k, 2], g[k, 5])
+    if not (np.isfinite(g[k, 0]) and np.isfinite(g[k, 1]) and np.isfinite(g[k, 3]) and np.isfinite(g[k, 4])
+            and np.isfinite(r)):  # fmt: skip
         return 1, 0
-    r = max(g[2], g[5])
-    return max(0, int(math.ceil(min(g[1], g[4]) - r))), min(H - 1, int(math.floor(max(g[1], g[4]) + r)))
+    return (_clamped_int(math.ceil(min(g[k, 1], g[k, 4]) - r), 0, H),
+            _clamped_int(math.floor(max(g[k, 1], g[k, 4]) + r), -1, H - 1))  # fmt: skip
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _prepare(a, b, ra, rb, n: int, H: int, geo: np.ndarray, ylo: np.ndarray, yhi: np.ndarray) -> tuple[int, int]:
     """Geometry and row ranges of particle n's capsules; returns the rows the particle spans."""
     ymin, ymax = H, -1
     for k in range(a.shape[1]):
-        _geometry(a[n, k, 0], a[n, k, 1], b[n, k, 0], b[n, k, 1], ra[n, k], rb[n, k], geo[k])
-        ylo[k], yhi[k] = _row_range(geo[k], H)
+        _geometry(a[n, k, 0], a[n, k, 1], b[n, k, 0], b[n, k, 1], ra[n, k], rb[n, k], geo, k)
+        ylo[k], yhi[k] = _row_range(geo, k, H)
         if ylo[k] <= yhi[k]:
             ymin = min(ymin, ylo[k])
             ymax = max(ymax, yhi[k])
     return ymin, ymax
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _row_intervals(y: int, geo, ylo, yhi, W: int, lo: np.ndarray, hi: np.ndarray) -> int:
     """The pixel intervals covered on row y, sorted by their left end; returns their count."""
     m = 0
     for k in range(geo.shape[0]):
         if y < ylo[k] or y > yhi[k]:
             continue
-        l, h = _span(float(y), geo[k])
-        xl, xh = max(0, int(math.ceil(l))), min(W - 1, int(math.floor(h)))
+        l, h = _span(float(y), geo, k)
+        if not (l <= h):  # empty (or NaN)
+            continue
+        xl, xh = _clamped_int(math.ceil(l), 0, W), _clamped_int(math.floor(h), -1, W - 1)
         if xl > xh:
             continue
         j = m  # insertion sort by left end
@@ -125,13 +143,35 @@ def _row_intervals(y: int, geo, ylo, yhi, W: int, lo: np.ndarray, hi: np.ndarray
     return m
 
 
-@njit(parallel=True, cache=True)
+@njit(cache=True, inline="always")
+def _particle_sums(a, b, ra, rb, n: int, c1, c2, geo, ylo, yhi, lo, hi) -> tuple[float, float]:
+    """(sum of c1's map, sum of c2's map) over particle n's capsules, scratch arrays given (K,)."""
+    H, W = c1.shape[0] - 1, c1.shape[1] - 1
+    ymin, ymax = _prepare(a, b, ra, rb, n, H, geo, ylo, yhi)
+    acc1 = 0.0
+    acc2 = 0.0
+    for y in range(ymin, ymax + 1):
+        m = _row_intervals(y, geo, ylo, yhi, W, lo, hi)
+        if m == 0:
+            continue
+        cl, ch = lo[0], hi[0]
+        for i in range(1, m + 1):
+            if i < m and lo[i] <= ch + 1:  # merge overlapping or touching intervals
+                ch = max(ch, hi[i])
+                continue
+            acc1 += c1[y + 1, ch + 1] - c1[y + 1, cl] - c1[y, ch + 1] + c1[y, cl]
+            acc2 += c2[y + 1, ch + 1] - c2[y + 1, cl] - c2[y, ch + 1] + c2[y, cl]
+            if i < m:
+                cl, ch = lo[i], hi[i]
+    return acc1, acc2
+
+
+@njit(parallel=True, cache=True, nogil=True)
 def capsule_sums(
     a: np.ndarray, b: np.ndarray, ra: np.ndarray, rb: np.ndarray, c1: np.ndarray, c2: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """a, b (N, K, 2); ra, rb (N, K); c1, c2 (H + 1, W + 1) integral images -> s1, s2 (N,)."""
     N, K = a.shape[0], a.shape[1]
-    H, W = c1.shape[0] - 1, c1.shape[1] - 1
     s1 = np.zeros(N)
     s2 = np.zeros(N)
     for n in prange(N):
@@ -140,28 +180,58 @@ def capsule_sums(
         ylo = np.empty(K, np.int64)
         yhi = np.empty(K, np.int64)
         geo = np.empty((K, _G))
-        ymin, ymax = _prepare(a, b, ra, rb, n, H, geo, ylo, yhi)
-        acc1 = 0.0
-        acc2 = 0.0
-        for y in range(ymin, ymax + 1):
-            m = _row_intervals(y, geo, ylo, yhi, W, lo, hi)
-            if m == 0:
-                continue
-            cl, ch = lo[0], hi[0]
-            for i in range(1, m + 1):
-                if i < m and lo[i] <= ch + 1:
-                    ch = max(ch, hi[i])
-                    continue
-                acc1 += c1[y + 1, ch + 1] - c1[y + 1, cl] - c1[y, ch + 1] + c1[y, cl]
-                acc2 += c2[y + 1, ch + 1] - c2[y + 1, cl] - c2[y, ch + 1] + c2[y, cl]
-                if i < m:
-                    cl, ch = lo[i], hi[i]
-        s1[n] = acc1
-        s2[n] = acc2
+        s1[n], s2[n] = _particle_sums(a, b, ra, rb, n, c1, c2, geo, ylo, yhi, lo, hi)
     return s1, s2
 
 
-@njit(cache=True)
+@njit(parallel=True, cache=True, nogil=True)
+def capsule_sums_views(a: np.ndarray, b: np.ndarray, ra: np.ndarray, rb: np.ndarray, c1s: tuple, c2s: tuple
+                       ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """:func:`capsule_sums` for C views in one call (one parallel loop over C x N instead of C):
+    a, b (C, N, K, 2); ra, rb (C, N, K); c1s, c2s: C integral images each -> s1, s2 (C, N)."""
+    C, N, K = a.shape[0], a.shape[1], a.shape[2]
+    s1 = np.zeros((C, N))
+    s2 = np.zeros((C, N))
+    for i in prange(C * N):
+        c, n = i // N, i % N
+        lo = np.empty(K, np.int64)
+        hi = np.empty(K, np.int64)
+        ylo = np.empty(K, np.int64)
+        yhi = np.empty(K, np.int64)
+        geo = np.empty((K, _G))
+        s1[c, n], s2[c, n] = _particle_sums(a[c], b[c], ra[c], rb[c], n, c1s[c], c2s[c], geo, ylo, yhi, lo, hi)
+    return s1, s2
+
+
+@njit(cache=True, nogil=True)
+def free_prefixes(silhouette: np.ndarray, placed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Integral images (H + 1, W + 1) of silhouette x free and of free, free = 1 - placed, for
+    silhouette and placed (H, W) float32, in one pass without temporaries: equal bit for bit to
+    :func:`row_prefix` of ``silhouette * (1 - placed)`` and ``1 - placed`` computed by numpy
+    (float32 products; cv2.integral adds the float64 running sum of row y, left to right, to the
+    row above, as here)."""
+    H, W = silhouette.shape
+    C1 = np.empty((H + 1, W + 1))
+    C2 = np.empty((H + 1, W + 1))
+    one = np.float32(1.0)
+    for x in range(W + 1):
+        C1[0, x] = 0.0
+        C2[0, x] = 0.0
+    for y in range(H):
+        C1[y + 1, 0] = 0.0
+        C2[y + 1, 0] = 0.0
+        r1 = 0.0
+        r2 = 0.0
+        for x in range(W):
+            f = one - placed[y, x]
+            r1 += silhouette[y, x] * f
+            r2 += f
+            C1[y + 1, x + 1] = C1[y, x + 1] + r1
+            C2[y + 1, x + 1] = C2[y, x + 1] + r2
+    return C1, C2
+
+
+@njit(cache=True, nogil=True)
 def fill_capsules(mask: np.ndarray, a: np.ndarray, b: np.ndarray, ra: np.ndarray, rb: np.ndarray, value: float) -> None:
     """Set the pixels of the union of one pose's capsules a, b (K, 2), ra, rb (K,) to ``value``
     in ``mask`` (H, W), in place: exactly the pixels :func:`capsule_sums` counts."""
@@ -185,4 +255,6 @@ def warm_up() -> None:
     r = np.ones((1, 1))
     c = row_prefix(np.ones((4, 4), np.float32))
     capsule_sums(z, z + 1, r, r, c, c)
+    capsule_sums_views(z[None], z[None] + 1, r[None], r[None], (c,), (c,))
+    free_prefixes(np.ones((4, 4), np.float32), np.zeros((4, 4), np.float32))
     fill_capsules(np.zeros((4, 4), np.float32), z[0], z[0] + 1, r[0], r[0], 1.0)
