@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from gaitcap.body.shape import ProjectedCapsules, capsule_polygon, rasterize
-from gaitcap.tracking.raster import capsule_sums, fill_capsules, row_prefix
+from gaitcap.tracking.raster import capsule_sums_views, fill_capsules, row_prefix
 
 
 def _inside_capsule(x, y, a, b, ra, rb):
@@ -31,7 +31,9 @@ def _brute_force(a, b, ra, rb, g1, g2):
 
 
 def _sums(a, b, ra, rb, g1, g2):
-    return capsule_sums(a, b, ra, rb, row_prefix(g1), row_prefix(g2))
+    """The likelihood's kernel on one view: (N,) sums of g1 and of g2."""
+    s1, s2 = capsule_sums_views(a[None], b[None], ra[None], rb[None], (row_prefix(g1),), (row_prefix(g2),))
+    return s1[0], s2[0]
 
 
 def test_single_disc_counts_pixel_centres():

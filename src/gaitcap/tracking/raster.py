@@ -167,28 +167,11 @@ def _particle_sums(a, b, ra, rb, n: int, c1, c2, geo, ylo, yhi, lo, hi) -> tuple
 
 
 @njit(parallel=True, cache=True, nogil=True)
-def capsule_sums(
-    a: np.ndarray, b: np.ndarray, ra: np.ndarray, rb: np.ndarray, c1: np.ndarray, c2: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """a, b (N, K, 2); ra, rb (N, K); c1, c2 (H + 1, W + 1) integral images -> s1, s2 (N,)."""
-    N, K = a.shape[0], a.shape[1]
-    s1 = np.zeros(N)
-    s2 = np.zeros(N)
-    for n in prange(N):
-        lo = np.empty(K, np.int64)
-        hi = np.empty(K, np.int64)
-        ylo = np.empty(K, np.int64)
-        yhi = np.empty(K, np.int64)
-        geo = np.empty((K, _G))
-        s1[n], s2[n] = _particle_sums(a, b, ra, rb, n, c1, c2, geo, ylo, yhi, lo, hi)
-    return s1, s2
-
-
-@njit(parallel=True, cache=True, nogil=True)
 def capsule_sums_views(a: np.ndarray, b: np.ndarray, ra: np.ndarray, rb: np.ndarray, c1s: tuple, c2s: tuple
                        ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
-    """:func:`capsule_sums` for C views in one call (one parallel loop over C x N instead of C):
-    a, b (C, N, K, 2); ra, rb (C, N, K); c1s, c2s: C integral images each -> s1, s2 (C, N)."""
+    """Sums of two maps over the union of each particle's capsules, in every view, through the
+    maps' integral images (one parallel loop over views x particles): a, b (C, N, K, 2);
+    ra, rb (C, N, K); c1s, c2s: C integral images (H + 1, W + 1) each -> s1, s2 (C, N)."""
     C, N, K = a.shape[0], a.shape[1], a.shape[2]
     s1 = np.zeros((C, N))
     s2 = np.zeros((C, N))
@@ -234,7 +217,7 @@ def free_prefixes(silhouette: np.ndarray, placed: np.ndarray) -> tuple[np.ndarra
 @njit(cache=True, nogil=True)
 def fill_capsules(mask: np.ndarray, a: np.ndarray, b: np.ndarray, ra: np.ndarray, rb: np.ndarray, value: float) -> None:
     """Set the pixels of the union of one pose's capsules a, b (K, 2), ra, rb (K,) to ``value``
-    in ``mask`` (H, W), in place: exactly the pixels :func:`capsule_sums` counts."""
+    in ``mask`` (H, W), in place: exactly the pixels :func:`capsule_sums_views` counts."""
     H, W = mask.shape
     K = a.shape[0]
     lo = np.empty(K, np.int64)
@@ -254,7 +237,6 @@ def warm_up() -> None:
     z = np.zeros((1, 1, 2))
     r = np.ones((1, 1))
     c = row_prefix(np.ones((4, 4), np.float32))
-    capsule_sums(z, z + 1, r, r, c, c)
     capsule_sums_views(z[None], z[None] + 1, r[None], r[None], (c,), (c,))
     free_prefixes(np.ones((4, 4), np.float32), np.zeros((4, 4), np.float32))
     fill_capsules(np.zeros((4, 4), np.float32), z[0], z[0] + 1, r[0], r[0], 1.0)
