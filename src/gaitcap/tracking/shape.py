@@ -12,7 +12,8 @@ proportions halves the lower-limb error. So, once the subject is found:
    frames spread over the window are re-fitted (one factored pass from x_k, the same random
    stream for every candidate so that they are compared on equal terms) and scored by
        F(p) = sum_k fit_k(p)        (fit = 1 - |M xor S| / |S|, mean over the cameras);
-   the best candidate is kept with its re-fitted poses; δ shrinks from round to round;
+   the best candidate is kept with its re-fitted poses and, with ``max_moves`` > 1, the parameter
+   keeps moving the same way while F improves (pattern search); δ shrinks from round to round;
 3. tracking restarts at the first frame with the calibrated model.
 
 Each parameter stays within ``bounds`` of the shipped proportion.
@@ -93,29 +94,30 @@ def calibrate_shape(
     current = [poses[i] for i in pick]
     best_fit, current = refit(model, current)
     fit_before = best_fit
+
     def try_factor(name: str, f: float) -> tuple[float, list[np.ndarray]] | None:
+        """Mean fit and re-fitted poses with parameter ``name`` at ``f``; None out of bounds."""
         if not (bounds[0] <= f <= bounds[1]):
             return None
         return refit(_scaled(model, parameters, {**factors, name: f}), current)
 
     for delta in steps:
         for name in parameters:
-            trial_best = None
+            trial_best = None  # (fit, factor, direction, poses) of the better improving neighbour
             for direction in (-1, 1):
-                tried = try_factor(name, factors[name] * (1 + direction * delta))
+                f = factors[name] * (1 + direction * delta)
+                tried = try_factor(name, f)
                 if tried is not None and tried[0] > best_fit and (trial_best is None or tried[0] > trial_best[0]):
-                    trial_best = (tried[0], direction, tried[1])
+                    trial_best = (tried[0], f, direction, tried[1])
             if trial_best is None:
                 continue
-            fit, direction, refitted = trial_best
-            factors[name] *= 1 + direction * delta
-            best_fit, current = fit, refitted
+            best_fit, factors[name], direction, current = trial_best
             for _ in range(max_moves - 1):  # pattern search: keep going while the fit improves
-                tried = try_factor(name, factors[name] * (1 + direction * delta))
+                f = factors[name] * (1 + direction * delta)
+                tried = try_factor(name, f)
                 if tried is None or tried[0] <= best_fit:
                     break
-                factors[name] *= 1 + direction * delta
-                best_fit, current = tried
+                (best_fit, current), factors[name] = tried, f
             log.debug("shape: %s x%.3f (fit %.4f)", name, factors[name], best_fit)
     return ShapeResult(model=_scaled(model, parameters, factors), start=current[0], factors=factors,
                        fit_before=fit_before, fit_after=best_fit)
