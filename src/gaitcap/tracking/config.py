@@ -74,7 +74,7 @@ class ShapeConfig(Strict):
     @classmethod
     def _check_refit(cls, v: tuple[int, int]) -> tuple[int, int]:
         if min(v) < 2:
-            raise ValueError("refit_particles: both budgets must be at least 2")
+            raise ValueError("both budgets (particles, root particles) must be at least 2")
         return v
 
     @field_validator("steps")
