@@ -239,3 +239,12 @@ def test_a_turn_on_the_last_sample_that_breaks_the_rhythm_is_not_an_event() -> N
     loose, _ = detect_events(bad, EXACT.model_copy(update={"edge_rhythm_tolerance": 10.0}))
     assert len(loose) == len(clean) + 1
     assert max(loose).side == "right" and max(loose).event == "foot_strike"
+
+
+def test_an_edge_event_never_displaces_a_full_one() -> None:
+    from gaitcap.gait.events import _alternate, _Extremum
+
+    full = _Extremum(40.0, 0.3, "right", "foot_off")
+    edge = _Extremum(52.0, 0.9, "right", "foot_off", edge="end")
+    assert _alternate([full, edge]) == [full]
+    assert _alternate([_Extremum(40.0, 0.3, "right", "foot_off", edge="start"), edge])[0].prominence == 0.9

@@ -240,11 +240,12 @@ def _extrema(signal: np.ndarray, rate: float, opt: GaitOptions, maxima: bool) ->
 
 
 def _alternate(extrema: list[_Extremum]) -> list[_Extremum]:
-    """Keep one event per half-cycle: of consecutive same-kind events keep the most prominent."""
+    """Keep one event per half-cycle: of consecutive same-kind events keep the most prominent, an
+    ``edge`` one (a turn seen on one sample) only if both are."""
     out: list[_Extremum] = []
     for e in sorted(extrema, key=lambda e: e.frame):
         if out and out[-1].event == e.event:
-            if e.prominence > out[-1].prominence:
+            if (not e.edge, e.prominence) > (not out[-1].edge, out[-1].prominence):
                 out[-1] = e
             continue
         out.append(e)
