@@ -171,3 +171,80 @@ def test_cycles_and_normalisation() -> None:
     gap[40:70] = np.nan
     out = normalise_cycle(gap, t, GaitCycle("right", 0.1, 1.1, 0.75))
     assert np.isnan(out).sum() > 0 and np.isfinite(out[:25]).all()
+
+
+def _jittered(tr: Trajectory, sd_m: float, seed: int) -> Trajectory:
+    """The trajectory with independent Gaussian noise on every coordinate (tracker-like jitter)."""
+    rng = np.random.default_rng(seed)
+    return Trajectory(tr.names, tr.points + rng.normal(0.0, sd_m, tr.points.shape), tr.rate_hz)
+
+
+def test_belt_velocity_is_a_slope_over_single_support_robust_to_jitter() -> None:
+    # 25 fps, 1 cm of Gaussian jitter on every point (20 seeds): the slope over single support
+    # (~0.4 s) misses the belt speed by 0.4 % (median), the median of central-difference velocities
+    # over 20-50 % of stance that it replaced by 1.7 %
+    from gaitcap.gait.cycles import find_cycles
+    from gaitcap.gait.parameters import belt_velocity
+
+    w = Walker(in_place=True, rate_hz=25.0, duration=5.0)
+    truth = w.truth_events()
+    _, direction = detect_events(w.trajectory(), EXACT)
+    cycles = find_cycles(truth, "left") + find_cycles(truth, "right")
+    assert all(np.isfinite(c.contra_off_s) and np.isfinite(c.contra_strike_s) for c in cycles)
+    bare = [GaitCycle(c.side, c.start_s, c.end_s, c.foot_off_s) for c in cycles]
+    errors, errors_bare = [], []
+    for seed in range(20):
+        tr = _jittered(w.trajectory(), 0.01, seed)
+        errors.append(abs(belt_velocity(tr, direction, cycles) / -w.speed - 1.0))
+        # without the contralateral events, the typical single support (1/6-5/6 of stance) is used
+        errors_bare.append(abs(belt_velocity(tr, direction, bare) / -w.speed - 1.0))
+    assert np.median(errors) < 0.008 and max(errors) < 0.03
+    assert np.median(errors_bare) < 0.008 and max(errors_bare) < 0.03
+    # overground the belt is still
+    over = Walker(rate_hz=25.0, duration=5.0)
+    _, d_over = detect_events(over.trajectory(), EXACT)
+    assert belt_velocity(over.trajectory(), d_over, cycles) == 0.0
+
+
+@pytest.mark.parametrize("edge", ["end", "start"])
+def test_an_event_next_to_the_trial_edge_is_found_when_it_keeps_the_rhythm(edge: str) -> None:
+    # 25 fps; the right foot strikes at frame 88.25 and 5.75: cut so that the sampled extremum is
+    # the next-to-last (second) sample, its turn seen on one sample only
+    w = Walker(rate_hz=25.0, duration=3.6)
+    tr = w.trajectory()
+    if edge == "start":
+        tr = Trajectory(tr.names, tr.points[5:], tr.rate_hz, 5 / tr.rate_hz)
+    events, _ = detect_events(tr, EXACT)
+    strike = 88.25 / w.rate_hz if edge == "end" else 5.75 / w.rate_hz
+    near = [e for e in events if (e.side, e.event) == ("right", "foot_strike") and abs(e.time_s - strike) <= 1 / w.rate_hz]
+    assert len(near) == 1
+    inside = [t for t in w.truth_events() if tr.t0_s <= t.time_s <= tr.times()[-1]]
+    assert len(events) == len(inside)
+
+
+def test_a_turn_on_the_last_sample_that_breaks_the_rhythm_is_not_an_event() -> None:
+    # the trial ends mid-swing of the right foot (strike at frame 88.25, swing from 77.8); a
+    # mistracked last frame puts the right heel back: a turn on one sample, a swing 40 % short
+    w = Walker(rate_hz=25.0, duration=86 / 25.0)
+    tr = w.trajectory()
+    clean, direction = detect_events(tr, EXACT)
+    pts = tr.points.copy()
+    heel, toe = tr.names.index("heel_r"), tr.names.index("toe_r")
+    for j in (heel, toe):
+        pts[-1, j, :2] = pts[-2, j, :2] - 0.1 * direction.forward[:2]
+    bad = Trajectory(tr.names, pts, tr.rate_hz)
+    events, _ = detect_events(bad, EXACT)
+    assert [(e.side, e.event, round(e.time_s, 6)) for e in events] == [(e.side, e.event, round(e.time_s, 6)) for e in clean]
+    # it is the rhythm that rejects it: with any tolerance it would be a right foot strike
+    loose, _ = detect_events(bad, EXACT.model_copy(update={"edge_rhythm_tolerance": 10.0}))
+    assert len(loose) == len(clean) + 1
+    assert max(loose).side == "right" and max(loose).event == "foot_strike"
+
+
+def test_an_edge_event_never_displaces_a_full_one() -> None:
+    from gaitcap.gait.events import _alternate, _Extremum
+
+    full = _Extremum(40.0, 0.3, "right", "foot_off")
+    edge = _Extremum(52.0, 0.9, "right", "foot_off", edge="end")
+    assert _alternate([full, edge]) == [full]
+    assert _alternate([_Extremum(40.0, 0.3, "right", "foot_off", edge="start"), edge])[0].prominence == 0.9

@@ -18,6 +18,10 @@ class GaitOptions(Strict):
         min_prominence: an extremum is an event only if its prominence is at least this fraction
             of the robust range (5-95 %) of the signal.
         min_event_interval_s: two events of the same kind and side are at least this far apart.
+        edge_rhythm_tolerance: an extremum next to the start or end of the data (its turn seen on
+            one sample only) is an event only if the stance or swing phase it opens or closes lasts
+            within this fraction of the same phase elsewhere on that side (see
+            :mod:`gaitcap.gait.events`).
         treadmill_speed_ratio: the trial is treated as walking in place (treadmill, progression
             removed) when the pelvis net speed is below this fraction of the swing-foot speed.
         refine: refine the Zeni anchors locally (heel lowest point for foot strikes, toe peak
@@ -32,6 +36,7 @@ class GaitOptions(Strict):
     max_gap_s: float = Field(0.1, ge=0.0)
     min_prominence: float = Field(0.25, gt=0.0, lt=1.0)
     min_event_interval_s: float = Field(0.35, gt=0.0)
+    edge_rhythm_tolerance: float = Field(0.25, gt=0.0)
     treadmill_speed_ratio: float = Field(0.15, gt=0.0, lt=1.0)
     refine: bool = True
     refine_min_rate_hz: float = Field(50.0, ge=0.0)

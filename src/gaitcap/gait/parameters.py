@@ -10,8 +10,8 @@ Definitions (``d`` the walking direction, ``n`` the horizontal left axis, times 
   strike), in %. Single support (ipsilateral): contralateral foot off -> contralateral foot strike.
 - stride length: ground-frame displacement of the heel along ``d`` between the two foot strikes of
   the cycle. The ground frame moves with the belt: ``x_g(t) = x(t) - v_belt t``. Overground
-  ``v_belt = 0``; for a walk-in-place / treadmill trial ``v_belt`` is the median velocity along
-  ``d`` of the stance foot in mid-stance (20-50 % of stance), the heel-velocity-in-stance method.
+  ``v_belt = 0``; for a walk-in-place / treadmill trial ``v_belt`` is the velocity along ``d`` of
+  the stance foot in single support (see :func:`belt_velocity`).
 - step length of side X: ``(heel_X - heel_contra) . d`` at the foot strike of X; step width:
   ``|(heel_X - heel_contra) . n|`` at the same instant.
 - walking speed: stride length / stride time per stride; cadence: 60 / step time per step.
@@ -33,7 +33,6 @@ import numpy as np
 
 from gaitcap.gait.cycles import GaitCycle, find_cycles, other_side
 from gaitcap.gait.events import WalkingDirection, heel_track, toe_track
-from gaitcap.gait.signals import fill_short_gaps, velocity
 from gaitcap.trajectory import SIDES, GaitEvent, Side, Trajectory
 
 STATUS_OK = "ok"
@@ -151,20 +150,53 @@ def _at(track: np.ndarray, times: np.ndarray, t: float) -> np.ndarray:
     return (1 - w) * track[i] + w * track[i + 1]
 
 
+def _single_support(c: GaitCycle) -> tuple[float, float]:
+    """Start and end time (s) of the ipsilateral single support of a cycle: contralateral foot off
+    -> contralateral foot strike; where those were not detected, the same phase of a typical cycle
+    (10-50 % of the cycle with 60 % stance, Perry & Burnfield 2010), i.e. 1/6 to 5/6 of stance."""
+    stance = c.foot_off_s - c.start_s
+    if np.isfinite(c.contra_off_s) and np.isfinite(c.contra_strike_s) and c.contra_off_s < c.contra_strike_s:
+        return c.contra_off_s, c.contra_strike_s
+    return c.start_s + stance / 6.0, c.start_s + 5.0 * stance / 6.0
+
+
 def belt_velocity(traj: Trajectory, direction: WalkingDirection, cycles: Sequence[GaitCycle]) -> float:
-    """Ground velocity along the walking direction (m/s): 0 overground; for an in-place trial the
-    median mid-stance (20-50 % of stance) velocity of the stance foot (mid heel-toe)."""
+    """Ground (belt) velocity along the walking direction, m/s: 0 overground.
+
+    For an in-place trial: the least-squares slope of the stance foot's position along ``d``
+    (mid-point of heel and toe) against time during single support, one slope common to all
+    cycles and one intercept per cycle:
+
+        v_belt = sum_c sum_t (t - t_c)(x - x_c) / sum_c sum_t (t - t_c)^2
+
+    (``t_c``, ``x_c`` the means over cycle c's single support). In single support the stance foot
+    alone carries the body and cannot slide, so it moves with the belt. Late in single support the
+    heel rises and the foot rolls about the forefoot (the heel moves forward and up, the toe
+    centre, a few cm above the contact, a little forward): on the truth of the OpenSim walk the
+    heel's slope over single support is 0.5 % below the foot-flat velocity (20-50 % of stance),
+    the toe's 0.5 % above, the heel-toe mid-point's within 0.1 %. A slope over the whole single
+    support (~0.4 s) averages out the frame-to-frame jitter of tracked joint centres. The former
+    estimate, the median of central-difference velocities over 20-50 % of stance (5-6 samples per
+    cycle at 25 fps), followed that jitter: on 31 tracked runs (several tracker settings) of the
+    synthetic OpenSim walk-in-place, it missed the same estimate on the truth by -0.032 +/- 0.044
+    m/s (max 0.107), this one by -0.016 +/- 0.023 m/s (max 0.073), and the stride length error
+    went from 6.1 to 3.7 cm RMS (30 runs, a failed one left out). On the truth itself both agree
+    with the foot-flat velocity: -1.146 m/s at 60 Hz and 25 fps (the former -1.145 and -1.141).
+    """
     if not direction.in_place:
         return 0.0
     times = traj.times()
-    samples = []
+    num = den = 0.0
     for c in cycles:
-        foot = 0.5 * (heel_track(traj, c.side) + toe_track(traj, c.side))
-        v = velocity(fill_short_gaps(foot, 3), traj.rate_hz) @ direction.forward
-        stance = c.foot_off_s - c.start_s
-        sel = (times >= c.start_s + 0.2 * stance) & (times <= c.start_s + 0.5 * stance)
-        samples.extend(v[sel][np.isfinite(v[sel])].tolist())
-    return float(np.median(samples)) if samples else 0.0
+        t0, t1 = _single_support(c)
+        foot = 0.5 * (heel_track(traj, c.side) + toe_track(traj, c.side)) @ direction.forward
+        sel = (times >= t0) & (times <= t1) & np.isfinite(foot)
+        if sel.sum() < 3:
+            continue
+        t, x = times[sel] - times[sel].mean(), foot[sel] - foot[sel].mean()
+        num += float(t @ x)
+        den += float(t @ t)
+    return num / den if den > 0 else 0.0
 
 
 def _strides(traj: Trajectory, direction: WalkingDirection, cycles: Sequence[GaitCycle], v_belt: float) -> list[Stride]:
