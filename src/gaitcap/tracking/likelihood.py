@@ -21,7 +21,7 @@ import numpy as np
 
 from gaitcap.tracking.observation import Observation, TrackingView
 from gaitcap.tracking.projector import Projected
-from gaitcap.tracking.raster import capsule_sums_views, fill_capsules, free_prefixes
+from gaitcap.tracking.raster import capsule_sums_views, fill_capsules, free_prefixes, free_prefixes_views
 
 
 class SilhouetteLikelihood:
@@ -42,7 +42,10 @@ class SilhouetteLikelihood:
     def free_prefixes(obs: Observation, placed: list[np.ndarray]) -> list[tuple[np.ndarray, np.ndarray]]:
         """Row prefix sums of (silhouette x free, free) per camera, free = 1 - placed (placed: the
         pixels already explained, (h, w) float32 0/1 masks, one per camera), for :meth:`terms`."""
-        return [free_prefixes(s, p) for s, p in zip(obs.silhouettes, placed)]
+        if len({s.shape for s in obs.silhouettes}) > 1:  # views of different sizes: one by one
+            return [free_prefixes(s, p) for s, p in zip(obs.silhouettes, placed)]
+        C1, C2 = free_prefixes_views(tuple(obs.silhouettes), tuple(placed))
+        return list(zip(C1, C2))
 
     def projected(self, A: np.ndarray, B: np.ndarray, radii: np.ndarray) -> Projected:
         """World capsules A, B (N, K, 3), radii (K, 2) -> every view's 2D capsules (numpy path;

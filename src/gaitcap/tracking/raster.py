@@ -186,16 +186,9 @@ def capsule_sums_views(a: np.ndarray, b: np.ndarray, ra: np.ndarray, rb: np.ndar
     return s1, s2
 
 
-@njit(cache=True, nogil=True)
-def free_prefixes(silhouette: np.ndarray, placed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Integral images (H + 1, W + 1) of silhouette x free and of free, free = 1 - placed, for
-    silhouette and placed (H, W) float32, in one pass without temporaries: equal bit for bit to
-    :func:`row_prefix` of ``silhouette * (1 - placed)`` and ``1 - placed`` computed by numpy
-    (float32 products; cv2.integral adds the float64 running sum of row y, left to right, to the
-    row above, as here)."""
+@njit(cache=True, nogil=True, inline="always")
+def _free_prefixes_into(silhouette: np.ndarray, placed: np.ndarray, C1: np.ndarray, C2: np.ndarray) -> None:
     H, W = silhouette.shape
-    C1 = np.empty((H + 1, W + 1))
-    C2 = np.empty((H + 1, W + 1))
     one = np.float32(1.0)
     for x in range(W + 1):
         C1[0, x] = 0.0
@@ -211,6 +204,32 @@ def free_prefixes(silhouette: np.ndarray, placed: np.ndarray) -> tuple[np.ndarra
             r2 += f
             C1[y + 1, x + 1] = C1[y, x + 1] + r1
             C2[y + 1, x + 1] = C2[y, x + 1] + r2
+
+
+@njit(cache=True, nogil=True)
+def free_prefixes(silhouette: np.ndarray, placed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Integral images (H + 1, W + 1) of silhouette x free and of free, free = 1 - placed, for
+    silhouette and placed (H, W) float32, in one pass without temporaries: equal bit for bit to
+    :func:`row_prefix` of ``silhouette * (1 - placed)`` and ``1 - placed`` computed by numpy
+    (float32 products; cv2.integral adds the float64 running sum of row y, left to right, to the
+    row above, as here)."""
+    H, W = silhouette.shape
+    C1 = np.empty((H + 1, W + 1))
+    C2 = np.empty((H + 1, W + 1))
+    _free_prefixes_into(silhouette, placed, C1, C2)
+    return C1, C2
+
+
+@njit(parallel=True, cache=True, nogil=True)
+def free_prefixes_views(silhouettes: tuple, placed: tuple) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`free_prefixes` of every view (C silhouettes and placed masks (H, W) float32, all of
+    one size), the views in parallel: C1, C2 (C, H + 1, W + 1)."""
+    C = len(silhouettes)
+    H, W = silhouettes[0].shape
+    C1 = np.empty((C, H + 1, W + 1))
+    C2 = np.empty((C, H + 1, W + 1))
+    for c in prange(C):
+        _free_prefixes_into(silhouettes[c], placed[c], C1[c], C2[c])
     return C1, C2
 
 
@@ -239,4 +258,5 @@ def warm_up() -> None:
     c = row_prefix(np.ones((4, 4), np.float32))
     capsule_sums_views(z[None], z[None] + 1, r[None], r[None], (c,), (c,))
     free_prefixes(np.ones((4, 4), np.float32), np.zeros((4, 4), np.float32))
+    free_prefixes_views((np.ones((4, 4), np.float32),) * 2, (np.zeros((4, 4), np.float32),) * 2)
     fill_capsules(np.zeros((4, 4), np.float32), z[0], z[0] + 1, r[0], r[0], 1.0)
