@@ -256,6 +256,32 @@ def test_shape_calibration_moves_a_wrong_thigh_towards_the_truth(embedded_sessio
     assert result.start.shape == (31,)
 
 
+@pytest.mark.parametrize("swap_search", ["full", "legs", None])
+def test_swap_hypothesis_puts_swapped_legs_back(embedded_session, swap_search):
+    """From a previous estimate with the legs swapped, the mirrored hypothesis (searched over the
+    whole chain, or over the legs only) wins and the legs come back to their sides; without it
+    (None) they stay swapped, so the check can fail."""
+    from gaitcap.tracking.factored_ipf import FactoredIPF
+
+    truth, rig, model = _truth_setup(embedded_session.session)
+    cfg = load_tracking_config()
+    cfg.factored_ipf.swap_hypothesis = swap_search is not None
+    cfg.factored_ipf.swap_search = swap_search or "full"
+    views = tracking_views(rig, cfg.scale)
+    lik = SilhouetteLikelihood(views, cfg.beta)
+    hl, hr = model.dof_index("hip_flexion_l"), model.dof_index("hip_flexion_r")
+    apart = np.degrees(np.abs(truth.poses[:, hl] - truth.poses[:, hr]))
+    t = next(i for i in range(5, len(apart)) if 12 < apart[i - 1] < 20 and 12 < apart[i] < 20)
+    tracker = FactoredIPF(model, lik, cfg, np.random.default_rng(0))
+    prev = truth.poses[t - 1].copy()
+    prev[tracker._left], prev[tracker._right] = truth.poses[t - 1][tracker._right], truth.poses[t - 1][tracker._left]
+    tracker.start(prev)
+    q = tracker.step(observe(views, [truth.mask(c, t) for c in rig.names])).q
+    on_own_side = abs(q[hl] - truth.poses[t, hl]) < abs(q[hl] - truth.poses[t, hr])
+    on_own_side &= abs(q[hr] - truth.poses[t, hr]) < abs(q[hr] - truth.poses[t, hl])
+    assert on_own_side == (swap_search is not None)
+
+
 def test_track_with_shape_calibration_records_it(embedded_session, tmp_path):
     data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
     data["shape"].update(enabled=True, frames=6, samples=2, steps=[0.08])

@@ -31,6 +31,7 @@ class FactoredIPFConfig(Strict):
     passes: int = Field(default=2, ge=1, le=10)
     coupled: dict[str, list[str]] = Field(default_factory=dict)
     swap_hypothesis: bool = True
+    swap_search: Literal["full", "legs"] = "legs"
     swap_within_deg: float = Field(default=25.0, gt=0, le=180)
     ess_threshold: float = Field(default=0.5, ge=0, le=1)
 

@@ -47,6 +47,10 @@ class FactoredIPF(Tracker):
         self._left = np.array([i for i, n in enumerate(names) if n.endswith("_l") and n.startswith(legs)])
         self._right = np.array([names.index(names[i][:-2] + "_r") for i in self._left])
         self._hip_flex = (self.model.dof_index("hip_flexion_l"), self.model.dof_index("hip_flexion_r"))
+        legs_dofs = np.concatenate([self._left, self._right])
+        #: position in the order of the first node that explores a leg DOF (the mirrored search
+        #: with ``swap_search: legs`` walks the chain from there)
+        self._legs_from = min(i for i, s in enumerate(self.order) if np.intersect1d(self._explored[s], legs_dofs).size)
 
     def step(self, obs: Observation, widen: float = 1.0) -> Estimate:
         """Track one frame from the previous estimate and, with ``swap_hypothesis``, also from its
@@ -54,22 +58,32 @@ class FactoredIPF(Tracker):
 
         Seen from the side the two legs are interchangeable, and a chain walk that put the left leg
         on the right leg's pixels settles in a consistent wrong state (heading turned, hips
-        compensating) that no single node can leave: the mirrored start, searched in full, lets
-        the silhouettes of all cameras decide again.
+        compensating) that no single node can leave: the mirrored start lets the silhouettes of
+        all cameras decide again. With ``swap_search: legs`` (default) the mirrored hypothesis keeps
+        the nodes before the legs (pelvis, trunk, arms) where the first search placed them and walks
+        the leg nodes only: the pelvis node, the costliest (the whole body scored with the most
+        particles), is not searched twice, and the further pass revisits it for the winner.
         """
         start = self.q.copy()
         cfg = self.config.factored_ipf
-        best = self._search(obs, start, widen, 0, 1)
+        best, spreads = self._search(obs, start, widen, 0, 1)
         if cfg.swap_hypothesis and (widen > 1.0 or self._legs_close(start)):  # always when initialising
             # both hypotheses get the first pass; the further passes refine the winner only
             mirrored = start.copy()
             mirrored[self._left], mirrored[self._right] = start[self._right], start[self._left]
-            other = self._search(obs, mirrored, widen, 0, 1)
+            if cfg.swap_search == "legs" and widen <= 1.0:
+                # the nodes before the legs as the first hypothesis placed them, the legs mirrored
+                keep = np.setdiff1d(np.arange(len(start)), np.concatenate([self._left, self._right]))
+                mirrored[keep] = best.q[keep]
+                before = np.sum(spreads[: self._legs_from], axis=0)
+                other, _ = self._search(obs, mirrored, widen, 0, 1, from_node=self._legs_from, variance=before)
+            else:
+                other, _ = self._search(obs, mirrored, widen, 0, 1)
             evaluations = best.evaluations + other.evaluations
             best = other if other.fit > best.fit else best
             best.evaluations = evaluations
         if cfg.passes > 1:
-            refined = self._search(obs, best.q, widen, 1, cfg.passes)
+            refined, _ = self._search(obs, best.q, widen, 1, cfg.passes)
             refined.evaluations += best.evaluations
             best = refined
         self.q = best.q
@@ -81,36 +95,49 @@ class FactoredIPF(Tracker):
         left, right = self._hip_flex
         return bool(abs(q[left] - q[right]) < np.radians(self.config.factored_ipf.swap_within_deg))
 
-    def _search(self, obs: Observation, start: np.ndarray, widen: float, first: int, stop: int) -> Estimate:
+    def _search(self, obs: Observation, start: np.ndarray, widen: float, first: int, stop: int,
+                from_node: int = 0, variance: np.ndarray | None = None) -> tuple[Estimate, list[np.ndarray]]:  # fmt: skip
         """Passes ``first`` to ``stop - 1`` of the factored search from ``start``
         (``widen`` > 1 enlarges every interval).
+
+        ``from_node`` > 0 (a first pass only) walks the chain from that position of the order: the
+        nodes before it stay at ``start``, drawn into the placed masks, with their points' spread
+        given in ``variance`` (P,). Also returns each node's contribution (P,) to the points'
+        variance in the last pass, in the order walked.
 
         The first pass walks the chain with Img_n = the silhouette minus the segments placed so
         far; each further pass (``passes``) revisits every node with Img_n = the silhouette minus
         all the other segments at their current estimates, with the finer layers only.
         """
         model, cfg = self.model, self.config.factored_ipf
+        assert from_node == 0 or (first == 0 and stop == 1)
         q = start.copy()
-        variance = np.zeros(model.n_points)
+        prior = np.zeros(model.n_points) if variance is None else variance
         evaluations = 0
         for p in range(first, stop):
             layers = cfg.layers if p == 0 else cfg.layers[-1:]
-            variance[:] = 0.0
+            variance = prior.copy()
+            spreads = []
             placed = [np.zeros_like(s) for s in obs.silhouettes]
-            for s in self.order:
+            for s in self.order[:from_node]:
+                self._draw(q, self.subtrees[s].own_capsules, placed)
+            for s in self.order[from_node:]:
                 sub = self.subtrees[s]
                 n = cfg.root_particles if model.segments[s].parent < 0 else cfg.particles
                 explained = placed if p == 0 else self._placed_outside(q, s, obs)
                 q, W, pts = self._node(obs, q, self._explored[s], sub,
                                        self.likelihood.free_prefixes(obs, explained), n, widen, layers)  # fmt: skip
                 evaluations += n * len(layers)
-                variance[sub.points] += weighted_spread(pts, W)
+                spread = np.zeros(model.n_points)
+                spread[sub.points] = weighted_spread(pts, W)
+                spreads.append(spread)
+                variance += spread
                 if p == 0:
                     self._draw(q, sub.own_capsules, placed)
         ll, fit = self.full_fit(obs, q)
         points = self.projector.points(q[None])[0]
-        return Estimate(q=q, points=points, uncertainty=np.sqrt(variance), log_likelihood=ll, fit=fit,
-                        evaluations=evaluations)  # fmt: skip
+        return (Estimate(q=q, points=points, uncertainty=np.sqrt(variance), log_likelihood=ll, fit=fit,
+                        evaluations=evaluations), spreads)  # fmt: skip
 
     def _node(self, obs, q, idx: np.ndarray, sub, free, n: int, widen: float, layers):
         """Diffuse, weight, resample and keep the best for one node. Returns the new estimate,
