@@ -106,3 +106,22 @@ def test_fill_marks_exactly_the_pixels_the_kernel_counts(rng):
     _, _, exact = _brute_force(a, b, ra, rb, mask, mask)
     assert mask.sum() > 0
     assert np.array_equal(mask > 0, exact)
+
+
+def test_free_prefixes_are_the_row_sums_of_the_free_silhouette():
+    """free_prefixes(_views) equal row_prefix of silhouette x (1 - placed) and of 1 - placed, bit for
+    bit, and row_prefix is the sum of each row left of x."""
+    from gaitcap.tracking.raster import free_prefixes, free_prefixes_views
+
+    rng = np.random.default_rng(3)
+    sil = [rng.uniform(0, 1, (30, 41)).astype(np.float32) for _ in range(2)]
+    placed = [(rng.uniform(0, 1, (30, 41)) < 0.3).astype(np.float32) for _ in range(2)]
+    R = row_prefix(sil[0])
+    assert R.shape == (30, 42) and np.all(R[:, 0] == 0)
+    assert np.allclose(R[7, 20], sil[0][7, :20].sum(dtype=np.float64))
+    C1, C2 = free_prefixes_views(tuple(sil), tuple(placed))
+    for c in range(2):
+        one = free_prefixes(sil[c], placed[c])
+        want = (row_prefix(sil[c] * (np.float32(1) - placed[c])), row_prefix(np.float32(1) - placed[c]))
+        for got_views, got_one, w in zip((C1[c], C2[c]), one, want):
+            assert np.array_equal(got_one, w) and np.array_equal(got_views, w)

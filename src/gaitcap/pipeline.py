@@ -114,7 +114,7 @@ def _observations(ses: Session, cams: tuple[str, ...], views, sil_cfg: Silhouett
                   n_frames: int) -> Iterator[Observation]:  # fmt: skip
     """The session's observations, frame by frame (run by the prefetch thread): each camera's
     background is fitted first, then each frame's silhouettes are extracted and prepared, with
-    the integral images and areas the likelihood reads. The frames' cameras are processed side by
+    the row prefix sums and areas the likelihood reads. The frames' cameras are processed side by
     side, one thread each (OpenCV and numpy release the GIL); each camera's frames stay in order,
     and an error is raised for the first camera (rig order) that has one, as one after the other.
     The backgrounds are fitted one after the other: side by side, the peak memory of the 5 s

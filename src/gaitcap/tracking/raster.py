@@ -9,23 +9,27 @@ For particle n with capsule set M_n the kernel returns
 
     s1[n] = sum over the pixels of M_n of g1,     s2[n] = sum over the pixels of M_n of g2
 
-using integral images C[y, x] = sum_{y' < y, x' < x} g[y', x'] (OpenCV's, the fastest to build),
-so each merged interval costs four look-ups and a particle costs O(rows x capsules), whatever its
-area. Compiled with numba, parallel over particles.
+using row prefix sums R[y, x] = sum_{x' < x} g[y, x'], so each merged interval [l, h] of row y
+costs two look-ups, R[y, h + 1] - R[y, l], and a particle costs O(rows x capsules), whatever its
+area. Row sums (rather than 2D integral images) are half the work to build and let a map that
+changes on a few rows be rebuilt on those rows only. Compiled with numba, parallel over particles.
 """
 
 from __future__ import annotations
 
 import math
 
-import cv2
 import numpy as np
 from numba import njit, prange
 
 
 def row_prefix(g: np.ndarray) -> np.ndarray:
-    """Integral image (H + 1, W + 1) float64 of a map (H, W): C[y, x] = sum of g[:y, :x]."""
-    return cv2.integral(np.ascontiguousarray(g, dtype=np.float32), sdepth=cv2.CV_64F)
+    """Row prefix sums (H, W + 1) float64 of a map (H, W): R[y, x] = sum of g[y, :x], added left
+    to right in float64."""
+    g = np.asarray(g, dtype=np.float32)
+    out = np.zeros((g.shape[0], g.shape[1] + 1))
+    np.cumsum(g, axis=1, dtype=np.float64, out=out[:, 1:])
+    return out
 
 
 @njit(cache=True, inline="always")
@@ -146,7 +150,7 @@ def _row_intervals(y: int, geo, ylo, yhi, W: int, lo: np.ndarray, hi: np.ndarray
 @njit(cache=True, inline="always")
 def _particle_sums(a, b, ra, rb, n: int, c1, c2, geo, ylo, yhi, lo, hi) -> tuple[float, float]:
     """(sum of c1's map, sum of c2's map) over particle n's capsules, scratch arrays given (K,)."""
-    H, W = c1.shape[0] - 1, c1.shape[1] - 1
+    H, W = c1.shape[0], c1.shape[1] - 1
     ymin, ymax = _prepare(a, b, ra, rb, n, H, geo, ylo, yhi)
     acc1 = 0.0
     acc2 = 0.0
@@ -159,8 +163,8 @@ def _particle_sums(a, b, ra, rb, n: int, c1, c2, geo, ylo, yhi, lo, hi) -> tuple
             if i < m and lo[i] <= ch + 1:  # merge overlapping or touching intervals
                 ch = max(ch, hi[i])
                 continue
-            acc1 += c1[y + 1, ch + 1] - c1[y + 1, cl] - c1[y, ch + 1] + c1[y, cl]
-            acc2 += c2[y + 1, ch + 1] - c2[y + 1, cl] - c2[y, ch + 1] + c2[y, cl]
+            acc1 += c1[y, ch + 1] - c1[y, cl]
+            acc2 += c2[y, ch + 1] - c2[y, cl]
             if i < m:
                 cl, ch = lo[i], hi[i]
     return acc1, acc2
@@ -170,8 +174,8 @@ def _particle_sums(a, b, ra, rb, n: int, c1, c2, geo, ylo, yhi, lo, hi) -> tuple
 def capsule_sums_views(a: np.ndarray, b: np.ndarray, ra: np.ndarray, rb: np.ndarray, c1s: tuple, c2s: tuple
                        ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
     """Sums of two maps over the union of each particle's capsules, in every view, through the
-    maps' integral images (one parallel loop over views x particles): a, b (C, N, K, 2);
-    ra, rb (C, N, K); c1s, c2s: C integral images (H + 1, W + 1) each -> s1, s2 (C, N)."""
+    maps' row prefix sums (one parallel loop over views x particles): a, b (C, N, K, 2);
+    ra, rb (C, N, K); c1s, c2s: C row prefix sums (H, W + 1) each -> s1, s2 (C, N)."""
     C, N, K = a.shape[0], a.shape[1], a.shape[2]
     s1 = np.zeros((C, N))
     s2 = np.zeros((C, N))
@@ -190,32 +194,28 @@ def capsule_sums_views(a: np.ndarray, b: np.ndarray, ra: np.ndarray, rb: np.ndar
 def _free_prefixes_into(silhouette: np.ndarray, placed: np.ndarray, C1: np.ndarray, C2: np.ndarray) -> None:
     H, W = silhouette.shape
     one = np.float32(1.0)
-    for x in range(W + 1):
-        C1[0, x] = 0.0
-        C2[0, x] = 0.0
     for y in range(H):
-        C1[y + 1, 0] = 0.0
-        C2[y + 1, 0] = 0.0
+        C1[y, 0] = 0.0
+        C2[y, 0] = 0.0
         r1 = 0.0
         r2 = 0.0
         for x in range(W):
             f = one - placed[y, x]
             r1 += silhouette[y, x] * f
             r2 += f
-            C1[y + 1, x + 1] = C1[y, x + 1] + r1
-            C2[y + 1, x + 1] = C2[y, x + 1] + r2
+            C1[y, x + 1] = r1
+            C2[y, x + 1] = r2
 
 
 @njit(cache=True, nogil=True)
 def free_prefixes(silhouette: np.ndarray, placed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Integral images (H + 1, W + 1) of silhouette x free and of free, free = 1 - placed, for
+    """Row prefix sums (H, W + 1) of silhouette x free and of free, free = 1 - placed, for
     silhouette and placed (H, W) float32, in one pass without temporaries: equal bit for bit to
     :func:`row_prefix` of ``silhouette * (1 - placed)`` and ``1 - placed`` computed by numpy
-    (float32 products; cv2.integral adds the float64 running sum of row y, left to right, to the
-    row above, as here)."""
+    (float32 products, added left to right in float64)."""
     H, W = silhouette.shape
-    C1 = np.empty((H + 1, W + 1))
-    C2 = np.empty((H + 1, W + 1))
+    C1 = np.empty((H, W + 1))
+    C2 = np.empty((H, W + 1))
     _free_prefixes_into(silhouette, placed, C1, C2)
     return C1, C2
 
@@ -223,11 +223,11 @@ def free_prefixes(silhouette: np.ndarray, placed: np.ndarray) -> tuple[np.ndarra
 @njit(parallel=True, cache=True, nogil=True)
 def free_prefixes_views(silhouettes: tuple, placed: tuple) -> tuple[np.ndarray, np.ndarray]:
     """:func:`free_prefixes` of every view (C silhouettes and placed masks (H, W) float32, all of
-    one size), the views in parallel: C1, C2 (C, H + 1, W + 1)."""
+    one size), the views in parallel: C1, C2 (C, H, W + 1)."""
     C = len(silhouettes)
     H, W = silhouettes[0].shape
-    C1 = np.empty((C, H + 1, W + 1))
-    C2 = np.empty((C, H + 1, W + 1))
+    C1 = np.empty((C, H, W + 1))
+    C2 = np.empty((C, H, W + 1))
     for c in prange(C):
         _free_prefixes_into(silhouettes[c], placed[c], C1[c], C2[c])
     return C1, C2
