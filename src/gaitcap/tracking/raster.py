@@ -79,11 +79,11 @@ def _span(y: float, g: np.ndarray, k: int) -> tuple[float, float]:
     """Interval [lo, hi] of x covered by capsule k (geometry table ``g``) on row y (lo > hi: empty)."""
     lo, hi = _disc_span(y, g[k, 0], g[k, 1], g[k, 2], math.inf, -math.inf)
     lo, hi = _disc_span(y, g[k, 3], g[k, 4], g[k, 5], lo, hi)
-    if g[k, 14] > 0.0:
+    if g[k, 14] > 0.0:  # the long sides p0-p1 and p2-p3; the short sides p1-p2 and p3-p0 are
+        # diameters of the end discs: where a row crosses one it crosses that disc, whose span
+        # already holds the crossing, so they can never widen [lo, hi]
         lo, hi = _edge(y, g[k, 6], g[k, 7], g[k, 8], g[k, 9], lo, hi)
-        lo, hi = _edge(y, g[k, 8], g[k, 9], g[k, 10], g[k, 11], lo, hi)
         lo, hi = _edge(y, g[k, 10], g[k, 11], g[k, 12], g[k, 13], lo, hi)
-        lo, hi = _edge(y, g[k, 12], g[k, 13], g[k, 6], g[k, 7], lo, hi)
     return lo, hi
 
 
