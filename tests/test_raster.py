@@ -125,3 +125,23 @@ def test_free_prefixes_are_the_row_sums_of_the_free_silhouette():
         want = (row_prefix(sil[c] * (np.float32(1) - placed[c])), row_prefix(np.float32(1) - placed[c]))
         for got_views, got_one, w in zip((C1[c], C2[c]), one, want):
             assert np.array_equal(got_one, w) and np.array_equal(got_views, w)
+
+
+def test_free_prefixes_refreshed_on_the_filled_rows_equal_new_ones():
+    """After fill_capsules, recomputing only the rows it reports gives the free-pixel sums of the
+    new mask bit for bit (the factored filter's Img_n updates)."""
+    from gaitcap.tracking.raster import free_prefix_rows, free_prefixes
+
+    rng = np.random.default_rng(5)
+    sil = rng.uniform(0, 1, (60, 80)).astype(np.float32)
+    placed = np.zeros((60, 80), np.float32)
+    C1, C2 = free_prefixes(sil, placed)
+    for a, b, r in (([10.0, 12.0], [30.0, 25.0], 4.0), ([70.0, 40.0], [75.0, 58.0], 6.0)):
+        before = placed.copy()
+        y0, y1 = fill_capsules(placed, np.array([a]), np.array([b]), np.array([r]), np.array([r]), 1.0)
+        changed = np.flatnonzero((placed != before).any(axis=1))
+        assert y0 <= changed.min() and changed.max() <= y1
+        free_prefix_rows(sil, placed, C1, C2, y0, y1)
+        want = free_prefixes(sil, placed)
+        assert np.array_equal(C1, want[0]) and np.array_equal(C2, want[1])
+    assert placed.sum() > 0

@@ -121,19 +121,20 @@ class FactoredIPF(Tracker):
             placed = [np.zeros_like(s) for s in obs.silhouettes]
             for s in self.order[:from_node]:
                 self._draw(q, self.subtrees[s].own_capsules, placed)
+            free = self.likelihood.free_prefixes(obs, placed) if p == 0 else None
             for s in self.order[from_node:]:
                 sub = self.subtrees[s]
                 n = cfg.root_particles if model.segments[s].parent < 0 else cfg.particles
-                explained = placed if p == 0 else self._placed_outside(q, s, obs)
-                q, W, pts = self._node(obs, q, self._explored[s], sub,
-                                       self.likelihood.free_prefixes(obs, explained), n, widen, layers)  # fmt: skip
+                if p > 0:
+                    free = self.likelihood.free_prefixes(obs, self._placed_outside(q, s, obs))
+                q, W, pts = self._node(obs, q, self._explored[s], sub, free, n, widen, layers)
                 evaluations += n * len(layers)
                 spread = np.zeros(model.n_points)
                 spread[sub.points] = weighted_spread(pts, W)
                 spreads.append(spread)
                 variance += spread
-                if p == 0:
-                    self._draw(q, sub.own_capsules, placed)
+                if p == 0:  # Img_n+1: the segment placed, the free pixels' sums updated on its rows
+                    self.likelihood.refresh_free(obs, placed, free, self._draw(q, sub.own_capsules, placed))
         ll, fit = self.full_fit(obs, q)
         points = self.projector.points(q[None])[0]
         return (Estimate(q=q, points=points, uncertainty=np.sqrt(variance), log_likelihood=ll, fit=fit,
@@ -171,10 +172,10 @@ class FactoredIPF(Tracker):
         self._draw(q, self._outside[s], placed)
         return placed
 
-    def _draw(self, q: np.ndarray, caps: np.ndarray, masks: list[np.ndarray]) -> None:
-        """Fill capsules ``caps`` at pose q into every view's mask."""
+    def _draw(self, q: np.ndarray, caps: np.ndarray, masks: list[np.ndarray]) -> list[tuple[int, int]]:
+        """Fill capsules ``caps`` at pose q into every view's mask; returns, per view, the first and
+        last rows that may have changed."""
         if len(caps) == 0:
-            return
+            return [(1, 0)] * len(masks)
         proj = self.projector.capsules(q[None], caps)
-        for c, m in enumerate(masks):
-            self.likelihood.fill(c, proj, m)
+        return [self.likelihood.fill(c, proj, m) for c, m in enumerate(masks)]

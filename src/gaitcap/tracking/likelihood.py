@@ -21,7 +21,7 @@ import numpy as np
 
 from gaitcap.tracking.observation import Observation, TrackingView
 from gaitcap.tracking.projector import Projected
-from gaitcap.tracking.raster import capsule_sums_views, fill_capsules, free_prefixes, free_prefixes_views
+from gaitcap.tracking.raster import capsule_sums_views, fill_capsules, free_prefix_rows, free_prefixes, free_prefixes_views
 
 
 class SilhouetteLikelihood:
@@ -87,8 +87,16 @@ class SilhouetteLikelihood:
         xor = areas + M - 2 * I
         return np.mean(1.0 - xor / areas, axis=0)
 
-    def fill(self, view_index: int, proj: Projected, into: np.ndarray, pose: int = 0) -> None:
+    def fill(self, view_index: int, proj: Projected, into: np.ndarray, pose: int = 0) -> tuple[int, int]:
         """Set the pixels of one pose's projected capsules to 1 in ``into`` (h, w) of a view: exactly
-        the pixels the likelihood counts."""
+        the pixels the likelihood counts. Returns the first and last rows that may have changed."""
         a, b, ra, rb = proj.camera(view_index)
-        fill_capsules(into, a[pose], b[pose], ra[pose], rb[pose], 1.0)
+        return fill_capsules(into, a[pose], b[pose], ra[pose], rb[pose], 1.0)
+
+    @staticmethod
+    def refresh_free(obs: Observation, placed: list[np.ndarray], free: list[tuple[np.ndarray, np.ndarray]],
+                     rows: list[tuple[int, int]]) -> None:  # fmt: skip
+        """Bring :meth:`free_prefixes` ``free`` up to date, in place, after ``placed`` changed on the
+        rows ``rows`` (first, last) of each view only: the same values as computing them anew."""
+        for s, p, (C1, C2), (y0, y1) in zip(obs.silhouettes, placed, free, rows):
+            free_prefix_rows(s, p, C1, C2, y0, y1)

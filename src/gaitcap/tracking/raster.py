@@ -191,10 +191,12 @@ def capsule_sums_views(a: np.ndarray, b: np.ndarray, ra: np.ndarray, rb: np.ndar
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _free_prefixes_into(silhouette: np.ndarray, placed: np.ndarray, C1: np.ndarray, C2: np.ndarray) -> None:
+def _free_prefixes_into(silhouette: np.ndarray, placed: np.ndarray, C1: np.ndarray, C2: np.ndarray,
+                        y0: int = 0, y1: int = -1) -> None:  # fmt: skip
+    """Rows y0..y1 (default: all) of :func:`free_prefixes`, written into C1, C2 (H, W + 1)."""
     H, W = silhouette.shape
     one = np.float32(1.0)
-    for y in range(H):
+    for y in range(max(y0, 0), (H - 1 if y1 < 0 else min(y1, H - 1)) + 1):
         C1[y, 0] = 0.0
         C2[y, 0] = 0.0
         r1 = 0.0
@@ -205,6 +207,14 @@ def _free_prefixes_into(silhouette: np.ndarray, placed: np.ndarray, C1: np.ndarr
             r2 += f
             C1[y, x + 1] = r1
             C2[y, x + 1] = r2
+
+
+@njit(cache=True, nogil=True)
+def free_prefix_rows(silhouette: np.ndarray, placed: np.ndarray, C1: np.ndarray, C2: np.ndarray, y0: int, y1: int) -> None:
+    """Recompute rows y0..y1 of the :func:`free_prefixes` C1, C2 in place, after ``placed``
+    changed on those rows only (y0 > y1: nothing)."""
+    if y0 <= y1:
+        _free_prefixes_into(silhouette, placed, C1, C2, y0, y1)
 
 
 @njit(cache=True, nogil=True)
@@ -234,9 +244,11 @@ def free_prefixes_views(silhouettes: tuple, placed: tuple) -> tuple[np.ndarray, 
 
 
 @njit(cache=True, nogil=True)
-def fill_capsules(mask: np.ndarray, a: np.ndarray, b: np.ndarray, ra: np.ndarray, rb: np.ndarray, value: float) -> None:
+def fill_capsules(mask: np.ndarray, a: np.ndarray, b: np.ndarray, ra: np.ndarray, rb: np.ndarray,
+                  value: float) -> tuple[int, int]:  # fmt: skip
     """Set the pixels of the union of one pose's capsules a, b (K, 2), ra, rb (K,) to ``value``
-    in ``mask`` (H, W), in place: exactly the pixels :func:`capsule_sums_views` counts."""
+    in ``mask`` (H, W), in place: exactly the pixels :func:`capsule_sums_views` counts. Returns
+    the first and last rows that may have changed (first > last: none)."""
     H, W = mask.shape
     K = a.shape[0]
     lo = np.empty(K, np.int64)
@@ -249,6 +261,7 @@ def fill_capsules(mask: np.ndarray, a: np.ndarray, b: np.ndarray, ra: np.ndarray
         m = _row_intervals(y, geo, ylo, yhi, W, lo, hi)
         for i in range(m):
             mask[y, lo[i] : hi[i] + 1] = value
+    return ymin, ymax
 
 
 def warm_up() -> None:
@@ -260,3 +273,5 @@ def warm_up() -> None:
     free_prefixes(np.ones((4, 4), np.float32), np.zeros((4, 4), np.float32))
     free_prefixes_views((np.ones((4, 4), np.float32),) * 2, (np.zeros((4, 4), np.float32),) * 2)
     fill_capsules(np.zeros((4, 4), np.float32), z[0], z[0] + 1, r[0], r[0], 1.0)
+    m = np.zeros((4, 4), np.float32)
+    free_prefix_rows(m, m, c, c, 1, 2)
