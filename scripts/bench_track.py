@@ -19,7 +19,9 @@ Prints one markdown table, a row per tracker x budget x session:
 
 Then the ratio rows: factored-ipf speed against ipf at equal-or-better accuracy (lower-limb
 MPJPE), and condensation accuracy against factored-ipf at about the same tracking ms/frame.
-A budget is ``particles/root_particles`` for factored-ipf and ``particles`` for the others.
+A budget is ``particles/root_particles`` for factored-ipf and ``particles`` for the others,
+optionally followed by ``@T``: the compiled kernels' threads (an integer, or ``all``: one per core;
+default: the shipped config's ``threads``), e.g. ``ipf=6000,6000@all``.
 """
 
 from __future__ import annotations
@@ -50,7 +52,8 @@ TRIALS = {
     "vicon_pig_lowerbody": "walking/vicon_pig_lowerbody/walk.c3d",
     "opensim_gait2354": "walking/opensim_gait2354_subject01/subject01_walk1.trc",
 }
-DEFAULT_BUDGETS = {"factored-ipf": ["150/360", "250/600"], "ipf": ["1500", "6000"], "condensation": ["1500", "6000"]}
+DEFAULT_BUDGETS = {"factored-ipf": ["100/240"], "ipf": ["1500", "6000", "6000@all"],
+                   "condensation": ["1500", "6000", "6000@all"]}
 #: "about the same ms/frame" for the condensation comparison: within this factor
 SAME_SPEED_FACTOR = 1.5
 
@@ -87,13 +90,16 @@ def tracking_config(tracker: str, budget: str, seed: int, folder: Path) -> Path:
     cfg = yaml.safe_load(default_config_path("tracking.yaml").read_text())
     cfg["tracker"] = tracker
     cfg["seed"] = seed
+    budget, _, threads = budget.partition("@")
+    if threads:
+        cfg["threads"] = None if threads == "all" else int(threads)
     if tracker == "factored-ipf":
         particles, _, root = budget.partition("/")
         cfg["factored_ipf"]["particles"] = int(particles)
         cfg["factored_ipf"]["root_particles"] = int(root or particles)
     else:
         cfg[tracker.replace("-", "_")]["particles"] = int(budget)
-    path = folder / f"tracking-{tracker}-{budget.replace('/', '_')}.yaml"
+    path = folder / f"tracking-{tracker}-{budget.replace('/', '_')}-{threads or 'cfg'}.yaml"
     path.write_text(yaml.safe_dump(cfg, sort_keys=False))
     return path
 
@@ -123,7 +129,7 @@ def measure(out: Path, session: Path) -> dict[str, float]:
 
 def run_one(session: Path, trial: str, tracker: str, budget: str, args: argparse.Namespace, tmp: Path) -> Row:
     config = tracking_config(tracker, budget, args.seed, tmp)
-    out = tmp / f"out-{trial}-{tracker}-{budget.replace('/', '_')}"
+    out = tmp / f"out-{trial}-{tracker}-{budget.replace('/', '_').replace('@', '_')}"
     last = FrameTiming()
     first: list[float] = []
 

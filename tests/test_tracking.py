@@ -294,3 +294,24 @@ def test_track_with_shape_calibration_records_it(embedded_session, tmp_path):
     with h5py.File(tmp_path / "out" / "trajectories.h5") as f:
         note = f.attrs["shape"]
     assert note.startswith("thigh_length x") and "mean fit" in note
+
+
+def test_kernel_threads_are_set_capped_and_restored(tmp_path):
+    import numba
+
+    from gaitcap.pipeline import kernel_threads
+
+    before, most = numba.get_num_threads(), numba.config.NUMBA_NUM_THREADS
+    with kernel_threads(1):
+        assert numba.get_num_threads() == 1
+    assert numba.get_num_threads() == before
+    for n in (None, most + 5):
+        with kernel_threads(n):
+            assert numba.get_num_threads() == most
+    data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
+    assert data["threads"] == 1
+    data["threads"] = 0
+    path = tmp_path / "tracking.yaml"
+    path.write_text(yaml.safe_dump(data))
+    with pytest.raises(ConfigError, match="threads"):
+        load_tracking_config(path)

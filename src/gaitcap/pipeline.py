@@ -14,9 +14,11 @@ import logging
 import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
+import numba
 import numpy as np
 import yaml
 from tqdm import tqdm
@@ -105,9 +107,21 @@ def run_track(
     likelihood = SilhouetteLikelihood(views, cfg.beta)
     # the videos are read and the silhouettes extracted in a worker thread, a few frames ahead
     stream = Prefetched(_observations(ses, rig.names, views, sil_cfg, n_frames), depth=PREFETCH_FRAMES)
-    with stream:
+    with stream, kernel_threads(cfg.threads):
         return _track_session(session, out, ses, videos, cfg, views, likelihood, stream, height_m, n_frames,
                               progress, on_frame, t_start)  # fmt: skip
+
+
+@contextmanager
+def kernel_threads(n: int | None) -> Iterator[None]:
+    """The compiled kernels launched from this thread run on ``n`` threads (None: numba's
+    maximum, one per core), restored on exit."""
+    before = numba.get_num_threads()
+    numba.set_num_threads(min(n or numba.config.NUMBA_NUM_THREADS, numba.config.NUMBA_NUM_THREADS))
+    try:
+        yield
+    finally:
+        numba.set_num_threads(before)
 
 
 def _observations(ses: Session, cams: tuple[str, ...], views, sil_cfg: SilhouetteConfig,

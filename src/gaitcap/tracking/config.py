@@ -128,6 +128,7 @@ class TrackingConfig(Strict):
     init: InitConfig = Field(default_factory=InitConfig)
     smoothing: SmoothingConfig = Field(default_factory=SmoothingConfig)
     shape: ShapeConfig = Field(default_factory=ShapeConfig)
+    threads: int | None = Field(default=None, ge=1)
     seed: int = 0
 
     @field_validator("intervals", "prior")
