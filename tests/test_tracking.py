@@ -282,6 +282,33 @@ def test_swap_hypothesis_puts_swapped_legs_back(embedded_session, swap_search):
     assert on_own_side == (swap_search is not None)
 
 
+@pytest.mark.parametrize("fit_drop", [0.04, None])
+def test_fit_drop_searches_the_mirror_with_the_legs_apart(embedded_session, fit_drop):
+    """Legs swapped while far apart (no mirror by closeness): a first pass fitting worse than the
+    recent frames triggers the mirrored search, which puts them back; without the trigger
+    (None) they stay swapped, so the check can fail."""
+    from gaitcap.tracking.factored_ipf import FactoredIPF
+
+    truth, rig, model = _truth_setup(embedded_session.session)
+    cfg = load_tracking_config()
+    cfg.factored_ipf.swap_fit_drop = fit_drop
+    views = tracking_views(rig, cfg.scale)
+    lik = SilhouetteLikelihood(views, cfg.beta)
+    hl, hr = model.dof_index("hip_flexion_l"), model.dof_index("hip_flexion_r")
+    apart = np.degrees(np.abs(truth.poses[:, hl] - truth.poses[:, hr]))
+    t = next(i for i in range(8, len(apart)) if min(apart[i - 4 : i + 1]) > cfg.factored_ipf.swap_within_deg + 5)
+    tracker = FactoredIPF(model, lik, cfg, np.random.default_rng(0))
+    tracker.start(truth.poses[t - 4])
+    for f in range(t - 3, t):  # recent frames tracked with the legs right: the fit history
+        tracker.step(observe(views, [truth.mask(c, f) for c in rig.names]))
+    q = tracker.q.copy()
+    tracker.q[tracker._left], tracker.q[tracker._right] = q[tracker._right], q[tracker._left]
+    assert not tracker._legs_close(tracker.q)
+    q = tracker.step(observe(views, [truth.mask(c, t) for c in rig.names])).q
+    on_own_side = abs(q[hl] - truth.poses[t, hl]) < abs(q[hl] - truth.poses[t, hr])
+    assert on_own_side == (fit_drop is not None)
+
+
 def test_track_with_shape_calibration_records_it(embedded_session, tmp_path):
     data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
     data["shape"].update(enabled=True, frames=6, samples=2, steps=[0.08])

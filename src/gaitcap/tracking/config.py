@@ -33,6 +33,8 @@ class FactoredIPFConfig(Strict):
     swap_hypothesis: bool = True
     swap_search: Literal["full", "legs"] = "legs"
     swap_within_deg: float = Field(default=25.0, gt=0, le=180)
+    swap_fit_drop: float | None = Field(default=0.04, gt=0, le=1)
+    swap_fit_frames: int = Field(default=10, ge=1, le=1000)
     ess_threshold: float = Field(default=0.5, ge=0, le=1)
 
 
