@@ -51,6 +51,7 @@ class FactoredIPF(Tracker):
         self._hip_flex = (self.model.dof_index("hip_flexion_l"), self.model.dof_index("hip_flexion_r"))
         self._fits: deque[float] = deque(maxlen=self.config.factored_ipf.swap_fit_frames)  # first-pass fits
         legs_dofs = np.concatenate([self._left, self._right])
+        self._not_legs = np.setdiff1d(np.arange(self.model.n_dofs), legs_dofs)
         #: position in the order of the first node that explores a leg DOF (the mirrored search
         #: with ``swap_search: legs`` walks the chain from there)
         self._legs_from = min(i for i, s in enumerate(self.order) if np.intersect1d(self._explored[s], legs_dofs).size)
@@ -89,8 +90,7 @@ class FactoredIPF(Tracker):
             mirrored[self._left], mirrored[self._right] = start[self._right], start[self._left]
             if cfg.swap_search == "legs" and widen <= 1.0 and not dropped:
                 # the nodes before the legs as the first hypothesis placed them, the legs mirrored
-                keep = np.setdiff1d(np.arange(len(start)), np.concatenate([self._left, self._right]))
-                mirrored[keep] = best.q[keep]
+                mirrored[self._not_legs] = best.q[self._not_legs]
                 before = np.sum(spreads[: self._legs_from], axis=0)
                 other, _ = self._search(obs, mirrored, widen, 0, 1, from_node=self._legs_from, variance=before)
             else:
@@ -141,10 +141,11 @@ class FactoredIPF(Tracker):
             layers = cfg.layers if p == 0 else cfg.layers[-1:]
             variance = prior.copy()
             spreads = []
-            placed = [np.zeros_like(s) for s in obs.silhouettes]
-            for s in self.order[:from_node]:
-                self._draw(q, self.subtrees[s].own_capsules, placed)
-            free = self.likelihood.free_prefixes(obs, placed) if p == 0 else None
+            if p == 0:  # Img_n: the segments placed so far (those before from_node at the start)
+                placed = [np.zeros_like(s) for s in obs.silhouettes]
+                for s in self.order[:from_node]:
+                    self._draw(q, self.subtrees[s].own_capsules, placed)
+                free = self.likelihood.free_prefixes(obs, placed)
             for s in self.order[from_node:]:
                 sub = self.subtrees[s]
                 n = cfg.root_particles if model.segments[s].parent < 0 else cfg.particles
