@@ -169,3 +169,16 @@ def test_parent_must_come_first(tmp_path):
 def test_bad_poses_shape_is_an_error(model):
     with pytest.raises(ValueError, match=r"\(N, 31\)"):
         model.forward(np.zeros((3, 30)))
+
+
+def test_local_angles_invert_local_rotation(model, rng):
+    """For every joint with three rotations about distinct axes (lumbar, hips, shoulders), the
+    angles recovered from the joint's rotation are the angles that made it."""
+    joints = [s for s in model.segments if s.n_dofs == 3 and not any(s.translation)]
+    assert {s.name for s in joints} >= {"torso", "thigh_l", "thigh_r"}
+    for seg in joints:
+        q = rng.uniform(-1.2, 1.2, size=(50, 3))
+        q[:, 1] = rng.uniform(-1.4, 1.4, size=50)  # the middle angle within +-90 degrees
+        np.testing.assert_allclose(model.local_angles(seg, model.local_rotation(seg, q)), q, atol=1e-9)
+    with pytest.raises(ValueError, match="shank_l"):
+        model.local_angles(model.segment("shank_l"), np.eye(3)[None])

@@ -342,3 +342,49 @@ def test_kernel_threads_are_set_capped_and_restored(tmp_path):
     path.write_text(yaml.safe_dump(data))
     with pytest.raises(ConfigError, match="threads"):
         load_tracking_config(path)
+
+
+def test_root_refined_alone_keeps_the_trunk_and_thighs_still(embedded_session, rng):
+    """Moving the root alone re-solves the lumbar and hip angles so that the trunk and thighs keep
+    their world orientation: R_pelvis' R_child' = R_pelvis R_child."""
+    from gaitcap.tracking.factored_ipf import FactoredIPF
+
+    truth, rig, model = _truth_setup(embedded_session.session)
+    cfg = load_tracking_config()
+    lik = SilhouetteLikelihood(tracking_views(rig, cfg.scale), cfg.beta)
+    tracker = FactoredIPF(model, lik, cfg, np.random.default_rng(0))
+    q = truth.poses[20]
+    Q = np.repeat(q[None], 40, axis=0)
+    Q[:, 3:6] += rng.normal(0, np.radians(6), size=(40, 3))
+    Q[:, tracker._held] = tracker._held_angles(q, Q)
+    R0, _ = model.frames(q[None])
+    R1, _ = model.frames(Q)
+    for name in ("torso", "thigh_l", "thigh_r"):
+        s = model.segment(name).index
+        np.testing.assert_allclose(R1[:, s], np.broadcast_to(R0[0, s], R1[:, s].shape), atol=1e-9)
+
+
+def test_root_refined_alone_corrects_a_turned_pelvis(embedded_session):
+    """A pelvis turned 12 degrees under legs and trunk that are right (as a first pass leaves it
+    when the turn explained a stride): the further passes moving the root alone turn it back
+    further than moving the whole body rigidly, which would also turn the legs away (so the check
+    can fail)."""
+    from gaitcap.tracking.factored_ipf import FactoredIPF
+
+    truth, rig, model = _truth_setup(embedded_session.session)
+    errors = {}
+    for mode in ("alone", "rigid"):
+        cfg = load_tracking_config()
+        cfg.factored_ipf.root_refine = mode
+        views = tracking_views(rig, cfg.scale)
+        lik = SilhouetteLikelihood(views, cfg.beta)
+        err = []
+        for t in (9, 24, 39, 54):
+            tracker = FactoredIPF(model, lik, cfg, np.random.default_rng(0))
+            turned = truth.poses[t][None].copy()
+            turned[0, 3] += np.radians(12)
+            turned[0, tracker._held] = tracker._held_angles(truth.poses[t], turned)[0]
+            est, _ = tracker._search(observe(views, [truth.mask(c, t) for c in rig.names]), turned[0], 1.0, 1, 3)
+            err.append(abs(np.degrees(est.q[3] - truth.poses[t][3])))
+        errors[mode] = float(np.mean(err))
+    assert errors["alone"] < 9.0 and errors["alone"] < errors["rigid"] - 2.0, errors

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from gaitcap.body.spec import BodySpec
 from gaitcap.config import default_config_path, load_yaml_model
@@ -259,6 +260,19 @@ class BodyModel:
         if R is None:
             return np.broadcast_to(np.eye(3), (q_seg.shape[0], 3, 3)).copy()
         return R
+
+    def local_angles(self, seg: Segment, R: np.ndarray) -> np.ndarray:
+        """The inverse of :meth:`local_rotation` for a segment with three rotation DOF about
+        distinct axes: rotations R (N, 3, 3) -> angles (N, 3) radians, the middle one within
+        +-90 degrees (joint limits are not applied).
+
+        Raises:
+            ValueError: the segment does not have exactly three rotations about distinct axes.
+        """
+        if any(seg.translation) or len(seg.axes) != 3 or len(set(seg.axes)) != 3:
+            raise ValueError(f"segment {seg.name}: local_angles needs three rotations about distinct axes")
+        seq = "".join("XYZ"[a] for a in seg.axes)  # upper case: intrinsic, R = R1 R2 R3
+        return Rotation.from_matrix(R).as_euler(seq) / np.asarray(seg.signs)
 
     def segment_frame(
         self, seg: Segment, q_seg: np.ndarray, parent_R: np.ndarray | None, parent_o: np.ndarray | None

@@ -29,6 +29,7 @@ class FactoredIPFConfig(Strict):
     order: list[str] = Field(default_factory=list)
     layers: list[Layer] = Field(min_length=1)
     passes: int = Field(default=2, ge=1, le=10)
+    root_refine: Literal["alone", "rigid"] = "alone"
     coupled: dict[str, list[str]] = Field(default_factory=dict)
     swap_hypothesis: bool = True
     swap_search: Literal["full", "legs"] = "legs"

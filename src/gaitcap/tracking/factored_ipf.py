@@ -17,7 +17,19 @@ moves cannot follow). The filter walks the chain in topological order (``factore
     drift             x̂_n <- argmax_i w^(i)  (the best is kept; the estimate of x̂_n seeds the
                       next frame: no dynamic model)
 
-then the segment's own capsules at x̂ are drawn into the placed mask, shrinking Img_{n+1}. A point's
+then the segment's own capsules at x̂ are drawn into the placed mask, shrinking Img_{n+1}.
+
+Further passes revisit every node against all the other segments at their estimates. There the
+root moves alone (``root_refine: alone``): the segments attached to it (trunk, thighs) keep their
+orientation in the world, their joint angles re-solved for each root particle,
+
+    x_c^(i) = angles(R_root(x_root^(i))^T · R_root(x̂_root) · R_c(x̂_c))       (BodyModel.local_angles)
+
+so that the pelvis is placed by what it carries (the hip centres, the thigh tops, the trunk's
+base) and not turned to explain a stride: in the first pass, the whole body moved rigidly from
+the previous frame's pose, a pelvis rotation mimics the legs' scissoring, and the hips and lumbar
+joint then compensate a rotation the image never had (pelvis rotation errors of 15-30 degrees
+while the legs crossed). The re-solved angles enter the posture prior. A point's
 uncertainty is the square root of the sum, over the nodes that move it, of the weighted variance
 of its position across that node's particles.
 """
@@ -28,6 +40,7 @@ from collections import deque
 
 import numpy as np
 
+from gaitcap.errors import ConfigError
 from gaitcap.tracking.base import Estimate, Tracker, weighted_spread
 from gaitcap.tracking.chain import subtrees
 from gaitcap.tracking.observation import Observation
@@ -52,6 +65,17 @@ class FactoredIPF(Tracker):
         self._fits: deque[float] = deque(maxlen=self.config.factored_ipf.swap_fit_frames)  # first-pass fits
         legs_dofs = np.concatenate([self._left, self._right])
         self._not_legs = np.setdiff1d(np.arange(self.model.n_dofs), legs_dofs)
+        self._root = next(seg.index for seg in self.model.segments if seg.parent < 0)
+        #: DOF of the segments attached to the root, re-solved when the root moves alone
+        self._held = np.concatenate([np.arange(self.model.segments[c].dof_start, self.model.segments[c].dof_stop)
+                                     for c in self.model.children(self._root)] or [np.zeros(0, int)])  # fmt: skip
+        if self.config.factored_ipf.root_refine == "alone":
+            for c in self.model.children(self._root):
+                seg = self.model.segments[c]
+                if any(seg.translation) or len(set(seg.axes)) != 3 or seg.n_dofs != 3:
+                    raise ConfigError(f"tracking config: factored_ipf.root_refine 'alone' needs three rotation DOF "
+                                      f"about distinct axes at every joint of the root; segment '{seg.name}' has "
+                                      f"{seg.n_dofs}")  # fmt: skip
         #: position in the order of the first node that explores a leg DOF (the mirrored search
         #: with ``swap_search: legs`` walks the chain from there)
         self._legs_from = min(i for i, s in enumerate(self.order) if np.intersect1d(self._explored[s], legs_dofs).size)
@@ -151,7 +175,8 @@ class FactoredIPF(Tracker):
                 n = cfg.root_particles if model.segments[s].parent < 0 else cfg.particles
                 if p > 0:
                     free = self.likelihood.free_prefixes(obs, self._placed_outside(q, s, obs))
-                q, W, pts = self._node(obs, q, self._explored[s], sub, free, n, widen, layers)
+                alone = p > 0 and s == self._root and cfg.root_refine == "alone"
+                q, W, pts = self._node(obs, q, self._explored[s], sub, free, n, widen, layers, alone)
                 evaluations += n * len(layers)
                 spread = np.zeros(model.n_points)
                 spread[sub.points] = weighted_spread(pts, W)
@@ -164,15 +189,18 @@ class FactoredIPF(Tracker):
         return (Estimate(q=q, points=points, uncertainty=np.sqrt(variance), log_likelihood=ll, fit=fit,
                         evaluations=evaluations), spreads)  # fmt: skip
 
-    def _node(self, obs, q, idx: np.ndarray, sub, free, n: int, widen: float, layers):
+    def _node(self, obs, q, idx: np.ndarray, sub, free, n: int, widen: float, layers, alone: bool = False):
         """Diffuse, weight, resample and keep the best for one node. Returns the new estimate,
-        the final weights (N,) and the particles' subtree points (N, P_sub, 3)."""
+        the final weights (N,) and the particles' subtree points (N, P_sub, 3). ``alone`` (the
+        root only): the segments attached to the root keep their world orientation."""
         model = self.model
         base = np.repeat(q[None], n, axis=0)
         X = base[:, idx].copy()
         clipped = model.clip(base)  # the DOF outside idx, as every layer's clip leaves them
+        prior_dofs = np.union1d(idx, self._held) if alone else idx
         logw = np.zeros(n)
         best_x, best_ll = q[idx].copy(), -np.inf
+        best_held = q[self._held].copy()
         for li, layer in enumerate(layers):
             W = normalise_log_weights(logw)
             if li > 0 or ess(W) < self.config.factored_ipf.ess_threshold * n:
@@ -182,13 +210,31 @@ class FactoredIPF(Tracker):
             X = model.clip(X, idx)
             Q = clipped.copy()
             Q[:, idx] = X
-            logw = self.likelihood.score(obs, self.projector.capsules(Q, sub.capsules), free) + self.log_prior(Q, idx)
+            if alone:
+                Q[:, self._held] = self._held_angles(q, Q)
+            logw = self.likelihood.score(obs, self.projector.capsules(Q, sub.capsules), free) + self.log_prior(Q, prior_dofs)
             i = int(np.argmax(logw))
             if logw[i] > best_ll:
-                best_ll, best_x = float(logw[i]), X[i].copy()
+                best_ll, best_x, best_held = float(logw[i]), X[i].copy(), Q[i, self._held].copy()
         q = q.copy()
         q[idx] = best_x
+        if alone:
+            q[self._held] = best_held
         return q, normalise_log_weights(logw), self.projector.points(Q, sub.points)
+
+    def _held_angles(self, q: np.ndarray, Q: np.ndarray) -> np.ndarray:
+        """Joint angles (N, len(_held)) that keep the root's children at their world orientation
+        under pose q while the root takes the rotations of Q (N, D) (within the joint limits)."""
+        model = self.model
+        root = model.segments[self._root]
+        R_now = model.local_rotation(root, q[None, root.dofs])[0]
+        R_new = model.local_rotation(root, Q[:, root.dofs])
+        out = Q.copy()
+        for c in model.children(self._root):
+            seg = model.segments[c]
+            world = R_now @ model.local_rotation(seg, q[None, seg.dofs])[0]
+            out[:, seg.dofs] = model.local_angles(seg, np.swapaxes(R_new, 1, 2) @ world)
+        return model.clip(out[:, self._held], self._held)
 
     def _placed_outside(self, q: np.ndarray, s: int, obs: Observation) -> list[np.ndarray]:
         """All segments outside segment s's subtree, drawn at the estimate, per view (1 inside)."""
