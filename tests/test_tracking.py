@@ -388,3 +388,16 @@ def test_root_refined_alone_corrects_a_turned_pelvis(embedded_session):
             err.append(abs(np.degrees(est.q[3] - truth.poses[t][3])))
         errors[mode] = float(np.mean(err))
     assert errors["alone"] < 9.0 and errors["alone"] < errors["rigid"] - 2.0, errors
+
+
+def test_track_says_where_the_results_are_unless_quiet(embedded_session, tmp_path):
+    from click.testing import CliRunner
+
+    from gaitcap.cli.main import cli
+
+    for quiet, out in ((False, tmp_path / "loud"), (True, tmp_path / "quiet")):
+        args = (["-q"] if quiet else []) + ["track", str(embedded_session.session), "-o", str(out), "--max-frames", "2"]
+        result = CliRunner().invoke(cli, args)
+        assert result.exit_code == 0, result.output
+        assert (f"results: {out}" in result.stdout) != quiet
+        assert (out / "trajectories.h5").is_file()

@@ -52,7 +52,8 @@ def command(ctx: click.Context, source: Path, out: Path, tracker: str | None, co
     if is_session(source) and scheduler is None:
         summary = run_track(source, out, force=force, progress=not quiet, **kwargs)
         log.info("%s", summary.message)
-        click.echo(f"results: {out}")
+        if not quiet:
+            click.echo(f"results: {out}")
         return
     summaries = run_batch(find_sessions(source), out, jobs=jobs, force=force, scheduler=scheduler, **kwargs)
     click.echo(format_summary(summaries))
