@@ -256,17 +256,20 @@ def test_shape_calibration_moves_a_wrong_thigh_towards_the_truth(embedded_sessio
     assert result.start.shape == (31,)
 
 
-@pytest.mark.parametrize("swap_search", ["full", "legs", None])
-def test_swap_hypothesis_puts_swapped_legs_back(embedded_session, swap_search):
+@pytest.mark.parametrize(("swap_search", "margin", "back"),
+                         [("full", 0.0, True), ("legs", 0.0, True), ("legs", 0.01, True), (None, 0.0, False)])
+def test_swap_hypothesis_puts_swapped_legs_back(embedded_session, swap_search, margin, back):
     """From a previous estimate with the legs swapped, the mirrored hypothesis (searched over the
-    whole chain, or over the legs only) wins and the legs come back to their sides; without it
-    (None) they stay swapped, so the check can fail."""
+    whole chain, or over the legs only; also when it must fit ``swap_margin`` better) wins and
+    the legs come back to their sides; without it (None) they stay swapped, so the check can
+    fail."""
     from gaitcap.tracking.factored_ipf import FactoredIPF
 
     truth, rig, model = _truth_setup(embedded_session.session)
     cfg = load_tracking_config()
     cfg.factored_ipf.swap_hypothesis = swap_search is not None
     cfg.factored_ipf.swap_search = swap_search or "full"
+    cfg.factored_ipf.swap_margin = margin
     views = tracking_views(rig, cfg.scale)
     lik = SilhouetteLikelihood(views, cfg.beta)
     hl, hr = model.dof_index("hip_flexion_l"), model.dof_index("hip_flexion_r")
@@ -279,7 +282,7 @@ def test_swap_hypothesis_puts_swapped_legs_back(embedded_session, swap_search):
     q = tracker.step(observe(views, [truth.mask(c, t) for c in rig.names])).q
     on_own_side = abs(q[hl] - truth.poses[t, hl]) < abs(q[hl] - truth.poses[t, hr])
     on_own_side &= abs(q[hr] - truth.poses[t, hr]) < abs(q[hr] - truth.poses[t, hl])
-    assert on_own_side == (swap_search is not None)
+    assert on_own_side == back
 
 
 @pytest.mark.parametrize("fit_drop", [0.04, None])
@@ -401,3 +404,54 @@ def test_track_says_where_the_results_are_unless_quiet(embedded_session, tmp_pat
         assert result.exit_code == 0, result.output
         assert (f"results: {out}" in result.stdout) != quiet
         assert (out / "trajectories.h5").is_file()
+
+
+@pytest.mark.parametrize("widen", [3.0, None])
+def test_fit_drop_recovers_limbs_out_of_the_usual_reach(embedded_session, widen):
+    """Both knees left 60 degrees more flexed than the truth (out of reach of the usual intervals in
+    one frame, and the mirror does not help) lower the fit below the recent frames'; the widened
+    search (``recover_widen``) brings them back near the truth, the usual search alone does
+    not, so the check can fail."""
+    from gaitcap.tracking.factored_ipf import FactoredIPF
+
+    truth, rig, model = _truth_setup(embedded_session.session)
+    cfg = load_tracking_config()
+    cfg.factored_ipf.recover_widen = widen
+    views = tracking_views(rig, cfg.scale)
+    lik = SilhouetteLikelihood(views, cfg.beta)
+    knees = [model.dof_index("knee_flexion_l"), model.dof_index("knee_flexion_r")]
+    t = 12
+    tracker = FactoredIPF(model, lik, cfg, np.random.default_rng(0))
+    tracker.start(truth.poses[t - 4])
+    for f in range(t - 3, t):  # recent frames tracked right: the fit history
+        tracker.step(observe(views, [truth.mask(c, f) for c in rig.names]))
+    tracker.q[knees] = truth.poses[t - 1, knees] + np.radians(60)
+    q = tracker.step(observe(views, [truth.mask(c, t) for c in rig.names])).q
+    error = np.degrees(np.abs(q[knees] - truth.poses[t, knees])).max()
+    assert (error < 10) == (widen is not None), error
+
+
+def test_swap_margin_keeps_the_first_hypothesis_unless_the_mirror_fits_clearly_better(embedded_session):
+    """The mirrored hypothesis replaces the first only when it fits ``swap_margin`` better: the
+    decision rule, on first passes whose fits are set."""
+    from gaitcap.tracking.base import Estimate
+    from gaitcap.tracking.factored_ipf import FactoredIPF
+
+    truth, rig, model = _truth_setup(embedded_session.session)
+    views = tracking_views(rig, 0.5)
+    obs = observe(views, [truth.mask(c, 10) for c in rig.names])
+    for margin, mirror_fit, mirror_wins in [(0.01, 0.805, False), (0.01, 0.815, True), (0.0, 0.805, True)]:
+        cfg = load_tracking_config()
+        cfg.factored_ipf.swap_margin, cfg.factored_ipf.passes = margin, 1
+        tracker = FactoredIPF(model, SilhouetteLikelihood(views, cfg.beta), cfg, np.random.default_rng(0))
+        tracker.start(truth.poses[9])
+        fits = iter([0.80, mirror_fit])
+
+        def search(obs, start, *args, **kwargs):
+            return Estimate(q=start.copy(), points=np.zeros((model.n_points, 3)), uncertainty=np.zeros(model.n_points),
+                            log_likelihood=0.0, fit=next(fits), evaluations=1), []  # fmt: skip
+
+        tracker._search = search
+        tracker._legs_close = lambda q: True
+        est = tracker.step(obs)
+        assert (est.fit == mirror_fit) == mirror_wins and est.evaluations == 2

@@ -102,7 +102,13 @@ class FactoredIPF(Tracker):
         the fit until it is undone, possibly with the legs far apart. That mirror walks the whole
         chain whatever ``swap_search`` says, since a swap that has lasted turns the pelvis too (on
         the Vicon walk at 150/360 particles, tracker seed 3, a swap over frames 12-24 kept the fit at
-        0.74-0.76 against 0.85-0.89 before: lower-limb error 65.0 mm; with this, 26.1 mm).
+        0.74-0.76 against 0.85-0.89 before: lower-limb error 65.0 mm; with this, 26.1 mm). The
+        mirror replaces the first hypothesis only when it fits ``swap_margin`` better: while the
+        legs cross, both assignments fit within a few thousandths and a coin-flip choice swaps them
+        for a frame or two.
+
+        A first pass that still fits ``swap_fit_drop`` below the recent frames is searched again
+        on widened intervals (``recover_widen``, :meth:`_recover`).
         """
         start = self.q.copy()
         cfg = self.config.factored_ipf
@@ -110,8 +116,7 @@ class FactoredIPF(Tracker):
         dropped = self._fit_dropped(best.fit)
         if cfg.swap_hypothesis and (widen > 1.0 or self._legs_close(start) or dropped):  # always when initialising
             # both hypotheses get the first pass; the further passes refine the winner only
-            mirrored = start.copy()
-            mirrored[self._left], mirrored[self._right] = start[self._right], start[self._left]
+            mirrored = self._mirrored(start)
             if cfg.swap_search == "legs" and widen <= 1.0 and not dropped:
                 # the nodes before the legs as the first hypothesis placed them, the legs mirrored
                 mirrored[self._not_legs] = best.q[self._not_legs]
@@ -120,14 +125,37 @@ class FactoredIPF(Tracker):
             else:
                 other, _ = self._search(obs, mirrored, widen, 0, 1)
             evaluations = best.evaluations + other.evaluations
-            best = other if other.fit > best.fit else best
+            best = other if other.fit > best.fit + (0.0 if widen > 1.0 else cfg.swap_margin) else best
             best.evaluations = evaluations
+        if cfg.recover_widen is not None and widen <= 1.0 and self._fit_dropped(best.fit):
+            best = self._recover(obs, start, best)
         self._fits.append(best.fit)
         if cfg.passes > 1:
             refined, _ = self._search(obs, best.q, widen, 1, cfg.passes)
             refined.evaluations += best.evaluations
             best = refined
         self.q = best.q
+        return best
+
+    def _mirrored(self, q: np.ndarray) -> np.ndarray:
+        """Pose q (D,) with the left and right legs' angles exchanged."""
+        out = q.copy()
+        out[self._left], out[self._right] = q[self._right], q[self._left]
+        return out
+
+    def _recover(self, obs: Observation, start: np.ndarray, best: Estimate) -> Estimate:
+        """A first pass that still fits ``swap_fit_drop`` below the recent frames after the mirrored
+        hypothesis: search the whole chain again from the previous estimate and from its mirror,
+        on intervals widened by ``recover_widen`` (a limb left behind in a fast swing, a pelvis
+        turned too far, are out of reach of the usual intervals and pull the fit down for many
+        frames); the best first pass of the three is kept."""
+        widen = self.config.factored_ipf.recover_widen
+        evaluations = best.evaluations
+        for q0 in (start, self._mirrored(start)):
+            other, _ = self._search(obs, q0, widen, 0, 1)
+            evaluations += other.evaluations
+            best = other if other.fit > best.fit else best
+        best.evaluations = evaluations
         return best
 
     def _fit_dropped(self, fit: float) -> bool:
