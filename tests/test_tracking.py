@@ -276,9 +276,7 @@ def test_swap_hypothesis_puts_swapped_legs_back(embedded_session, swap_search, m
     apart = np.degrees(np.abs(truth.poses[:, hl] - truth.poses[:, hr]))
     t = next(i for i in range(5, len(apart)) if 12 < apart[i - 1] < 20 and 12 < apart[i] < 20)
     tracker = FactoredIPF(model, lik, cfg, np.random.default_rng(0))
-    prev = truth.poses[t - 1].copy()
-    prev[tracker._left], prev[tracker._right] = truth.poses[t - 1][tracker._right], truth.poses[t - 1][tracker._left]
-    tracker.start(prev)
+    tracker.start(tracker._mirrored(truth.poses[t - 1]))
     q = tracker.step(observe(views, [truth.mask(c, t) for c in rig.names])).q
     on_own_side = abs(q[hl] - truth.poses[t, hl]) < abs(q[hl] - truth.poses[t, hr])
     on_own_side &= abs(q[hr] - truth.poses[t, hr]) < abs(q[hr] - truth.poses[t, hl])
@@ -304,8 +302,7 @@ def test_fit_drop_searches_the_mirror_with_the_legs_apart(embedded_session, fit_
     tracker.start(truth.poses[t - 4])
     for f in range(t - 3, t):  # recent frames tracked with the legs right: the fit history
         tracker.step(observe(views, [truth.mask(c, f) for c in rig.names]))
-    q = tracker.q.copy()
-    tracker.q[tracker._left], tracker.q[tracker._right] = q[tracker._right], q[tracker._left]
+    tracker.q = tracker._mirrored(tracker.q)
     assert not tracker._legs_close(tracker.q)
     q = tracker.step(observe(views, [truth.mask(c, t) for c in rig.names])).q
     on_own_side = abs(q[hl] - truth.poses[t, hl]) < abs(q[hl] - truth.poses[t, hr])
@@ -455,3 +452,30 @@ def test_swap_margin_keeps_the_first_hypothesis_unless_the_mirror_fits_clearly_b
         tracker._legs_close = lambda q: True
         est = tracker.step(obs)
         assert (est.fit == mirror_fit) == mirror_wins and est.evaluations == 2
+
+
+@pytest.mark.parametrize(("swap_hypothesis", "searches"), [(True, 4), (False, 2)])
+def test_recovery_searches_the_mirror_only_with_the_swap_hypothesis(embedded_session, swap_hypothesis, searches):
+    """A dropped fit: the first pass, (the mirror,) then the widened search from the previous
+    estimate (and from its mirror): first passes counted with a stubbed search."""
+    from gaitcap.tracking.base import Estimate
+    from gaitcap.tracking.factored_ipf import FactoredIPF
+
+    truth, rig, model = _truth_setup(embedded_session.session)
+    views = tracking_views(rig, 0.5)
+    cfg = load_tracking_config()
+    cfg.factored_ipf.swap_hypothesis, cfg.factored_ipf.passes = swap_hypothesis, 1
+    tracker = FactoredIPF(model, SilhouetteLikelihood(views, cfg.beta), cfg, np.random.default_rng(0))
+    tracker.start(truth.poses[9])
+    tracker._fits.extend([0.9, 0.9, 0.9])
+    widens = []
+
+    def search(obs, start, widen, *args, **kwargs):
+        widens.append(widen)
+        return Estimate(q=start.copy(), points=np.zeros((model.n_points, 3)), uncertainty=np.zeros(model.n_points),
+                        log_likelihood=0.0, fit=0.7, evaluations=1), []  # fmt: skip
+
+    tracker._search = search
+    est = tracker.step(observe(views, [truth.mask(c, 10) for c in rig.names]))
+    assert len(widens) == searches and est.evaluations == searches
+    assert widens[-1] == cfg.factored_ipf.recover_widen and widens[0] == 1.0

@@ -103,9 +103,9 @@ class FactoredIPF(Tracker):
         chain whatever ``swap_search`` says, since a swap that has lasted turns the pelvis too (on
         the Vicon walk at 150/360 particles, tracker seed 3, a swap over frames 12-24 kept the fit at
         0.74-0.76 against 0.85-0.89 before: lower-limb error 65.0 mm; with this, 26.1 mm). The
-        mirror replaces the first hypothesis only when it fits ``swap_margin`` better: while the
-        legs cross, both assignments fit within a few thousandths and a coin-flip choice swaps them
-        for a frame or two.
+        mirror replaces the first hypothesis only when it fits ``swap_margin`` better (except when
+        initialising, where neither is the previous frame's): while the legs cross, both
+        assignments fit within a few thousandths and a coin-flip choice swaps them for a frame or two.
 
         A first pass that still fits ``swap_fit_drop`` below the recent frames is searched again
         on widened intervals (``recover_widen``, :meth:`_recover`).
@@ -145,14 +145,14 @@ class FactoredIPF(Tracker):
 
     def _recover(self, obs: Observation, start: np.ndarray, best: Estimate) -> Estimate:
         """A first pass that still fits ``swap_fit_drop`` below the recent frames after the mirrored
-        hypothesis: search the whole chain again from the previous estimate and from its mirror,
-        on intervals widened by ``recover_widen`` (a limb left behind in a fast swing, a pelvis
-        turned too far, are out of reach of the usual intervals and pull the fit down for many
-        frames); the best first pass of the three is kept."""
-        widen = self.config.factored_ipf.recover_widen
+        hypothesis: search the whole chain again from the previous estimate and (with
+        ``swap_hypothesis``) from its mirror, on intervals widened by ``recover_widen`` (a limb left
+        behind in a fast swing, a pelvis turned too far, are out of reach of the usual intervals
+        and pull the fit down for many frames); the best first pass is kept."""
+        cfg = self.config.factored_ipf
         evaluations = best.evaluations
-        for q0 in (start, self._mirrored(start)):
-            other, _ = self._search(obs, q0, widen, 0, 1)
+        for q0 in (start, self._mirrored(start))[: 2 if cfg.swap_hypothesis else 1]:
+            other, _ = self._search(obs, q0, cfg.recover_widen, 0, 1)
             evaluations += other.evaluations
             best = other if other.fit > best.fit else best
         best.evaluations = evaluations
