@@ -1,6 +1,7 @@
 from __future__ import annotations
 
 import csv
+import re
 
 import h5py
 import numpy as np
@@ -125,6 +126,33 @@ def test_shape_refit_budget_below_two_particles_is_rejected(tmp_path):
     path.write_text(yaml.safe_dump(data))
     with pytest.raises(ConfigError, match=r"shape\.refit_particles: .*at least 2"):
         load_tracking_config(path)
+
+
+@pytest.mark.parametrize("target", ["thigh_l", "thigh_l.w", "1/thigh_l.z^2", "thigh_l.z^", "thigh_l.z^x"])
+def test_shape_target_syntax_is_checked(tmp_path, target):
+    data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
+    data["shape"]["parameters"]["leg"] = ["thigh_r.z", target]
+    path = tmp_path / "tracking.yaml"
+    path.write_text(yaml.safe_dump(data))
+    with pytest.raises(ConfigError, match=rf"shape\.parameters: .*leg: '{re.escape(target)}' is not 'segment\.axis'"):
+        load_tracking_config(path)
+
+
+def test_shape_targets_scale_by_a_power_of_the_factor():
+    from gaitcap.tracking.shape import _scaled
+
+    model = load_body_model()
+    targets = {"ankle": ["foot_l.z", "shank_l.z^-0.16", "1/torso.y"]}
+    out = _scaled(model, targets, {"ankle": 1.25})
+    np.testing.assert_allclose(out.scales["foot_l"], model.scales["foot_l"] * [1, 1, 1.25])
+    np.testing.assert_allclose(out.scales["shank_l"], model.scales["shank_l"] * [1, 1, 1.25**-0.16])
+    np.testing.assert_allclose(out.scales["torso"], model.scales["torso"] * [1, 1 / 1.25, 1])
+    np.testing.assert_array_equal(out.scales["foot_r"], model.scales["foot_r"])
+    # the compensating power keeps the knee at its height: shank 0.246 H shortened by what the
+    # ankle (0.039 H) gains, to first order
+    H = model.height_m
+    gain = 0.039 * H * 0.25
+    assert 0.246 * H * (1 - 1.25**-0.16) == pytest.approx(gain, rel=0.15)
 
 
 def test_every_dof_has_an_interval():

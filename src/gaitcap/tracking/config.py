@@ -63,6 +63,21 @@ class InitConfig(Strict):
     widen: float = Field(default=2.5, ge=1, le=10)
 
 
+_TARGET = re.compile(r"(?P<inv>1/)?(?P<seg>\w+)\.(?P<axis>[xyz])(\^(?P<power>[-+]?\d+(\.\d*)?))?")
+
+
+def parse_target(target: str, parameter: str = "") -> tuple[str, int, float]:
+    """A shape parameter's target -> (segment, axis index, power): ``seg.axis`` scales that axis by
+    the parameter's factor f, ``1/seg.axis`` by 1/f, ``seg.axis^p`` by f**p (a compensating move:
+    ``[foot_l.z, shank_l.z^-0.16]`` raises the ankle and keeps the knee where it was)."""
+    m = _TARGET.fullmatch(target)
+    if m is None or (m["inv"] and m["power"]):
+        raise ValueError(f"{parameter}: '{target}' is not 'segment.axis', '1/segment.axis' or 'segment.axis^power' "
+                         f"(axis x, y or z)")  # fmt: skip
+    power = -1.0 if m["inv"] else float(m["power"] or 1.0)
+    return m["seg"], "xyz".index(m["axis"]), power
+
+
 class ShapeConfig(Strict):
     enabled: bool = False
     frames: int = Field(default=25, ge=2, le=250)
@@ -102,15 +117,14 @@ class ShapeConfig(Strict):
     def _check_targets(cls, v: dict[str, list[str]]) -> dict[str, list[str]]:
         for name, targets in v.items():
             for t in targets:
-                if not re.fullmatch(r"(1/)?\w+\.[xyz]", t):
-                    raise ValueError(f"{name}: '{t}' is not 'segment.axis' (axis x, y or z; '1/' divides)")
+                parse_target(t, name)
         return v
 
     def check_segments(self, model: BodyModel) -> None:
         known = {s.name for s in model.segments}
         for name, targets in self.parameters.items():
             for t in targets:
-                seg = t.removeprefix("1/").split(".")[0]
+                seg = parse_target(t, name)[0]
                 if seg not in known:
                     raise ConfigError(f"tracking config: shape.parameters.{name}: unknown segment '{seg}'")
 

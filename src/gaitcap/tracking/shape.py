@@ -8,8 +8,8 @@ proportions halves the lower-limb error. So, once the subject is found:
 
 1. the first ``frames`` frames are tracked with the current proportions (poses x_k);
 2. coordinate search over a few shape parameters p_j (each scales named segment axes together,
-   left and right alike): for p_j in {p_j (1 - δ), p_j, p_j (1 + δ)} the poses of ``samples``
-   frames spread over the window are re-fitted (one factored pass from x_k, the same random
+   left and right alike, by p_j or a power of it: ``tracking.config.parse_target``): for p_j in
+   {p_j (1 - δ), p_j, p_j (1 + δ)} the poses of ``samples`` frames spread over the window are re-fitted (one factored pass from x_k, the same random
    stream for every candidate so that they are compared on equal terms) and scored by
        F(p) = sum_k fit_k(p)        (fit = 1 - |M xor S| / |S|, mean over the cameras);
    the best candidate is kept with its re-fitted poses and, with ``max_moves`` > 1, the parameter
@@ -29,12 +29,10 @@ import numpy as np
 
 from gaitcap.body.model import BodyModel
 from gaitcap.tracking.base import Tracker
+from gaitcap.tracking.config import parse_target
 from gaitcap.tracking.observation import Observation
 
 log = logging.getLogger("gaitcap.tracking.shape")
-
-_AXES = {"x": 0, "y": 1, "z": 2}
-
 
 @dataclass
 class ShapeResult:
@@ -51,9 +49,8 @@ def _scaled(model: BodyModel, targets: dict[str, list[str]], factors: dict[str, 
     scales = {k: v.copy() for k, v in model.scales.items()}
     for name, f in factors.items():
         for target in targets[name]:
-            inverse = target.startswith("1/")
-            seg, axis = target.removeprefix("1/").split(".")
-            scales[seg][_AXES[axis]] *= 1.0 / f if inverse else f
+            seg, axis, power = parse_target(target, name)
+            scales[seg][axis] *= f**power
     return model.with_proportions(scales, model.shifts)
 
 
