@@ -9,8 +9,9 @@ proportions halves the lower-limb error. So, once the subject is found:
 1. the first ``frames`` frames are tracked with the current proportions (poses x_k);
 2. coordinate search over a few shape parameters p_j (each scales named segment axes together,
    left and right alike, by p_j or a power of it: ``tracking.config.parse_target``): for p_j in
-   {p_j (1 - δ), p_j, p_j (1 + δ)} the poses of ``samples`` frames spread over the window are re-fitted (one factored pass from x_k, the same random
-   stream for every candidate so that they are compared on equal terms) and scored by
+   {p_j (1 - δ), p_j, p_j (1 + δ)} the poses of ``samples`` frames spread over the window are
+   re-fitted (one factored pass from x_k, the same random stream for every candidate so that
+   they are compared on equal terms) and scored by
        F(p) = sum_k fit_k(p)        (fit = 1 - |M xor S| / |S|, mean over the cameras);
    the best candidate is kept with its re-fitted poses and, with ``max_moves`` > 1, the parameter
    keeps moving the same way while F improves (pattern search); δ shrinks from round to round;
@@ -33,6 +34,7 @@ from gaitcap.tracking.config import parse_target
 from gaitcap.tracking.observation import Observation
 
 log = logging.getLogger("gaitcap.tracking.shape")
+
 
 @dataclass
 class ShapeResult:
