@@ -456,10 +456,17 @@ def test_fit_drop_recovers_limbs_out_of_the_usual_reach(embedded_session, widen)
     assert (error < 10) == (widen is not None), error
 
 
+def _stub_estimate(model, q: np.ndarray, fit: float):
+    """A one-evaluation first pass at pose q with a set fit, for stubbing FactoredIPF._search."""
+    from gaitcap.tracking.base import Estimate
+
+    return Estimate(q=q.copy(), points=np.zeros((model.n_points, 3)), uncertainty=np.zeros(model.n_points),
+                    log_likelihood=0.0, fit=fit, evaluations=1)  # fmt: skip
+
+
 def test_swap_margin_keeps_the_first_hypothesis_unless_the_mirror_fits_clearly_better(embedded_session):
     """The mirrored hypothesis replaces the first only when it fits ``swap_margin`` better: the
     decision rule, on first passes whose fits are set."""
-    from gaitcap.tracking.base import Estimate
     from gaitcap.tracking.factored_ipf import FactoredIPF
 
     truth, rig, model = _truth_setup(embedded_session.session)
@@ -473,8 +480,7 @@ def test_swap_margin_keeps_the_first_hypothesis_unless_the_mirror_fits_clearly_b
         fits = iter([0.80, mirror_fit])
 
         def search(obs, start, *args, **kwargs):
-            return Estimate(q=start.copy(), points=np.zeros((model.n_points, 3)), uncertainty=np.zeros(model.n_points),
-                            log_likelihood=0.0, fit=next(fits), evaluations=1), []  # fmt: skip
+            return _stub_estimate(model, start, next(fits)), []
 
         tracker._search = search
         tracker._legs_close = lambda q: True
@@ -486,7 +492,6 @@ def test_swap_margin_keeps_the_first_hypothesis_unless_the_mirror_fits_clearly_b
 def test_recovery_searches_the_mirror_only_with_the_swap_hypothesis(embedded_session, swap_hypothesis, searches):
     """A dropped fit: the first pass, (the mirror,) then the widened search from the previous
     estimate (and from its mirror): first passes counted with a stubbed search."""
-    from gaitcap.tracking.base import Estimate
     from gaitcap.tracking.factored_ipf import FactoredIPF
 
     truth, rig, model = _truth_setup(embedded_session.session)
@@ -500,8 +505,7 @@ def test_recovery_searches_the_mirror_only_with_the_swap_hypothesis(embedded_ses
 
     def search(obs, start, widen, *args, **kwargs):
         widens.append(widen)
-        return Estimate(q=start.copy(), points=np.zeros((model.n_points, 3)), uncertainty=np.zeros(model.n_points),
-                        log_likelihood=0.0, fit=0.7, evaluations=1), []  # fmt: skip
+        return _stub_estimate(model, start, 0.7), []
 
     tracker._search = search
     est = tracker.step(observe(views, [truth.mask(c, 10) for c in rig.names]))
