@@ -155,6 +155,25 @@ def test_shape_targets_scale_by_a_power_of_the_factor():
     assert 0.246 * H * (1 - 1.25**-0.16) == pytest.approx(gain, rel=0.15)
 
 
+def test_planted_poses_keep_the_lowest_point_on_the_floor():
+    from gaitcap.tracking.shape import _scaled, lowest_points, planted_poses
+
+    model = load_body_model()
+    rng = np.random.default_rng(4)
+    poses = [model.clip(model.neutral_pose()[None] + rng.normal(0.0, 0.15, (1, model.n_dofs)))[0] for _ in range(5)]
+    longer = _scaled(model, {"legs": ["thigh_l.z", "thigh_r.z", "shank_l.z", "shank_r.z"]}, {"legs": 1.1})
+    moved = planted_poses(model, longer, poses)
+    np.testing.assert_allclose(lowest_points(longer, np.array(moved)), lowest_points(model, np.array(poses)),
+                               atol=1e-12)  # fmt: skip
+    tz = model.dof_index("pelvis_tz")
+    for q, m in zip(poses, moved):
+        assert m[tz] > q[tz]  # longer legs: the hips go up
+        np.testing.assert_array_equal(np.delete(m, tz), np.delete(q, tz))  # nothing else moves
+    # the same model: no move
+    same = planted_poses(model, model, poses)
+    np.testing.assert_allclose(np.array(same), np.array(poses), atol=1e-12)
+
+
 def test_every_dof_has_an_interval():
     cfg = load_tracking_config()
     model = load_body_model()
@@ -257,8 +276,10 @@ def test_config_naming_an_unknown_segment_creates_no_output(embedded_session, tm
     assert not out.exists()
 
 
-@pytest.mark.parametrize(("short", "max_moves", "at_least"), [(0.85, 1, 1.0), (0.75, 4, 1.08 * 1.08 - 1e-9)])
-def test_shape_calibration_moves_a_wrong_thigh_towards_the_truth(embedded_session, short, max_moves, at_least):
+@pytest.mark.parametrize(("short", "max_moves", "at_least", "planted"),
+                         [(0.85, 1, 1.0, False), (0.75, 4, 1.08 * 1.08 - 1e-9, False), (0.85, 1, 1.0, True)])
+def test_shape_calibration_moves_a_wrong_thigh_towards_the_truth(embedded_session, short, max_moves, at_least,
+                                                                 planted):  # fmt: skip
     from gaitcap.tracking.factored_ipf import FactoredIPF
     from gaitcap.tracking.shape import calibrate_shape
 
@@ -276,7 +297,8 @@ def test_shape_calibration_moves_a_wrong_thigh_towards_the_truth(embedded_sessio
     obs = [observe(views, [truth.mask(c, t) for c in rig.names]) for t in frames]
     result = calibrate_shape(wrong, lambda m: FactoredIPF(m, lik, cfg, np.random.default_rng(0)), obs,
                              [truth.poses[t] for t in frames], {"thigh_length": ["thigh_l.z", "thigh_r.z"]},
-                             steps=[0.08, 0.04], bounds=(0.7, 1.4), samples=3, max_moves=max_moves)  # fmt: skip
+                             steps=[0.08, 0.04], bounds=(0.7, 1.4), samples=3, max_moves=max_moves,
+                             planted=planted)  # fmt: skip
     assert result.fit_after >= result.fit_before
     # lengthened, towards 1 / short; with several moves per round, beyond the reach of one move (+8 %)
     assert at_least < result.factors["thigh_length"] <= 1.4

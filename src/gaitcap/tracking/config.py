@@ -90,6 +90,9 @@ class ShapeConfig(Strict):
     refit_particles: tuple[int, int] = (60, 150)
     #: moves of one parameter in one round while the fit keeps improving (pattern search)
     max_moves: int = Field(default=1, ge=1)
+    #: also score each candidate with the window's poses moved vertically so that its lowest point
+    #: stays on the floor (tracking/shape.py); the better of the two counts
+    planted: bool = False
 
     @field_validator("refit_particles")
     @classmethod

@@ -14,7 +14,12 @@ proportions halves the lower-limb error. So, once the subject is found:
    they are compared on equal terms) and scored by
        F(p) = sum_k fit_k(p)        (fit = 1 - |M xor S| / |S|, mean over the cameras);
    the best candidate is kept with its re-fitted poses and, with ``max_moves`` > 1, the parameter
-   keeps moving the same way while F improves (pattern search); δ shrinks from round to round;
+   keeps moving the same way while F improves (pattern search); δ shrinks from round to round.
+   With ``planted``, each candidate is also re-fitted from the poses x_k moved vertically by
+       Δz_k = min_z M(p_current, x_k) - min_z M(p, x_k)      (M: the model's capsules, z up)
+   so that its lowest point (a sole) stays where it was, and the better of the two F counts: a
+   longer leg then raises the hips instead of pushing the feet through the floor, a move the
+   re-fit's root interval (a few cm) cannot make from x_k;
 3. tracking restarts at the first frame with the calibrated model.
 
 Each parameter stays within ``bounds`` of the shipped proportion.
@@ -56,6 +61,24 @@ def _scaled(model: BodyModel, targets: dict[str, list[str]], factors: dict[str, 
     return model.with_proportions(scales, model.shifts)
 
 
+def lowest_points(model: BodyModel, poses: np.ndarray) -> np.ndarray:
+    """Height (world z, metres) of the lowest capsule surface point of each pose (N, D): (N,)."""
+    A, B, radii = model.capsules(poses)
+    return np.minimum((A[..., 2] - radii[:, 0]).min(axis=1), (B[..., 2] - radii[:, 1]).min(axis=1))
+
+
+def planted_poses(current: BodyModel, candidate: BodyModel, poses: list[np.ndarray]) -> list[np.ndarray]:
+    """Poses (D,) moved vertically (the root's z translation) so that ``candidate``'s lowest point
+    is at the height ``current``'s lowest point had in each pose."""
+    root = next(seg for seg in candidate.segments if seg.parent < 0)
+    k = next((k for k, (axis, trans) in enumerate(zip(root.axes, root.translation)) if trans and axis == 2), None)
+    if k is None:
+        raise ValueError(f"planted shape candidates need a vertical translation DOF on the root '{root.name}'")
+    Q = np.array(poses, dtype=np.float64)
+    Q[:, root.dof_start + k] += root.signs[k] * (lowest_points(current, Q) - lowest_points(candidate, Q))
+    return list(Q)
+
+
 def calibrate_shape(
     model: BodyModel,
     make_tracker: Callable[[BodyModel], Tracker],
@@ -67,6 +90,7 @@ def calibrate_shape(
     samples: int,
     seed: int = 0,
     max_moves: int = 1,
+    planted: bool = False,
 ) -> ShapeResult:
     """Coordinate search of the shape ``parameters`` (see the module docstring).
 
@@ -98,7 +122,13 @@ def calibrate_shape(
         """Mean fit and re-fitted poses with parameter ``name`` at ``f``; None out of bounds."""
         if not (bounds[0] <= f <= bounds[1]):
             return None
-        return refit(_scaled(model, parameters, {**factors, name: f}), current)
+        candidate = _scaled(model, parameters, {**factors, name: f})
+        plain = refit(candidate, current)
+        if not planted:
+            return plain
+        moved = planted_poses(_scaled(model, parameters, factors), candidate, current)
+        other = refit(candidate, moved)
+        return other if other[0] > plain[0] else plain
 
     for delta in steps:
         for name in parameters:
