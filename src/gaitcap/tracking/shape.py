@@ -68,14 +68,10 @@ def lowest_points(model: BodyModel, poses: np.ndarray) -> np.ndarray:
 
 
 def planted_poses(current: BodyModel, candidate: BodyModel, poses: list[np.ndarray]) -> list[np.ndarray]:
-    """Poses (D,) moved vertically (the root's z translation) so that ``candidate``'s lowest point
-    is at the height ``current``'s lowest point had in each pose."""
-    root = next(seg for seg in candidate.segments if seg.parent < 0)
-    k = next((k for k, (axis, trans) in enumerate(zip(root.axes, root.translation)) if trans and axis == 2), None)
-    if k is None:
-        raise ValueError(f"planted shape candidates need a vertical translation DOF on the root '{root.name}'")
+    """Poses (D,) moved vertically (pelvis_tz, as :meth:`BodyModel.neutral_pose` places the soles)
+    so that ``candidate``'s lowest point is at the height ``current``'s lowest point had in each pose."""
     Q = np.array(poses, dtype=np.float64)
-    Q[:, root.dof_start + k] += root.signs[k] * (lowest_points(current, Q) - lowest_points(candidate, Q))
+    Q[:, candidate.dof_index("pelvis_tz")] += lowest_points(current, Q) - lowest_points(candidate, Q)
     return list(Q)
 
 
