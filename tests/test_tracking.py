@@ -306,6 +306,38 @@ def test_shape_calibration_moves_a_wrong_thigh_towards_the_truth(embedded_sessio
     assert result.start.shape == (31,)
 
 
+@pytest.mark.parametrize(("parameter", "targets", "twice"),
+                         [("arm_length", ["upper_arm_l.z", "upper_arm_r.z"], False),
+                          ("trunk_length", ["torso.z"], False), ("thigh_length", ["thigh_l.z", "thigh_r.z"], True)])
+def test_planted_refits_only_parameters_that_move_the_soles(embedded_session, parameter, targets, twice):
+    """With ``planted``, a candidate is re-fitted a second time from the planted poses only when
+    those differ from the unmoved ones: a trunk or arm parameter costs what it costs without
+    planting, a leg parameter twice as much (the count can fail both ways)."""
+    from gaitcap.tracking.factored_ipf import FactoredIPF
+    from gaitcap.tracking.shape import calibrate_shape
+
+    truth, rig, model = _truth_setup(embedded_session.session)
+    cfg = load_tracking_config()
+    cfg.factored_ipf.passes, cfg.factored_ipf.swap_hypothesis = 1, False
+    cfg.factored_ipf.particles, cfg.factored_ipf.root_particles = 10, 20
+    views = tracking_views(rig, cfg.scale)
+    lik = SilhouetteLikelihood(views, cfg.beta)
+    obs = [observe(views, [truth.mask(c, 12) for c in rig.names])]
+    built = {True: 0, False: 0}
+
+    def counting(planted):
+        def make(m):
+            built[planted] += 1
+            return FactoredIPF(m, lik, cfg, np.random.default_rng(0))
+        return make
+
+    for planted in (False, True):
+        calibrate_shape(model, counting(planted), obs, [truth.poses[12]], {parameter: targets}, steps=[0.08],
+                        bounds=(0.9, 1.1), samples=1, max_moves=1, planted=planted)  # fmt: skip
+    assert built[False] == 3  # the start and the two candidates
+    assert built[True] == (1 + 2 * 2 if twice else 3)
+
+
 @pytest.mark.parametrize(("swap_search", "margin", "back"),
                          [("full", 0.0, True), ("legs", 0.0, True), ("legs", 0.01, True), (None, 0.0, False)])
 def test_swap_hypothesis_puts_swapped_legs_back(embedded_session, swap_search, margin, back):

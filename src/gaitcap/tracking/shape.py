@@ -19,7 +19,8 @@ proportions halves the lower-limb error. So, once the subject is found:
        Δz_k = min_z M(p_current, x_k) - min_z M(p, x_k)      (M: the model's capsules, z up)
    so that its lowest point (a sole) stays where it was, and the better of the two F counts: a
    longer leg then raises the hips instead of pushing the feet through the floor, a move the
-   re-fit's root interval (a few cm) cannot make from x_k;
+   re-fit's root interval (a few cm) cannot make from x_k (a parameter that leaves the soles
+   where they were, |Δz_k| <= 0.1 mm, is re-fitted once);
 3. tracking restarts at the first frame with the calibrated model.
 
 Each parameter stays within ``bounds`` of the shipped proportion.
@@ -39,6 +40,10 @@ from gaitcap.tracking.config import parse_target
 from gaitcap.tracking.observation import Observation
 
 log = logging.getLogger("gaitcap.tracking.shape")
+
+#: a planted move smaller than this (metres) is not re-fitted again: the re-fit from the unmoved
+#: poses stands for it (a trunk, head or arm parameter leaves the soles exactly where they were)
+_PLANT_TOL_M = 1e-4
 
 
 @dataclass
@@ -123,6 +128,8 @@ def calibrate_shape(
         if not planted:
             return plain
         moved = planted_poses(_scaled(model, parameters, factors), candidate, current)
+        if np.max(np.abs(np.array(moved) - np.array(current))) <= _PLANT_TOL_M:
+            return plain  # the parameter does not move the lowest point (trunk, arms): the same re-fit
         other = refit(candidate, moved)
         return other if other[0] > plain[0] else plain
 
