@@ -276,26 +276,34 @@ def test_config_naming_an_unknown_segment_creates_no_output(embedded_session, tm
     assert not out.exists()
 
 
+def _refit_tracker(rig, particles: int, root_particles: int):
+    """The views and the one-pass re-fitting tracker factory of the shape calibration, as
+    pipeline._calibrate_shape builds them (one pass, no mirrored hypothesis)."""
+    from gaitcap.tracking.factored_ipf import FactoredIPF
+
+    cfg = load_tracking_config()
+    cfg.factored_ipf.passes, cfg.factored_ipf.swap_hypothesis = 1, False
+    cfg.factored_ipf.particles, cfg.factored_ipf.root_particles = particles, root_particles
+    views = tracking_views(rig, cfg.scale)
+    lik = SilhouetteLikelihood(views, cfg.beta)
+    return views, lambda m: FactoredIPF(m, lik, cfg, np.random.default_rng(0))
+
+
 @pytest.mark.parametrize(("short", "max_moves", "at_least", "planted"),
                          [(0.85, 1, 1.0, False), (0.75, 4, 1.08 * 1.08 - 1e-9, False), (0.85, 1, 1.0, True)])
 def test_shape_calibration_moves_a_wrong_thigh_towards_the_truth(embedded_session, short, max_moves, at_least,
                                                                  planted):  # fmt: skip
-    from gaitcap.tracking.factored_ipf import FactoredIPF
     from gaitcap.tracking.shape import calibrate_shape
 
     truth, rig, true_model = _truth_setup(embedded_session.session)
-    cfg = load_tracking_config()
-    cfg.factored_ipf.passes, cfg.factored_ipf.swap_hypothesis = 1, False
-    cfg.factored_ipf.particles, cfg.factored_ipf.root_particles = 60, 150
-    views = tracking_views(rig, cfg.scale)
-    lik = SilhouetteLikelihood(views, cfg.beta)
+    views, make_tracker = _refit_tracker(rig, 60, 150)
     scales = {k: v.copy() for k, v in true_model.scales.items()}
     for side in "lr":
         scales[f"thigh_{side}"][2] *= short  # a thigh too short
     wrong = true_model.with_proportions(scales, true_model.shifts)
     frames = [10, 14, 18]
     obs = [observe(views, [truth.mask(c, t) for c in rig.names]) for t in frames]
-    result = calibrate_shape(wrong, lambda m: FactoredIPF(m, lik, cfg, np.random.default_rng(0)), obs,
+    result = calibrate_shape(wrong, make_tracker, obs,
                              [truth.poses[t] for t in frames], {"thigh_length": ["thigh_l.z", "thigh_r.z"]},
                              steps=[0.08, 0.04], bounds=(0.7, 1.4), samples=3, max_moves=max_moves,
                              planted=planted)  # fmt: skip
@@ -313,22 +321,17 @@ def test_planted_refits_only_parameters_that_move_the_soles(embedded_session, pa
     """With ``planted``, a candidate is re-fitted a second time from the planted poses only when
     those differ from the unmoved ones: a trunk or arm parameter costs what it costs without
     planting, a leg parameter twice as much (the count can fail both ways)."""
-    from gaitcap.tracking.factored_ipf import FactoredIPF
     from gaitcap.tracking.shape import calibrate_shape
 
     truth, rig, model = _truth_setup(embedded_session.session)
-    cfg = load_tracking_config()
-    cfg.factored_ipf.passes, cfg.factored_ipf.swap_hypothesis = 1, False
-    cfg.factored_ipf.particles, cfg.factored_ipf.root_particles = 10, 20
-    views = tracking_views(rig, cfg.scale)
-    lik = SilhouetteLikelihood(views, cfg.beta)
+    views, make_tracker = _refit_tracker(rig, 10, 20)
     obs = [observe(views, [truth.mask(c, 12) for c in rig.names])]
     built = {True: 0, False: 0}
 
     def counting(planted):
         def make(m):
             built[planted] += 1
-            return FactoredIPF(m, lik, cfg, np.random.default_rng(0))
+            return make_tracker(m)
         return make
 
     for planted in (False, True):
