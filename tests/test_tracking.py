@@ -355,17 +355,52 @@ def test_swap_hypothesis_puts_swapped_legs_back(embedded_session, swap_search, m
     cfg.factored_ipf.swap_hypothesis = swap_search is not None
     cfg.factored_ipf.swap_search = swap_search or "full"
     cfg.factored_ipf.swap_margin = margin
+    cfg.factored_ipf.swap_fit_drop = None  # the legs' closeness alone calls the mirror
     views = tracking_views(rig, cfg.scale)
     lik = SilhouetteLikelihood(views, cfg.beta)
     hl, hr = model.dof_index("hip_flexion_l"), model.dof_index("hip_flexion_r")
     apart = np.degrees(np.abs(truth.poses[:, hl] - truth.poses[:, hr]))
-    t = next(i for i in range(5, len(apart)) if 12 < apart[i - 1] < 20 and 12 < apart[i] < 20)
+    # close enough for the mirror (swap_within_deg: 25), too far apart for the intervals to bridge
+    t = next(i for i in range(5, len(apart)) if 15 < apart[i - 1] < 24 and 15 < apart[i] < 24)
     tracker = FactoredIPF(model, lik, cfg, np.random.default_rng(0))
-    tracker.start(tracker._mirrored(truth.poses[t - 1]))
+    tracker.start(truth.poses[t - 2])  # a tracked frame first: the swap below is not a fresh start's
+    tracker.step(observe(views, [truth.mask(c, t - 1) for c in rig.names]))
+    tracker.q = tracker._mirrored(truth.poses[t - 1])
     q = tracker.step(observe(views, [truth.mask(c, t) for c in rig.names])).q
     on_own_side = abs(q[hl] - truth.poses[t, hl]) < abs(q[hl] - truth.poses[t, hr])
     on_own_side &= abs(q[hr] - truth.poses[t, hr]) < abs(q[hr] - truth.poses[t, hl])
     assert on_own_side == back
+
+
+@pytest.mark.parametrize("fresh", [True, False])
+def test_first_frame_after_a_start_weighs_both_leg_assignments(embedded_session, fresh):
+    """Started with the legs swapped and far apart (as a shape calibration's start can be), the
+    first frame searches the mirror too and the legs come back to their sides. The same swapped
+    pose reached by tracking (no start, no closeness, no fit drop) stays swapped, so the check can
+    fail."""
+    from gaitcap.tracking.factored_ipf import FactoredIPF
+
+    truth, rig, model = _truth_setup(embedded_session.session)
+    cfg = load_tracking_config()
+    cfg.factored_ipf.swap_fit_drop = None
+    views = tracking_views(rig, cfg.scale)
+    lik = SilhouetteLikelihood(views, cfg.beta)
+    hl, hr = model.dof_index("hip_flexion_l"), model.dof_index("hip_flexion_r")
+    apart = np.degrees(np.abs(truth.poses[:, hl] - truth.poses[:, hr]))
+    t = next(i for i in range(3, len(apart)) if min(apart[i - 2 : i + 1]) > cfg.factored_ipf.swap_within_deg + 5)
+    tracker = FactoredIPF(model, lik, cfg, np.random.default_rng(0))
+    swapped = tracker._mirrored(truth.poses[t - 1])
+    if fresh:
+        tracker.start(swapped)
+    else:
+        tracker.start(truth.poses[t - 2])
+        tracker.step(observe(views, [truth.mask(c, t - 1) for c in rig.names]))
+        tracker.q = swapped
+    assert not tracker._legs_close(swapped)
+    q = tracker.step(observe(views, [truth.mask(c, t) for c in rig.names])).q
+    on_own_side = abs(q[hl] - truth.poses[t, hl]) < abs(q[hl] - truth.poses[t, hr])
+    on_own_side &= abs(q[hr] - truth.poses[t, hr]) < abs(q[hr] - truth.poses[t, hl])
+    assert on_own_side == fresh
 
 
 @pytest.mark.parametrize("fit_drop", [0.04, None])
@@ -488,29 +523,36 @@ def test_track_says_where_the_results_are_unless_quiet(embedded_session, tmp_pat
         assert (out / "trajectories.h5").is_file()
 
 
-@pytest.mark.parametrize("widen", [3.0, None])
-def test_fit_drop_recovers_limbs_out_of_the_usual_reach(embedded_session, widen):
+def test_fit_drop_recovers_limbs_out_of_the_usual_reach(embedded_session):
     """Both knees left 60 degrees more flexed than the truth (out of reach of the usual intervals in
     one frame, and the mirror does not help) lower the fit below the recent frames'; the widened
-    search (``recover_widen``) brings them back near the truth, the usual search alone does
-    not, so the check can fail."""
+    search (``recover_widen``) brings them nearer the truth than the usual search alone, for every
+    one of four tracker seeds (paired: the same seed with and without), and to within 20 degrees on
+    average where the usual search stays 70 degrees off; without the widening the two would be
+    equal, so the check can fail. (One frame of widened search does not always finish the job:
+    on these seeds the worse knee ends 1-30 degrees off.)"""
     from gaitcap.tracking.factored_ipf import FactoredIPF
 
     truth, rig, model = _truth_setup(embedded_session.session)
-    cfg = load_tracking_config()
-    cfg.factored_ipf.recover_widen = widen
-    views = tracking_views(rig, cfg.scale)
-    lik = SilhouetteLikelihood(views, cfg.beta)
     knees = [model.dof_index("knee_flexion_l"), model.dof_index("knee_flexion_r")]
     t = 12
-    tracker = FactoredIPF(model, lik, cfg, np.random.default_rng(0))
-    tracker.start(truth.poses[t - 4])
-    for f in range(t - 3, t):  # recent frames tracked right: the fit history
-        tracker.step(observe(views, [truth.mask(c, f) for c in rig.names]))
-    tracker.q[knees] = truth.poses[t - 1, knees] + np.radians(60)
-    q = tracker.step(observe(views, [truth.mask(c, t) for c in rig.names])).q
-    error = np.degrees(np.abs(q[knees] - truth.poses[t, knees])).max()
-    assert (error < 10) == (widen is not None), error
+
+    def knee_error(widen, seed):
+        cfg = load_tracking_config()
+        cfg.factored_ipf.recover_widen = widen
+        views = tracking_views(rig, cfg.scale)
+        tracker = FactoredIPF(model, SilhouetteLikelihood(views, cfg.beta), cfg, np.random.default_rng(seed))
+        tracker.start(truth.poses[t - 4])
+        for f in range(t - 3, t):  # recent frames tracked right: the fit history
+            tracker.step(observe(views, [truth.mask(c, f) for c in rig.names]))
+        tracker.q[knees] = truth.poses[t - 1, knees] + np.radians(60)
+        q = tracker.step(observe(views, [truth.mask(c, t) for c in rig.names])).q
+        return np.degrees(np.abs(q[knees] - truth.poses[t, knees])).max()
+
+    widened = np.array([knee_error(3.0, seed) for seed in range(4)])
+    usual = np.array([knee_error(None, seed) for seed in range(4)])
+    assert np.all(widened < usual), (widened, usual)
+    assert widened.mean() < 20 < usual.mean(), (widened, usual)
 
 
 def _stub_estimate(model, q: np.ndarray, fit: float):
@@ -522,18 +564,22 @@ def _stub_estimate(model, q: np.ndarray, fit: float):
 
 
 def test_swap_margin_keeps_the_first_hypothesis_unless_the_mirror_fits_clearly_better(embedded_session):
-    """The mirrored hypothesis replaces the first only when it fits ``swap_margin`` better: the
-    decision rule, on first passes whose fits are set."""
+    """The mirrored hypothesis replaces the first only when it fits ``swap_margin`` better, except
+    on the first frame after a start, where any better fit wins: the decision rule, on first
+    passes whose fits are set."""
     from gaitcap.tracking.factored_ipf import FactoredIPF
 
     truth, rig, model = _truth_setup(embedded_session.session)
     views = tracking_views(rig, 0.5)
     obs = observe(views, [truth.mask(c, 10) for c in rig.names])
-    for margin, mirror_fit, mirror_wins in [(0.01, 0.805, False), (0.01, 0.815, True), (0.0, 0.805, True)]:
+    cases = [(False, 0.01, 0.805, False), (False, 0.01, 0.815, True), (False, 0.0, 0.805, True),
+             (True, 0.01, 0.805, True), (True, 0.01, 0.795, False)]  # fmt: skip
+    for fresh, margin, mirror_fit, mirror_wins in cases:
         cfg = load_tracking_config()
         cfg.factored_ipf.swap_margin, cfg.factored_ipf.passes = margin, 1
         tracker = FactoredIPF(model, SilhouetteLikelihood(views, cfg.beta), cfg, np.random.default_rng(0))
         tracker.start(truth.poses[9])
+        tracker._fresh = fresh  # False: as if a frame had been tracked since the start
         fits = iter([0.80, mirror_fit])
 
         def search(obs, start, *args, **kwargs):

@@ -63,6 +63,7 @@ class FactoredIPF(Tracker):
         self._right = np.array([names.index(names[i][:-2] + "_r") for i in self._left])
         self._hip_flex = (self.model.dof_index("hip_flexion_l"), self.model.dof_index("hip_flexion_r"))
         self._fits: deque[float] = deque(maxlen=self.config.factored_ipf.swap_fit_frames)  # first-pass fits
+        self._fresh = True  # no frame tracked since the last start
         legs_dofs = np.concatenate([self._left, self._right])
         self._not_legs = np.setdiff1d(np.arange(self.model.n_dofs), legs_dofs)
         self._root = next(seg.index for seg in self.model.segments if seg.parent < 0)
@@ -83,6 +84,7 @@ class FactoredIPF(Tracker):
     def start(self, q0: np.ndarray) -> None:
         super().start(q0)
         self._fits.clear()
+        self._fresh = True  # the next frame weighs both leg assignments of q0 on equal terms
 
     def step(self, obs: Observation, widen: float = 1.0) -> Estimate:
         """Track one frame from the previous estimate and, with ``swap_hypothesis``, also from its
@@ -103,9 +105,12 @@ class FactoredIPF(Tracker):
         chain whatever ``swap_search`` says, since a swap that has lasted turns the pelvis too (on
         the Vicon walk at 150/360 particles, tracker seed 3, a swap over frames 12-24 kept the fit at
         0.74-0.76 against 0.85-0.89 before: lower-limb error 65.0 mm; with this, 26.1 mm). The
-        mirror replaces the first hypothesis only when it fits ``swap_margin`` better (except when
-        initialising, where neither is the previous frame's): while the legs cross, both
-        assignments fit within a few thousandths and a coin-flip choice swaps them for a frame or two.
+        mirror replaces the first hypothesis only when it fits ``swap_margin`` better: while the legs
+        cross, both assignments fit within a few thousandths and a coin-flip choice swaps them for a
+        frame or two. On the first frame after :meth:`start` (an initialisation, or the restart from
+        the pose the shape calibration left) the mirror is always searched over the whole chain and
+        wins on any better fit, since neither assignment is the previous frame's: a start with the
+        legs swapped and apart would otherwise stand until the legs next cross.
 
         A first pass that still fits ``swap_fit_drop`` below the recent frames is searched again
         on widened intervals (``recover_widen``, :meth:`_recover`).
@@ -114,10 +119,11 @@ class FactoredIPF(Tracker):
         cfg = self.config.factored_ipf
         best, spreads = self._search(obs, start, widen, 0, 1)
         dropped = self._fit_dropped(best.fit)
-        if cfg.swap_hypothesis and (widen > 1.0 or self._legs_close(start) or dropped):  # always when initialising
+        fresh, self._fresh = self._fresh or widen > 1.0, False
+        if cfg.swap_hypothesis and (fresh or self._legs_close(start) or dropped):  # always after a start
             # both hypotheses get the first pass; the further passes refine the winner only
             mirrored = self._mirrored(start)
-            if cfg.swap_search == "legs" and widen <= 1.0 and not dropped:
+            if cfg.swap_search == "legs" and not fresh and not dropped:
                 # the nodes before the legs as the first hypothesis placed them, the legs mirrored
                 mirrored[self._not_legs] = best.q[self._not_legs]
                 before = np.sum(spreads[: self._legs_from], axis=0)
@@ -125,7 +131,7 @@ class FactoredIPF(Tracker):
             else:
                 other, _ = self._search(obs, mirrored, widen, 0, 1)
             evaluations = best.evaluations + other.evaluations
-            best = other if other.fit > best.fit + (0.0 if widen > 1.0 else cfg.swap_margin) else best
+            best = other if other.fit > best.fit + (0.0 if fresh else cfg.swap_margin) else best
             best.evaluations = evaluations
         if cfg.recover_widen is not None and widen <= 1.0 and self._fit_dropped(best.fit):
             best = self._recover(obs, start, best)
