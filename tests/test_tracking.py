@@ -314,6 +314,37 @@ def test_shape_calibration_moves_a_wrong_thigh_towards_the_truth(embedded_sessio
     assert result.start.shape == (31,)
 
 
+def test_random_shape_moves_only_ever_raise_the_fit(embedded_session):
+    """The random stage after the coordinate search (every parameter moved at once) keeps a move
+    only when it fits better: from a leg 12 % too short in both segments it lengthens the leg, it
+    is reproducible for a seed, and without candidates nothing moves (so the checks can fail)."""
+    from gaitcap.tracking.shape import calibrate_shape
+
+    truth, rig, true_model = _truth_setup(embedded_session.session)
+    views, make_tracker = _refit_tracker(rig, 60, 150)
+    scales = {k: v.copy() for k, v in true_model.scales.items()}
+    for seg in ("thigh_l", "thigh_r", "shank_l", "shank_r"):
+        scales[seg][2] *= 0.88
+    wrong = true_model.with_proportions(scales, true_model.shifts)
+    frames = [10, 14, 18]
+    obs = [observe(views, [truth.mask(c, t) for c in rig.names]) for t in frames]
+    parameters = {"thigh_length": ["thigh_l.z", "thigh_r.z"], "shank_length": ["shank_l.z", "shank_r.z"]}
+
+    def run(candidates):
+        return calibrate_shape(wrong, make_tracker, obs, [truth.poses[t] for t in frames], parameters, steps=[],
+                               bounds=(0.8, 1.25), samples=3, seed=3, random_candidates=candidates,
+                               random_sigma=0.05)  # fmt: skip
+
+    still = run(0)
+    assert still.factors == {"thigh_length": 1.0, "shank_length": 1.0}
+    assert still.fit_after == still.fit_before
+    moved, again = run(12), run(12)
+    assert moved.fit_after > moved.fit_before
+    assert moved.factors["thigh_length"] * moved.factors["shank_length"] > 1.0  # the leg lengthened
+    assert all(0.8 <= f <= 1.25 for f in moved.factors.values())
+    assert again.factors == moved.factors and again.fit_after == moved.fit_after
+
+
 @pytest.mark.parametrize(("parameter", "targets", "twice"),
                          [("arm_length", ["upper_arm_l.z", "upper_arm_r.z"], False),
                           ("trunk_length", ["torso.z"], False), ("thigh_length", ["thigh_l.z", "thigh_r.z"], True)])

@@ -234,7 +234,7 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
     result = calibrate_shape(
         filt.model, lambda m: FactoredIPF(m, likelihood, refit_cfg, np.random.default_rng(cfg.seed)), first, poses,
         cfg.shape.parameters, cfg.shape.steps, cfg.shape.bounds, cfg.shape.samples, cfg.seed, cfg.shape.max_moves,
-        cfg.shape.planted,
+        cfg.shape.planted, cfg.shape.random_candidates, cfg.shape.random_sigma,
     )  # fmt: skip
     factors = ", ".join(f"{k} x{v:.3f}" for k, v in result.factors.items())
     log.info("shape: %s (mean fit %.3f -> %.3f)", factors, result.fit_before, result.fit_after)

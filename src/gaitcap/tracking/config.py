@@ -93,6 +93,10 @@ class ShapeConfig(Strict):
     #: also score each candidate with the window's poses moved vertically so that its lowest point
     #: stays on the floor (tracking/shape.py); the better of the two counts
     planted: bool = False
+    #: after the coordinate search, this many random candidates moving every parameter at once
+    #: (each factor times exp(sigma z), z ~ N(0, 1)); a better one replaces the current shape
+    random_candidates: int = Field(default=0, ge=0)
+    random_sigma: float = Field(default=0.04, gt=0.0, lt=0.5)
 
     @field_validator("refit_particles")
     @classmethod
