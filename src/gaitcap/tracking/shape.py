@@ -24,10 +24,11 @@ proportions halves the lower-limb error. So, once the subject is found:
 3. ``random_candidates`` random moves of every parameter at once, p_j exp(σ z_j), z_j ~ N(0, 1),
    each scored from the planted poses only; a candidate that scores better replaces the current
    shape and poses ((1+1) evolution strategy, fixed σ, its own seeded stream). F is not
-   separable: on the OpenSim walk (tracker seed 0) the true shape scores 0.857 against the coordinate search's
-   0.845, but every partial step towards it (the trunk shortened alone, or with the head
-   lengthened, or all parameters but the head) scores lower, 0.817-0.841; moving all at once
-   climbs to 0.858 in 80 candidates, shortening the trunk and lengthening the head as the truth;
+   separable: on the OpenSim walk (tracker seed 0) the true shape scores 0.855-0.857 against
+   the coordinate search's 0.845, but every partial step towards it (the trunk shortened alone,
+   or with the head lengthened, or all parameters but the head) scores lower, 0.817-0.841;
+   80 random moves of all parameters climb to 0.858, shortening the trunk and lengthening the
+   head as in the truth;
 4. tracking restarts at the first frame with the calibrated model.
 
 Each parameter stays within ``bounds`` of the shipped proportion.
@@ -169,7 +170,8 @@ def calibrate_shape(
             log.debug("shape: %s x%.3f (fit %.4f)", name, factors[name], best_fit)
     rng = np.random.default_rng([seed, 1])  # its own stream: the re-fits keep theirs
     for _ in range(random_candidates):
-        trial = {k: float(np.clip(f * np.exp(random_sigma * rng.standard_normal()), *bounds)) for k, f in factors.items()}
+        trial = {k: float(np.clip(f * np.exp(random_sigma * rng.standard_normal()), *bounds))
+                 for k, f in factors.items()}  # fmt: skip
         tried = try_factors(trial, both=False)  # every parameter moves: the soles stay on the floor
         if tried is not None and tried[0] > best_fit:
             (best_fit, current), factors = tried, trial
