@@ -372,6 +372,31 @@ def test_planted_refits_only_parameters_that_move_the_soles(embedded_session, pa
     assert built[True] == (1 + 2 * 2 if twice else 3)
 
 
+def _swap_setup(session, **factored_ipf):
+    """The set-up of the leg-swap tests: the truth, the calibration, the views, a factored-IPF
+    tracker (default config with ``factored_ipf`` overrides, rng 0), the hip-flexion DOF indices
+    (left, right) and the degrees between the true hip flexions of each frame (T,)."""
+    from gaitcap.tracking.factored_ipf import FactoredIPF
+
+    truth, rig, model = _truth_setup(session)
+    cfg = load_tracking_config()
+    for key, value in factored_ipf.items():
+        setattr(cfg.factored_ipf, key, value)
+    views = tracking_views(rig, cfg.scale)
+    tracker = FactoredIPF(model, SilhouetteLikelihood(views, cfg.beta), cfg, np.random.default_rng(0))
+    hips = (model.dof_index("hip_flexion_l"), model.dof_index("hip_flexion_r"))
+    apart = np.degrees(np.abs(truth.poses[:, hips[0]] - truth.poses[:, hips[1]]))
+    return truth, rig, views, tracker, hips, apart
+
+
+def _on_own_sides(q, true_q, hips) -> tuple[bool, bool]:
+    """Whether the left and the right hip flexion of pose q are nearer their own side's true value
+    than the other side's."""
+    hl, hr = hips
+    return (bool(abs(q[hl] - true_q[hl]) < abs(q[hl] - true_q[hr])),
+            bool(abs(q[hr] - true_q[hr]) < abs(q[hr] - true_q[hl])))  # fmt: skip
+
+
 @pytest.mark.parametrize(("swap_search", "margin", "back"),
                          [("full", 0.0, True), ("legs", 0.0, True), ("legs", 0.01, True), (None, 0.0, False)])
 def test_swap_hypothesis_puts_swapped_legs_back(embedded_session, swap_search, margin, back):
@@ -379,28 +404,16 @@ def test_swap_hypothesis_puts_swapped_legs_back(embedded_session, swap_search, m
     whole chain, or over the legs only; also when it must fit ``swap_margin`` better) wins and
     the legs come back to their sides; without it (None) they stay swapped, so the check can
     fail."""
-    from gaitcap.tracking.factored_ipf import FactoredIPF
-
-    truth, rig, model = _truth_setup(embedded_session.session)
-    cfg = load_tracking_config()
-    cfg.factored_ipf.swap_hypothesis = swap_search is not None
-    cfg.factored_ipf.swap_search = swap_search or "full"
-    cfg.factored_ipf.swap_margin = margin
-    cfg.factored_ipf.swap_fit_drop = None  # the legs' closeness alone calls the mirror
-    views = tracking_views(rig, cfg.scale)
-    lik = SilhouetteLikelihood(views, cfg.beta)
-    hl, hr = model.dof_index("hip_flexion_l"), model.dof_index("hip_flexion_r")
-    apart = np.degrees(np.abs(truth.poses[:, hl] - truth.poses[:, hr]))
+    truth, rig, views, tracker, hips, apart = _swap_setup(
+        embedded_session.session, swap_hypothesis=swap_search is not None, swap_search=swap_search or "full",
+        swap_margin=margin, swap_fit_drop=None)  # the legs' closeness alone calls the mirror
     # close enough for the mirror (swap_within_deg: 25), too far apart for the intervals to bridge
     t = next(i for i in range(5, len(apart)) if 15 < apart[i - 1] < 24 and 15 < apart[i] < 24)
-    tracker = FactoredIPF(model, lik, cfg, np.random.default_rng(0))
     tracker.start(truth.poses[t - 2])  # a tracked frame first: the swap below is not a fresh start's
     tracker.step(observe(views, [truth.mask(c, t - 1) for c in rig.names]))
     tracker.q = tracker._mirrored(truth.poses[t - 1])
     q = tracker.step(observe(views, [truth.mask(c, t) for c in rig.names])).q
-    on_own_side = abs(q[hl] - truth.poses[t, hl]) < abs(q[hl] - truth.poses[t, hr])
-    on_own_side &= abs(q[hr] - truth.poses[t, hr]) < abs(q[hr] - truth.poses[t, hl])
-    assert on_own_side == back
+    assert all(_on_own_sides(q, truth.poses[t], hips)) == back
 
 
 @pytest.mark.parametrize("fresh", [True, False])
@@ -409,17 +422,8 @@ def test_first_frame_after_a_start_weighs_both_leg_assignments(embedded_session,
     first frame searches the mirror too and the legs come back to their sides. The same swapped
     pose reached by tracking (no start, no closeness, no fit drop) stays swapped, so the check can
     fail."""
-    from gaitcap.tracking.factored_ipf import FactoredIPF
-
-    truth, rig, model = _truth_setup(embedded_session.session)
-    cfg = load_tracking_config()
-    cfg.factored_ipf.swap_fit_drop = None
-    views = tracking_views(rig, cfg.scale)
-    lik = SilhouetteLikelihood(views, cfg.beta)
-    hl, hr = model.dof_index("hip_flexion_l"), model.dof_index("hip_flexion_r")
-    apart = np.degrees(np.abs(truth.poses[:, hl] - truth.poses[:, hr]))
-    t = next(i for i in range(3, len(apart)) if min(apart[i - 2 : i + 1]) > cfg.factored_ipf.swap_within_deg + 5)
-    tracker = FactoredIPF(model, lik, cfg, np.random.default_rng(0))
+    truth, rig, views, tracker, hips, apart = _swap_setup(embedded_session.session, swap_fit_drop=None)
+    t = next(i for i in range(3, len(apart)) if min(apart[i - 2 : i + 1]) > tracker.config.factored_ipf.swap_within_deg + 5)
     swapped = tracker._mirrored(truth.poses[t - 1])
     if fresh:
         tracker.start(swapped)
@@ -429,9 +433,7 @@ def test_first_frame_after_a_start_weighs_both_leg_assignments(embedded_session,
         tracker.q = swapped
     assert not tracker._legs_close(swapped)
     q = tracker.step(observe(views, [truth.mask(c, t) for c in rig.names])).q
-    on_own_side = abs(q[hl] - truth.poses[t, hl]) < abs(q[hl] - truth.poses[t, hr])
-    on_own_side &= abs(q[hr] - truth.poses[t, hr]) < abs(q[hr] - truth.poses[t, hl])
-    assert on_own_side == fresh
+    assert all(_on_own_sides(q, truth.poses[t], hips)) == fresh
 
 
 @pytest.mark.parametrize("fit_drop", [0.04, None])
@@ -439,25 +441,15 @@ def test_fit_drop_searches_the_mirror_with_the_legs_apart(embedded_session, fit_
     """Legs swapped while far apart (no mirror by closeness): a first pass fitting worse than the
     recent frames triggers the mirrored search, which puts them back; without the trigger
     (None) they stay swapped, so the check can fail."""
-    from gaitcap.tracking.factored_ipf import FactoredIPF
-
-    truth, rig, model = _truth_setup(embedded_session.session)
-    cfg = load_tracking_config()
-    cfg.factored_ipf.swap_fit_drop = fit_drop
-    views = tracking_views(rig, cfg.scale)
-    lik = SilhouetteLikelihood(views, cfg.beta)
-    hl, hr = model.dof_index("hip_flexion_l"), model.dof_index("hip_flexion_r")
-    apart = np.degrees(np.abs(truth.poses[:, hl] - truth.poses[:, hr]))
-    t = next(i for i in range(8, len(apart)) if min(apart[i - 4 : i + 1]) > cfg.factored_ipf.swap_within_deg + 5)
-    tracker = FactoredIPF(model, lik, cfg, np.random.default_rng(0))
+    truth, rig, views, tracker, hips, apart = _swap_setup(embedded_session.session, swap_fit_drop=fit_drop)
+    t = next(i for i in range(8, len(apart)) if min(apart[i - 4 : i + 1]) > tracker.config.factored_ipf.swap_within_deg + 5)
     tracker.start(truth.poses[t - 4])
     for f in range(t - 3, t):  # recent frames tracked with the legs right: the fit history
         tracker.step(observe(views, [truth.mask(c, f) for c in rig.names]))
     tracker.q = tracker._mirrored(tracker.q)
     assert not tracker._legs_close(tracker.q)
     q = tracker.step(observe(views, [truth.mask(c, t) for c in rig.names])).q
-    on_own_side = abs(q[hl] - truth.poses[t, hl]) < abs(q[hl] - truth.poses[t, hr])
-    assert on_own_side == (fit_drop is not None)
+    assert _on_own_sides(q, truth.poses[t], hips)[0] == (fit_drop is not None)  # the left leg
 
 
 def test_track_with_shape_calibration_records_it(embedded_session, tmp_path):
