@@ -411,29 +411,48 @@ def test_swap_hypothesis_puts_swapped_legs_back(embedded_session, swap_search, m
     t = next(i for i in range(5, len(apart)) if 15 < apart[i - 1] < 24 and 15 < apart[i] < 24)
     tracker.start(truth.poses[t - 2])  # a tracked frame first: the swap below is not a fresh start's
     tracker.step(observe(views, [truth.mask(c, t - 1) for c in rig.names]))
-    tracker.q = tracker._mirrored(truth.poses[t - 1])
+    tracker.q = tracker.mirrored(truth.poses[t - 1])
     q = tracker.step(observe(views, [truth.mask(c, t) for c in rig.names])).q
     assert all(_on_own_sides(q, truth.poses[t], hips)) == back
 
 
-@pytest.mark.parametrize("fresh", [True, False])
+@pytest.mark.parametrize("fresh", [True, False, None])  # None: no start, a tracked frame
 def test_first_frame_after_a_start_weighs_both_leg_assignments(embedded_session, fresh):
     """Started with the legs swapped and far apart (as a shape calibration's start can be), the
     first frame searches the mirror too and the legs come back to their sides. The same swapped
-    pose reached by tracking (no start, no closeness, no fit drop) stays swapped, so the check can
-    fail."""
+    pose reached by tracking (no start, no closeness, no fit drop) stays swapped, and so does a
+    start declared settled (``fresh=False``), so the check can fail."""
     truth, rig, views, tracker, hips, apart = _swap_setup(embedded_session.session, swap_fit_drop=None)
     t = next(i for i in range(3, len(apart)) if min(apart[i - 2 : i + 1]) > tracker.config.factored_ipf.swap_within_deg + 5)
-    swapped = tracker._mirrored(truth.poses[t - 1])
-    if fresh:
-        tracker.start(swapped)
+    swapped = tracker.mirrored(truth.poses[t - 1])
+    if fresh is not None:
+        tracker.start(swapped, fresh=fresh)
     else:
         tracker.start(truth.poses[t - 2])
         tracker.step(observe(views, [truth.mask(c, t - 1) for c in rig.names]))
         tracker.q = swapped
     assert not tracker._legs_close(swapped)
     q = tracker.step(observe(views, [truth.mask(c, t) for c in rig.names])).q
-    assert all(_on_own_sides(q, truth.poses[t], hips)) == fresh
+    assert all(_on_own_sides(q, truth.poses[t], hips)) == bool(fresh)
+
+
+@pytest.mark.parametrize("swapped", [True, False])
+def test_settle_legs_keeps_the_assignment_the_frames_support(embedded_session, swapped):
+    """From a first pose with the legs swapped and apart, tracking the next frames from it and
+    from its mirror picks the mirror (the true assignment); from the true pose, it keeps it. The
+    tracker is left started there, settled (no mirror weighed on its next frame)."""
+    from gaitcap.tracking.init import settle_legs
+
+    truth, rig, views, tracker, hips, apart = _swap_setup(embedded_session.session, swap_fit_drop=None)
+    t = next(i for i in range(len(apart) - 6) if min(apart[i : i + 6]) > tracker.config.factored_ipf.swap_within_deg + 5)
+    start = tracker.mirrored(truth.poses[t]) if swapped else truth.poses[t].copy()
+    assert all(_on_own_sides(start, truth.poses[t], hips)) == (not swapped)
+    frames = [observe(views, [truth.mask(c, f) for c in rig.names]) for f in range(t, t + 6)]
+    q = settle_legs(tracker, frames, start)
+    assert all(_on_own_sides(q, truth.poses[t], hips))
+    np.testing.assert_array_equal(q, tracker.mirrored(start) if swapped else start)  # a start, not a tracked pose
+    np.testing.assert_allclose(tracker.q, tracker.model.clip(q[None])[0])
+    assert not tracker._fresh
 
 
 @pytest.mark.parametrize("fit_drop", [0.04, None])
@@ -446,7 +465,7 @@ def test_fit_drop_searches_the_mirror_with_the_legs_apart(embedded_session, fit_
     tracker.start(truth.poses[t - 4])
     for f in range(t - 3, t):  # recent frames tracked with the legs right: the fit history
         tracker.step(observe(views, [truth.mask(c, f) for c in rig.names]))
-    tracker.q = tracker._mirrored(tracker.q)
+    tracker.q = tracker.mirrored(tracker.q)
     assert not tracker._legs_close(tracker.q)
     q = tracker.step(observe(views, [truth.mask(c, t) for c in rig.names])).q
     assert _on_own_sides(q, truth.poses[t], hips)[0] == (fit_drop is not None)  # the left leg

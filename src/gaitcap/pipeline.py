@@ -39,7 +39,7 @@ from gaitcap.track_summary import TrackSummary, is_finished, write_track_json
 from gaitcap.tracking.condensation import Condensation
 from gaitcap.tracking.config import TrackingConfig, load_tracking_config
 from gaitcap.tracking.factored_ipf import FactoredIPF
-from gaitcap.tracking.init import estimate_height, initialise, subject_positions
+from gaitcap.tracking.init import estimate_height, initialise, settle_legs, subject_positions
 from gaitcap.tracking.ipf import IntervalPF
 from gaitcap.tracking.likelihood import SilhouetteLikelihood
 from gaitcap.tracking.observation import Observation, tracking_views
@@ -212,7 +212,8 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
     """Fit the subject's proportions on the buffered first frames (gaitcap.tracking.shape).
 
     Returns the tracker to use (with the calibrated model), the pose of the first frame under it
-    (None: initialise as usual) and a note for the output's attributes. Skipped, with a warning,
+    (None: initialise as usual; its leg assignment settled over the first ``init.leg_frames``
+    frames with that model, :func:`~gaitcap.tracking.init.settle_legs`) and a note for the output's attributes. Skipped, with a warning,
     when the subject is not in every view of the first frame or the window is too short.
     """
     in_view = all(np.all(o.fractions() >= cfg.quality.min_silhouette_fraction) for o in first)
@@ -222,11 +223,11 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
         return filt, None, "skipped: subject not in view in the first frames"
     try:
         init = initialise(filt, likelihood, views, first[: cfg.init.frames], cfg.init.heading_step_deg,
-                          cfg.init.refine_passes, cfg.init.widen)  # fmt: skip
+                          cfg.init.refine_passes, cfg.init.widen, leg_frames=cfg.init.leg_frames)  # fmt: skip
     except TrackingError as e:
         log.warning("shape calibration skipped: %s", e)
         return filt, None, f"skipped: {e}"
-    filt.start(init.q)
+    filt.start(init.q, fresh=not init.legs_settled)
     poses = [filt.step(o).q for o in first]
     refit_cfg = cfg.model_copy(deep=True)
     refit_cfg.factored_ipf.passes, refit_cfg.factored_ipf.swap_hypothesis = 1, False
@@ -239,8 +240,11 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
     factors = ", ".join(f"{k} x{v:.3f}" for k, v in result.factors.items())
     log.info("shape: %s (mean fit %.3f -> %.3f)", factors, result.fit_before, result.fit_after)
     tracker = TRACKERS[cfg.tracker](result.model, likelihood, cfg, np.random.default_rng(cfg.seed))
+    start = result.start
+    if cfg.init.leg_frames > 1:  # which leg is which, again, with the calibrated model
+        start = settle_legs(tracker, first[: cfg.init.leg_frames], start)
     note = f"{factors}; mean fit {result.fit_before:.4f} -> {result.fit_after:.4f} on {len(first)} frames"
-    return tracker, result.start, note
+    return tracker, start, note
 
 
 def _track_frames(filt, likelihood, views, cfg: TrackingConfig, first, stream: Iterator[Observation],
@@ -275,14 +279,15 @@ def _track_frames(filt, likelihood, views, cfg: TrackingConfig, first, stream: I
             writer.append(est_points, np.full(model.n_points, np.nan), np.full(model.n_dofs, np.nan), np.nan, 0.0, quality)
         else:
             if lost and count == 0 and start is not None:
-                filt.start(start)
+                filt.start(start, fresh=cfg.init.leg_frames < 2)  # settled by _calibrate_shape otherwise
                 lost = False
             if lost:
                 window = pending[count:] if count < len(pending) else [obs]
                 try:
                     init = initialise(filt, likelihood, views, window[: cfg.init.frames] or [obs],
-                                      cfg.init.heading_step_deg, cfg.init.refine_passes, cfg.init.widen)  # fmt: skip
-                    filt.start(init.q)
+                                      cfg.init.heading_step_deg, cfg.init.refine_passes, cfg.init.widen,
+                                      leg_frames=cfg.init.leg_frames)  # fmt: skip
+                    filt.start(init.q, fresh=not init.legs_settled)
                     lost = False
                     log.info("frame %d: subject found (fit %.2f)", count, init.fit)
                 except TrackingError as e:

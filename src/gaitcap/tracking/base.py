@@ -47,11 +47,25 @@ class Tracker:
         self.prior_sigma = config.prior_sigmas(model)
         self.projector = PoseProjector(model, likelihood.views)
         self.q = model.neutral_pose()
+        names = model.dof_names
+        legs = ("hip_", "knee_", "ankle_")
+        #: the left legs' DOF and their right counterparts, index for index
+        self.left_leg = np.array([i for i, n in enumerate(names) if n.endswith("_l") and n.startswith(legs)], int)
+        self.right_leg = np.array([names.index(names[i][:-2] + "_r") for i in self.left_leg], int)
         self._grids: dict[tuple, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}  # grid_offsets' cache
 
-    def start(self, q0: np.ndarray) -> None:
-        """Set the previous estimate (after initialisation or recovery)."""
+    def start(self, q0: np.ndarray, fresh: bool = True) -> None:
+        """Set the previous estimate (after initialisation or recovery). ``fresh``: q0 is a guess
+        whose leg assignment nothing has confirmed yet, so a tracker may weigh the other one on
+        the next frame (factored IPF); False when it was chosen over several frames
+        (:func:`gaitcap.tracking.init.settle_legs`)."""
         self.q = self.model.clip(np.asarray(q0, float)[None])[0]
+
+    def mirrored(self, q: np.ndarray) -> np.ndarray:
+        """Pose q (D,) with the left and right legs' angles exchanged."""
+        out = np.array(q, float, copy=True)
+        out[self.left_leg], out[self.right_leg] = q[self.right_leg], q[self.left_leg]
+        return out
 
     def step(self, obs: Observation) -> Estimate:
         raise NotImplementedError

@@ -20,8 +20,8 @@ from gaitcap.tracking.resampling import normalise_log_weights, systematic
 class Condensation(Tracker):
     name = "condensation"
 
-    def start(self, q0: np.ndarray) -> None:
-        super().start(q0)
+    def start(self, q0: np.ndarray, fresh: bool = True) -> None:
+        super().start(q0, fresh)
         self.X = np.repeat(self.q[None], self.config.condensation.particles, axis=0)
         self.W = np.full(len(self.X), 1.0 / len(self.X))
 

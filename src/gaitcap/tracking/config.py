@@ -61,6 +61,7 @@ class InitConfig(Strict):
     frames: int = Field(default=8, ge=1, le=100)
     refine_passes: int = Field(default=4, ge=0, le=50)
     widen: float = Field(default=2.5, ge=1, le=10)
+    leg_frames: int = Field(default=8, ge=0, le=100)
 
 
 _TARGET = re.compile(r"(?P<inv>1/)?(?P<seg>\w+)\.(?P<axis>[xyz])(\^(?P<power>[-+]?\d+(\.\d*)?))?")

@@ -57,14 +57,10 @@ class FactoredIPF(Tracker):
         self._explored = self.config.explored_dofs(self.model, self.subtrees)
         everything = np.arange(len(self.model.capsule_segment))
         self._outside = [np.setdiff1d(everything, sub.capsules) for sub in self.subtrees]
-        names = self.model.dof_names
-        legs = ("hip_", "knee_", "ankle_")
-        self._left = np.array([i for i, n in enumerate(names) if n.endswith("_l") and n.startswith(legs)])
-        self._right = np.array([names.index(names[i][:-2] + "_r") for i in self._left])
         self._hip_flex = (self.model.dof_index("hip_flexion_l"), self.model.dof_index("hip_flexion_r"))
         self._fits: deque[float] = deque(maxlen=self.config.factored_ipf.swap_fit_frames)  # first-pass fits
         self._fresh = True  # no frame tracked since the last start
-        legs_dofs = np.concatenate([self._left, self._right])
+        legs_dofs = np.concatenate([self.left_leg, self.right_leg])
         self._not_legs = np.setdiff1d(np.arange(self.model.n_dofs), legs_dofs)
         self._root = next(seg.index for seg in self.model.segments if seg.parent < 0)
         #: DOF of the segments attached to the root, re-solved when the root moves alone
@@ -81,10 +77,10 @@ class FactoredIPF(Tracker):
         #: with ``swap_search: legs`` walks the chain from there)
         self._legs_from = min(i for i, s in enumerate(self.order) if np.intersect1d(self._explored[s], legs_dofs).size)
 
-    def start(self, q0: np.ndarray) -> None:
-        super().start(q0)
+    def start(self, q0: np.ndarray, fresh: bool = True) -> None:
+        super().start(q0, fresh)
         self._fits.clear()
-        self._fresh = True  # the next frame weighs both leg assignments of q0 on equal terms
+        self._fresh = fresh  # the next frame weighs both leg assignments of q0 on equal terms
 
     def step(self, obs: Observation, widen: float = 1.0) -> Estimate:
         """Track one frame from the previous estimate and, with ``swap_hypothesis``, also from its
@@ -107,10 +103,12 @@ class FactoredIPF(Tracker):
         0.74-0.76 against 0.85-0.89 before: lower-limb error 65.0 mm; with this, 26.1 mm). The
         mirror replaces the first hypothesis only when it fits ``swap_margin`` better: while the legs
         cross, both assignments fit within a few thousandths and a coin-flip choice swaps them for a
-        frame or two. On the first frame after :meth:`start` (an initialisation, or the restart from
-        the pose the shape calibration left) the mirror is always searched over the whole chain and
-        wins on any better fit, since neither assignment is the previous frame's: a start with the
-        legs swapped and apart would otherwise stand until the legs next cross.
+        frame or two. On the first frame after a fresh :meth:`start` (a pose whose leg assignment
+        no frame has confirmed) the mirror is always searched over the whole chain and wins on any
+        better fit, since neither assignment is the previous frame's: a start with the legs swapped
+        and apart would otherwise stand until the legs next cross. (The pipeline's starts are
+        settled over several frames instead, :func:`gaitcap.tracking.init.settle_legs`: one frame
+        can prefer the swap.)
 
         A first pass that still fits ``swap_fit_drop`` below the recent frames is searched again
         on widened intervals (``recover_widen``, :meth:`_recover`).
@@ -120,9 +118,9 @@ class FactoredIPF(Tracker):
         best, spreads = self._search(obs, start, widen, 0, 1)
         dropped = self._fit_dropped(best.fit)
         fresh, self._fresh = self._fresh or widen > 1.0, False
-        if cfg.swap_hypothesis and (fresh or self._legs_close(start) or dropped):  # always after a start
+        if cfg.swap_hypothesis and (fresh or self._legs_close(start) or dropped):  # always after a fresh start
             # both hypotheses get the first pass; the further passes refine the winner only
-            mirrored = self._mirrored(start)
+            mirrored = self.mirrored(start)
             if cfg.swap_search == "legs" and not fresh and not dropped:
                 # the nodes before the legs as the first hypothesis placed them, the legs mirrored
                 mirrored[self._not_legs] = best.q[self._not_legs]
@@ -143,12 +141,6 @@ class FactoredIPF(Tracker):
         self.q = best.q
         return best
 
-    def _mirrored(self, q: np.ndarray) -> np.ndarray:
-        """Pose q (D,) with the left and right legs' angles exchanged."""
-        out = q.copy()
-        out[self._left], out[self._right] = q[self._right], q[self._left]
-        return out
-
     def _recover(self, obs: Observation, start: np.ndarray, best: Estimate) -> Estimate:
         """A first pass that still fits ``swap_fit_drop`` below the recent frames after the mirrored
         hypothesis: search the whole chain again from the previous estimate and (with
@@ -157,7 +149,7 @@ class FactoredIPF(Tracker):
         and pull the fit down for many frames); the best first pass is kept."""
         cfg = self.config.factored_ipf
         evaluations = best.evaluations
-        for q0 in (start, self._mirrored(start))[: 2 if cfg.swap_hypothesis else 1]:
+        for q0 in (start, self.mirrored(start))[: 2 if cfg.swap_hypothesis else 1]:
             other, _ = self._search(obs, q0, cfg.recover_widen, 0, 1)
             evaluations += other.evaluations
             best = other if other.fit > best.fit else best
