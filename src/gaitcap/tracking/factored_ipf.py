@@ -58,6 +58,10 @@ class FactoredIPF(Tracker):
         everything = np.arange(len(self.model.capsule_segment))
         self._outside = [np.setdiff1d(everything, sub.capsules) for sub in self.subtrees]
         self._hip_flex = (self.model.dof_index("hip_flexion_l"), self.model.dof_index("hip_flexion_r"))
+        self._knee_flex = (self.model.dof_index("knee_flexion_l"), self.model.dof_index("knee_flexion_r"))
+        names = self.model.dof_names
+        self._ankle_l = np.array([i for i in self.left_leg if names[i].startswith("ankle_")], int)
+        self._ankle_r = np.array([i for i in self.right_leg if names[i].startswith("ankle_")], int)
         self._fits: deque[float] = deque(maxlen=self.config.factored_ipf.swap_fit_frames)  # first-pass fits
         self._fresh = True  # no frame tracked since the last start
         legs_dofs = np.concatenate([self.left_leg, self.right_leg])
@@ -110,6 +114,10 @@ class FactoredIPF(Tracker):
         settled over several frames instead, :func:`gaitcap.tracking.init.settle_legs`: one frame
         can prefer the swap.)
 
+        With ``swap_shanks``, while the legs are close a third hypothesis keeps the thighs and
+        exchanges the shanks and feet (:meth:`_shanks_exchanged`), walked from the legs like the
+        mirror: legs that crossed below the knees only.
+
         A first pass that still fits ``swap_fit_drop`` below the recent frames is searched again
         on widened intervals (``recover_widen``, :meth:`_recover`).
         """
@@ -129,6 +137,13 @@ class FactoredIPF(Tracker):
             else:
                 other, _ = self._search(obs, mirrored, widen, 0, 1)
             evaluations = best.evaluations + other.evaluations
+            if cfg.swap_shanks and not fresh and not dropped and self._legs_close(start):
+                crossed = self._shanks_exchanged(start)
+                crossed[self._not_legs] = best.q[self._not_legs]
+                before = np.sum(spreads[: self._legs_from], axis=0)
+                third, _ = self._search(obs, crossed, widen, 0, 1, from_node=self._legs_from, variance=before)
+                evaluations += third.evaluations
+                other = third if third.fit > other.fit else other
             best = other if other.fit > best.fit + (0.0 if fresh else cfg.swap_margin) else best
             best.evaluations = evaluations
         if cfg.recover_widen is not None and widen <= 1.0 and self._fit_dropped(best.fit):
@@ -140,6 +155,18 @@ class FactoredIPF(Tracker):
             best = refined
         self.q = best.q
         return best
+
+    def _shanks_exchanged(self, q: np.ndarray) -> np.ndarray:
+        """Pose q (D,) with the thighs kept and the shanks and feet exchanged: each knee flexion set so
+        that its shank takes the other shank's sagittal angle (hip flexion - knee flexion), the
+        ankles' angles exchanged. The legs can cross below the knees only (the thighs on their own
+        sides, the ankles on the other's): the whole-leg mirror cannot undo that."""
+        out = q.copy()
+        (hl, hr), (kl, kr) = self._hip_flex, self._knee_flex
+        gap = q[hl] - q[hr]
+        out[kl], out[kr] = q[kr] + gap, q[kl] - gap
+        out[self._ankle_l], out[self._ankle_r] = q[self._ankle_r], q[self._ankle_l]
+        return self.model.clip(out[None])[0]
 
     def _recover(self, obs: Observation, start: np.ndarray, best: Estimate) -> Estimate:
         """A first pass that still fits ``swap_fit_drop`` below the recent frames after the mirrored
