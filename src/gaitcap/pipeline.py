@@ -213,8 +213,9 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
 
     Returns the tracker to use (with the calibrated model), the pose of the first frame under it
     (None: initialise as usual; its leg assignment settled over the first ``init.leg_frames``
-    frames with that model, :func:`~gaitcap.tracking.init.settle_legs`) and a note for the output's attributes. Skipped, with a warning,
-    when the subject is not in every view of the first frame or the window is too short.
+    frames with that model, :func:`~gaitcap.tracking.init.settle_legs`) and a note for the
+    output's attributes. Skipped, with a warning, when the subject is not in every view of the
+    first frame or the window is too short.
     """
     in_view = all(np.all(o.fractions() >= cfg.quality.min_silhouette_fraction) for o in first)
     if not in_view or len(first) < 2:
