@@ -12,7 +12,7 @@
    cannot tell: seen from the side, the two assignments of legs that are apart fit within a few
    hundredths once the pelvis and the hips have compensated, while a swap shows over the frames
    that follow (on the Vicon walk, tracker seed 25, a start swapped on one frame's evidence fit
-   0.81-0.85 for 16 frames, against 0.87-0.91 once undone where the legs crossed).
+   0.76-0.85 for 16 frames, against 0.87-0.91 once undone where the legs crossed).
 """
 
 from __future__ import annotations
