@@ -130,18 +130,12 @@ class FactoredIPF(Tracker):
             # both hypotheses get the first pass; the further passes refine the winner only
             mirrored = self.mirrored(start)
             if cfg.swap_search == "legs" and not fresh and not dropped:
-                # the nodes before the legs as the first hypothesis placed them, the legs mirrored
-                mirrored[self._not_legs] = best.q[self._not_legs]
-                before = np.sum(spreads[: self._legs_from], axis=0)
-                other, _ = self._search(obs, mirrored, widen, 0, 1, from_node=self._legs_from, variance=before)
+                other = self._search_legs(obs, mirrored, best, spreads, widen)
             else:
                 other, _ = self._search(obs, mirrored, widen, 0, 1)
             evaluations = best.evaluations + other.evaluations
             if cfg.swap_shanks and not fresh and not dropped and self._legs_close(start):
-                crossed = self._shanks_exchanged(start)
-                crossed[self._not_legs] = best.q[self._not_legs]
-                before = np.sum(spreads[: self._legs_from], axis=0)
-                third, _ = self._search(obs, crossed, widen, 0, 1, from_node=self._legs_from, variance=before)
+                third = self._search_legs(obs, self._shanks_exchanged(start), best, spreads, widen)
                 evaluations += third.evaluations
                 other = third if third.fit > other.fit else other
             best = other if other.fit > best.fit + (0.0 if fresh else cfg.swap_margin) else best
@@ -155,6 +149,16 @@ class FactoredIPF(Tracker):
             best = refined
         self.q = best.q
         return best
+
+    def _search_legs(self, obs: Observation, legs: np.ndarray, first: Estimate, spreads: list[np.ndarray],
+                     widen: float) -> Estimate:  # fmt: skip
+        """A first pass over the leg nodes only, from the legs' angles of pose ``legs`` (D,) with the
+        nodes before them where the first hypothesis ``first`` placed them (``spreads``: its nodes'
+        contributions to the points' variance, in the order walked)."""
+        q = legs.copy()
+        q[self._not_legs] = first.q[self._not_legs]
+        before = np.sum(spreads[: self._legs_from], axis=0)
+        return self._search(obs, q, widen, 0, 1, from_node=self._legs_from, variance=before)[0]
 
     def _shanks_exchanged(self, q: np.ndarray) -> np.ndarray:
         """Pose q (D,) with the thighs kept and the shanks and feet exchanged: each knee flexion set so
