@@ -389,6 +389,14 @@ def _swap_setup(session, **factored_ipf):
     return truth, rig, views, tracker, hips, apart
 
 
+def _previous_estimate(tracker, truth, views, rig, t: int, q) -> None:
+    """Track frame t - 1 from the true pose of t - 2 (so that frame t is not a fresh start's first,
+    and the tracker has a fit history of one frame), then make q the previous estimate."""
+    tracker.start(truth.poses[t - 2])
+    tracker.step(observe(views, [truth.mask(c, t - 1) for c in rig.names]))
+    tracker.q = q
+
+
 def _on_own_sides(q, true_q, hips) -> tuple[bool, bool]:
     """Whether the left and the right hip flexion of pose q are nearer their own side's true value
     than the other side's."""
@@ -409,9 +417,7 @@ def test_swap_hypothesis_puts_swapped_legs_back(embedded_session, swap_search, m
         swap_margin=margin, swap_fit_drop=None)  # the legs' closeness alone calls the mirror
     # close enough for the mirror (swap_within_deg: 25), too far apart for the intervals to bridge
     t = next(i for i in range(5, len(apart)) if 15 < apart[i - 1] < 24 and 15 < apart[i] < 24)
-    tracker.start(truth.poses[t - 2])  # a tracked frame first: the swap below is not a fresh start's
-    tracker.step(observe(views, [truth.mask(c, t - 1) for c in rig.names]))
-    tracker.q = tracker.mirrored(truth.poses[t - 1])
+    _previous_estimate(tracker, truth, views, rig, t, tracker.mirrored(truth.poses[t - 1]))  # not a fresh start
     q = tracker.step(observe(views, [truth.mask(c, t) for c in rig.names])).q
     assert all(_on_own_sides(q, truth.poses[t], hips)) == back
 
@@ -428,9 +434,7 @@ def test_first_frame_after_a_start_weighs_both_leg_assignments(embedded_session,
     if fresh is not None:
         tracker.start(swapped, fresh=fresh)
     else:
-        tracker.start(truth.poses[t - 2])
-        tracker.step(observe(views, [truth.mask(c, t - 1) for c in rig.names]))
-        tracker.q = swapped
+        _previous_estimate(tracker, truth, views, rig, t, swapped)
     assert not tracker._legs_close(swapped)
     q = tracker.step(observe(views, [truth.mask(c, t) for c in rig.names])).q
     assert all(_on_own_sides(q, truth.poses[t], hips)) == bool(fresh)
@@ -492,9 +496,7 @@ def test_shank_hypothesis_uncrosses_legs_crossed_below_the_knees(embedded_sessio
     model = tracker.model
     ankles = (model.point_names.index("ankle_l"), model.point_names.index("ankle_r"))
     t = next(i for i in range(5, len(apart)) if apart[i - 1] < 20 and apart[i] < 20)
-    tracker.start(truth.poses[t - 2])  # a tracked frame first: not a fresh start
-    tracker.step(observe(views, [truth.mask(c, t - 1) for c in rig.names]))
-    tracker.q = tracker._shanks_exchanged(truth.poses[t - 1])
+    _previous_estimate(tracker, truth, views, rig, t, tracker._shanks_exchanged(truth.poses[t - 1]))  # not a fresh start
     est = tracker.step(observe(views, [truth.mask(c, t) for c in rig.names]))
     true_points = model.forward(truth.poses[t][None])[0]
     own = [np.linalg.norm(est.points[a] - true_points[a]) for a in ankles]
