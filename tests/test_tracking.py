@@ -459,6 +459,22 @@ def test_settle_legs_keeps_the_assignment_the_frames_support(embedded_session, s
     assert not tracker._fresh
 
 
+@pytest.mark.parametrize("mirror", [False, True])
+def test_initialise_reports_the_fit_of_the_pose_it_returns(embedded_session, monkeypatch, mirror):
+    """InitResult.fit is the fit of InitResult.q on the first frame, also when settling the legs
+    picks the leg-swapped mirror (forced here) of the refined pose."""
+    import gaitcap.tracking.init as init_module
+
+    truth, rig, views, tracker, hips, apart = _swap_setup(embedded_session.session)
+    frames = [observe(views, [truth.mask(c, f) for c in rig.names]) for f in range(8)]
+    monkeypatch.setattr(init_module, "settle_legs", lambda tr, obs, q: tr.mirrored(q) if mirror else q.copy())
+    result = init_module.initialise(tracker, tracker.likelihood, views, frames, 15, 1, 2.5, leg_frames=8)
+    assert result.legs_settled
+    assert result.fit == pytest.approx(tracker.full_fit(frames[0], result.q)[1], abs=1e-12)
+    other = tracker.full_fit(frames[0], tracker.mirrored(result.q))[1]
+    assert abs(other - result.fit) > 1e-3  # the two assignments fit differently: reporting the wrong one shows
+
+
 def test_shanks_exchanged_keeps_the_thighs_and_swaps_the_shanks_angles(embedded_session):
     """The crossed-shanks hypothesis: hips and everything but the knees and ankles unchanged, each
     shank's sagittal angle (hip flexion - knee flexion) the other's, the ankles exchanged; done

@@ -172,9 +172,9 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
         log.warning("subject height not given: estimated %.2f m from the silhouettes (give --height for accuracy)", height)
     model = load_body_model(height_m=height)
     filt = TRACKERS[cfg.tracker](model, likelihood, cfg, np.random.default_rng(cfg.seed))
-    start, shape_note = None, "off"
+    start, settled, shape_note = None, False, "off"
     if cfg.shape.enabled:
-        filt, start, shape_note = _calibrate_shape(filt, likelihood, views, cfg, first)
+        filt, start, settled, shape_note = _calibrate_shape(filt, likelihood, views, cfg, first)
     attrs = {"config": yaml.safe_dump(cfg.model_dump(), sort_keys=False), "tracker": cfg.tracker,
              "height_m": float(height), "height_source": height_source, "session": str(session),
              "shape": shape_note}  # fmt: skip
@@ -182,7 +182,7 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
     timing = FrameTiming()
     try:
         tracked = _track_frames(filt, likelihood, views, cfg, first, stream, writer, n_frames, progress, timing,
-                                on_frame, start)  # fmt: skip
+                                on_frame, start, settled)  # fmt: skip
         raw, quality = writer.read_back()
         if not np.any((quality == QUALITY_OK) | (quality == QUALITY_POOR_FIT)):
             raise TrackingError(
@@ -212,22 +212,22 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
     """Fit the subject's proportions on the buffered first frames (gaitcap.tracking.shape).
 
     Returns the tracker to use (with the calibrated model), the pose of the first frame under it
-    (None: initialise as usual; its leg assignment settled over the first ``init.leg_frames``
-    frames with that model, :func:`~gaitcap.tracking.init.settle_legs`) and a note for the
-    output's attributes. Skipped, with a warning, when the subject is not in every view of the
-    first frame or the window is too short.
+    (None: initialise as usual), whether that pose's leg assignment was settled over the first
+    ``init.leg_frames`` frames with that model (:func:`~gaitcap.tracking.init.settle_legs`) and a
+    note for the output's attributes. Skipped, with a warning, when the subject is not in every
+    view of the first frame or the window is too short.
     """
     in_view = all(np.all(o.fractions() >= cfg.quality.min_silhouette_fraction) for o in first)
     if not in_view or len(first) < 2:
         log.warning("shape calibration skipped: the subject is not in every view of the first %d frames; "
                     "tracking with the proportions of body.yaml", len(first))  # fmt: skip
-        return filt, None, "skipped: subject not in view in the first frames"
+        return filt, None, False, "skipped: subject not in view in the first frames"
     try:
         init = initialise(filt, likelihood, views, first[: cfg.init.frames], cfg.init.heading_step_deg,
                           cfg.init.refine_passes, cfg.init.widen, leg_frames=cfg.init.leg_frames)  # fmt: skip
     except TrackingError as e:
         log.warning("shape calibration skipped: %s", e)
-        return filt, None, f"skipped: {e}"
+        return filt, None, False, f"skipped: {e}"
     filt.start(init.q, fresh=not init.legs_settled)
     poses = [filt.step(o).q for o in first]
     refit_cfg = cfg.model_copy(deep=True)
@@ -242,18 +242,20 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
     log.info("shape: %s (mean fit %.3f -> %.3f)", factors, result.fit_before, result.fit_after)
     tracker = TRACKERS[cfg.tracker](result.model, likelihood, cfg, np.random.default_rng(cfg.seed))
     start = result.start
-    if cfg.init.leg_frames > 1:  # which leg is which, again, with the calibrated model
+    settled = cfg.init.leg_frames > 1
+    if settled:  # which leg is which, again, with the calibrated model
         start = settle_legs(tracker, first[: cfg.init.leg_frames], start)
     note = f"{factors}; mean fit {result.fit_before:.4f} -> {result.fit_after:.4f} on {len(first)} frames"
-    return tracker, start, note
+    return tracker, start, settled, note
 
 
 def _track_frames(filt, likelihood, views, cfg: TrackingConfig, first, stream: Iterator[Observation],
                   writer: TrackWriter, n_frames: int, progress: bool, timing: FrameTiming, on_frame,
-                  start=None) -> int:  # fmt: skip
+                  start=None, settled: bool = False) -> int:  # fmt: skip
     """The per-frame loop (streaming): observe, (re)initialise, track, flag, append. ``start``: the
-    first frame's pose when already known (shape calibration). ``timing.total_s`` also counts the
-    time spent waiting for the next observation."""
+    first frame's pose when already known (shape calibration); ``settled``: whether its leg
+    assignment was settled over several frames (else the first frame weighs its mirror too).
+    ``timing.total_s`` also counts the time spent waiting for the next observation."""
     model = filt.model
     bar = tqdm(total=n_frames, desc=f"tracking ({cfg.tracker})", unit="frame", disable=not progress, leave=False)
     lost = True
@@ -280,7 +282,7 @@ def _track_frames(filt, likelihood, views, cfg: TrackingConfig, first, stream: I
             writer.append(est_points, np.full(model.n_points, np.nan), np.full(model.n_dofs, np.nan), np.nan, 0.0, quality)
         else:
             if lost and count == 0 and start is not None:
-                filt.start(start, fresh=cfg.init.leg_frames < 2)  # settled by _calibrate_shape otherwise
+                filt.start(start, fresh=not settled)
                 lost = False
             if lost:
                 window = pending[count:] if count < len(pending) else [obs]

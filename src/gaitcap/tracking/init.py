@@ -38,7 +38,7 @@ class InitResult:
     q: np.ndarray  # (D,) pose at the first observation
     heading_rad: float
     walking_direction_known: bool
-    fit: float
+    fit: float  # of q against observations[0] (1 - xor/|S|, mean over the cameras)
     #: whether the leg assignment of q was chosen over several frames (:func:`settle_legs`)
     legs_settled: bool = False
 
@@ -171,7 +171,10 @@ def initialise(
     fit, q = best
     settled = leg_frames > 1 and len(observations) > 1
     if settled:
-        q = settle_legs(tracker, observations[:leg_frames], q)
+        kept = settle_legs(tracker, observations[:leg_frames], q)
+        if not np.array_equal(kept, q):  # the mirror: its own fit, not the refined pose's
+            fit = tracker.full_fit(obs, kept)[1]
+        q = kept
     heading = float(q[model.dof_index("pelvis_rotation")])
     return InitResult(q=q, heading_rad=heading, walking_direction_known=known, fit=fit, legs_settled=settled)
 
