@@ -314,6 +314,35 @@ def test_shape_calibration_moves_a_wrong_thigh_towards_the_truth(embedded_sessio
     assert result.start.shape == (31,)
 
 
+def test_shape_rounds_after_the_first_start_from_the_window_tracked_again(embedded_session):
+    """With ``retrack``, the window is tracked again before each round of steps but the first,
+    with the model the rounds so far found (here the first round lengthened a thigh 15 % too
+    short by one step of 8 %), from the first frame's re-fitted pose."""
+    from gaitcap.tracking.shape import calibrate_shape
+
+    truth, rig, true_model = _truth_setup(embedded_session.session)
+    views, make_tracker = _refit_tracker(rig, 60, 150)
+    scales = {k: v.copy() for k, v in true_model.scales.items()}
+    for side in "lr":
+        scales[f"thigh_{side}"][2] *= 0.85
+    wrong = true_model.with_proportions(scales, true_model.shifts)
+    frames = [10, 14, 18]
+    obs = [observe(views, [truth.mask(c, t) for c in rig.names]) for t in frames]
+    calls = []
+
+    def retrack(model, q0):
+        calls.append((model.scales["thigh_l"][2] / wrong.scales["thigh_l"][2], q0.shape))
+        return [truth.poses[t] for t in frames]
+
+    result = calibrate_shape(wrong, make_tracker, obs, [truth.poses[t] for t in frames],
+                             {"thigh_length": ["thigh_l.z", "thigh_r.z"]}, steps=[0.08, 0.04, 0.04], bounds=(0.7, 1.4),
+                             samples=3, max_moves=1, retrack=retrack)  # fmt: skip
+    assert len(calls) == 2 and all(shape == (31,) for _, shape in calls)
+    assert calls[0][0] == pytest.approx(1.08)
+    assert calls[1][0] in (pytest.approx(1.08 * 0.96), pytest.approx(1.08), pytest.approx(1.08 * 1.04))
+    assert result.fit_after >= result.fit_before
+
+
 def test_random_shape_moves_only_ever_raise_the_fit(embedded_session):
     """The random stage after the coordinate search (every parameter moved at once) keeps a move
     only when it fits better: from a leg 12 % too short in both segments it lengthens the leg, it
@@ -538,7 +567,7 @@ def test_fit_drop_searches_the_mirror_with_the_legs_apart(embedded_session, fit_
 
 def test_track_with_shape_calibration_records_it(embedded_session, tmp_path):
     data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
-    data["shape"].update(enabled=True, frames=6, samples=2, steps=[0.08])
+    data["shape"].update(enabled=True, frames=6, samples=2, steps=[0.08, 0.04])  # a re-tracked second round
     data["shape"]["parameters"] = {"thigh_length": ["thigh_l.z", "thigh_r.z"]}
     data["factored_ipf"].update(particles=60, root_particles=150)
     config = tmp_path / "tracking.yaml"

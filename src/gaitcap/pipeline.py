@@ -233,10 +233,17 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
     refit_cfg = cfg.model_copy(deep=True)
     refit_cfg.factored_ipf.passes, refit_cfg.factored_ipf.swap_hypothesis = 1, False
     refit_cfg.factored_ipf.particles, refit_cfg.factored_ipf.root_particles = cfg.shape.refit_particles
+
+    def retrack(model, q0: np.ndarray) -> list[np.ndarray]:
+        tracker = TRACKERS[cfg.tracker](model, likelihood, cfg, np.random.default_rng(cfg.seed))
+        tracker.start(q0, fresh=not init.legs_settled)  # the legs as the first round had them
+        return [tracker.step(o).q for o in first]
+
     result = calibrate_shape(
         filt.model, lambda m: FactoredIPF(m, likelihood, refit_cfg, np.random.default_rng(cfg.seed)), first, poses,
         cfg.shape.parameters, cfg.shape.steps, cfg.shape.bounds, cfg.shape.samples, cfg.seed, cfg.shape.max_moves,
         cfg.shape.planted, cfg.shape.random_candidates, cfg.shape.random_sigma,
+        retrack if cfg.shape.retrack else None,
     )  # fmt: skip
     factors = ", ".join(f"{k} x{v:.3f}" for k, v in result.factors.items())
     log.info("shape: %s (mean fit %.3f -> %.3f)", factors, result.fit_before, result.fit_after)

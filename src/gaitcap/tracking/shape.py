@@ -20,7 +20,9 @@ proportions halves the lower-limb error. So, once the subject is found:
    so that its lowest point (a sole) stays where it was, and the better of the two F counts: a
    longer leg then raises the hips instead of pushing the feet through the floor, a move the
    re-fit's root interval (a few cm) cannot make from x_k (a parameter that leaves the soles
-   where they were, |Δz_k| <= 0.1 mm, is re-fitted once);
+   where they were, |Δz_k| <= 0.1 mm, is re-fitted once). With ``retrack``, every round but
+   the first starts from the window tracked again with the shape found so far (x_k re-estimated
+   from the first frame's pose: the re-fits' single pass cannot undo poses a wrong shape bent);
 3. ``random_candidates`` random moves of every parameter at once, p_j exp(σ z_j), z_j ~ N(0, 1),
    each scored from the planted poses only; a candidate that scores better replaces the current
    shape and poses ((1+1) evolution strategy, fixed σ, its own seeded stream). F is not
@@ -102,11 +104,14 @@ def calibrate_shape(
     planted: bool = False,
     random_candidates: int = 0,
     random_sigma: float = 0.04,
+    retrack: Callable[[BodyModel, np.ndarray], list[np.ndarray]] | None = None,
 ) -> ShapeResult:
     """Coordinate search, then random search, of the shape ``parameters`` (module docstring).
 
     ``observations`` and ``poses`` are the tracked calibration window (same length); ``make_tracker``
-    builds the re-fitting tracker (a single factored pass) for a candidate model.
+    builds the re-fitting tracker (a single factored pass) for a candidate model. ``retrack``
+    (model, first frame's pose (D,)) -> the window's poses: called before every round of
+    ``steps`` but the first, so that the round starts from poses tracked with the shape so far.
     """
     if len(observations) != len(poses) or not observations:
         raise ValueError("calibrate_shape needs one pose per observation")
@@ -150,7 +155,11 @@ def calibrate_shape(
     def try_factor(name: str, f: float) -> tuple[float, list[np.ndarray]] | None:
         return try_factors({**factors, name: f})
 
-    for delta in steps:
+    for round_index, delta in enumerate(steps):
+        if round_index > 0 and retrack is not None:  # poses tracked with the shape found so far
+            now = _scaled(model, parameters, factors)
+            window = retrack(now, current[0])
+            best_fit, current = refit(now, [window[i] for i in pick])
         for name in parameters:
             trial_best = None  # (fit, factor, direction, poses) of the better improving neighbour
             for direction in (-1, 1):
