@@ -567,7 +567,7 @@ def test_fit_drop_searches_the_mirror_with_the_legs_apart(embedded_session, fit_
 
 def test_track_with_shape_calibration_records_it(embedded_session, tmp_path):
     data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
-    data["shape"].update(enabled=True, frames=6, samples=2, steps=[0.08, 0.04])  # a re-tracked second round
+    data["shape"].update(enabled=True, frames=6, samples=2, steps=[0.08, 0.04], retrack=True)  # a re-tracked round
     data["shape"]["parameters"] = {"thigh_length": ["thigh_l.z", "thigh_r.z"]}
     data["factored_ipf"].update(particles=60, root_particles=150)
     config = tmp_path / "tracking.yaml"
