@@ -14,7 +14,9 @@ Prints one markdown table, a row per tracker x budget x session:
   short runs), end-to-end ms/frame: wall time of run_track / frames (silhouettes, observation,
   tracking, outputs);
 - lower-limb MPJPE (hips, knees, ankles) and heel/toe error in mm, on the frames not flagged;
-- knee flexion RMSE in degrees (gaitcap.gait.angles on both, left and right pooled);
+- knee flexion RMSE in degrees (gaitcap.gait.angles on both, left and right pooled) and its bias,
+  the mean of estimate - truth (RMSE^2 = bias^2 + the difference's variance: a systematic error,
+  e.g. knees bent in stance because the calibrated legs and hips disagree, shows here);
 - % frames flagged (NaN in /points), left/right swap frames (gaitcap.evaluation.metrics.swap_mask)
   and the longest run of them.
 
@@ -46,7 +48,7 @@ import yaml
 
 from gaitcap.config import default_config_path
 from gaitcap.evaluation.compare import align
-from gaitcap.evaluation.metrics import angle_rmse_deg, group_errors, point_distances_mm, runs, swap_mask
+from gaitcap.evaluation.metrics import angle_bias_deg, angle_rmse_deg, group_errors, point_distances_mm, runs, swap_mask
 from gaitcap.evaluation.report import read_tracked, read_truth_trajectory
 from gaitcap.gait.angles import joint_angles
 from gaitcap.gait.events import estimate_walking_direction
@@ -81,6 +83,7 @@ class Row:
     lower_mm: float
     foot_mm: float
     knee_rmse_deg: float
+    knee_bias_deg: float
     flagged_pct: float
     swaps: int
     longest_swap: int
@@ -174,14 +177,14 @@ def measure(out: Path, session: Path) -> dict[str, float]:
     direction = estimate_walking_direction(truth)
     est_angles, _ = joint_angles(a.trajectory("est", mask_invalid=True), direction)
     ref_angles, _ = joint_angles(a.trajectory("ref"), direction)
-    knee, _ = angle_rmse_deg(
-        np.concatenate([est_angles["knee_flexion_l"], est_angles["knee_flexion_r"]]),
-        np.concatenate([ref_angles["knee_flexion_l"], ref_angles["knee_flexion_r"]]),
-    )
+    est_knee = np.concatenate([est_angles["knee_flexion_l"], est_angles["knee_flexion_r"]])
+    ref_knee = np.concatenate([ref_angles["knee_flexion_l"], ref_angles["knee_flexion_r"]])
+    knee, _ = angle_rmse_deg(est_knee, ref_knee)
     return {
         "lower_mm": lower.get("mpjpe_mm", math.nan),
         "foot_mm": foot.get("mpjpe_mm", math.nan),
         "knee_rmse_deg": knee,
+        "knee_bias_deg": angle_bias_deg(est_knee, ref_knee)[0],
         "flagged_pct": 100.0 * float(a.flagged.mean()),
         "swaps": int(swapped.sum()),
         "longest_swap": max((b - a_ for a_, b in runs(swapped)), default=0),
@@ -224,14 +227,14 @@ def summarise(rows: list[Row]) -> list[Summary]:
 
 def print_table(rows: list[Summary]) -> None:
     print("| tracker | budget | session | seeds | frames | tracking ms/frame | first frame s | end-to-end ms/frame "
-          "| lower-limb MPJPE mm | heel/toe mm | knee flexion RMSE deg | % flagged | swap frames | longest swap |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "| lower-limb MPJPE mm | heel/toe mm | knee flexion RMSE deg | knee bias deg | % flagged | swap frames | longest swap |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         swaps = max(x.swaps for x in r.runs)
         longest = max(x.longest_swap for x in r.runs)
         print(f"| {r.tracker} | {r.budget} | {r.session} | {len(r.runs)} | {r.runs[0].frames} | {r.cell('tracking_ms', 0)} "
               f"| {r.cell('first_s')} | {r.cell('total_ms', 0)} | {r.cell('lower_mm')} | {r.cell('foot_mm')} "
-              f"| {r.cell('knee_rmse_deg')} | {r.cell('flagged_pct')} | {swaps} | {longest} |")
+              f"| {r.cell('knee_rmse_deg')} | {r.cell('knee_bias_deg')} | {r.cell('flagged_pct')} | {swaps} | {longest} |")
 
 
 def ratio_lines(rows: list[Summary]) -> list[str]:

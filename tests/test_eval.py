@@ -12,7 +12,7 @@ from gaitcap.cli.main import cli
 from gaitcap.data import embedded_walk
 from gaitcap.errors import InputError
 from gaitcap.evaluation import Thresholds, check_thresholds, evaluate
-from gaitcap.evaluation.metrics import angle_rmse_deg, match_events, runs, swap_mask
+from gaitcap.evaluation.metrics import angle_bias_deg, angle_rmse_deg, match_events, runs, swap_mask
 from gaitcap.io.trajectories_h5 import write_trajectory
 from gaitcap.synth.session import SynthOptions, synthesize
 from gaitcap.synth.truth import read_truth
@@ -152,6 +152,14 @@ def test_angle_error_is_measured(truth):
 def test_metric_helpers():
     assert angle_rmse_deg(np.array([359.0, 10.0, np.nan]), np.array([1.0, 10.0, 5.0])) == (pytest.approx(math.sqrt(2)), 2)
     assert runs(np.array([0, 1, 1, 0, 1], bool)) == [(1, 3), (4, 5)]
+    # the bias is the mean wrapped difference, and RMSE^2 = bias^2 + variance of the difference
+    assert angle_bias_deg(np.array([359.0, 10.0, np.nan]), np.array([1.0, 10.0, 5.0])) == (pytest.approx(-1.0), 2)
+    rng = np.random.default_rng(3)
+    ref_angle = rng.uniform(-10, 70, 200)
+    est_angle = ref_angle + 4.0 + rng.normal(0, 2, 200)
+    bias, n = angle_bias_deg(est_angle, ref_angle)
+    assert n == 200 and bias == pytest.approx(np.mean(est_angle - ref_angle))
+    assert angle_rmse_deg(est_angle, ref_angle)[0] ** 2 == pytest.approx(bias**2 + np.var(est_angle - ref_angle))
     ref = [GaitEvent(1.0, "left", "foot_strike"), GaitEvent(2.0, "left", "foot_strike"), GaitEvent(1.5, "right", "foot_off")]
     det = [GaitEvent(1.04, "left", "foot_strike"), GaitEvent(1.5, "left", "foot_off"), GaitEvent(1.9, "left", "foot_strike")]
     matches, missed, extra = match_events(det, ref, 0.25)

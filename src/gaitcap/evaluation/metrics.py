@@ -116,6 +116,14 @@ def angle_rmse_deg(est: np.ndarray, ref: np.ndarray) -> tuple[float, int]:
     return (float(np.sqrt(np.mean(d**2))) if len(d) else math.nan), len(d)
 
 
+def angle_bias_deg(est: np.ndarray, ref: np.ndarray) -> tuple[float, int]:
+    """Mean of the wrapped difference est - ref of two (T,) angle series in degrees (the systematic
+    part of :func:`angle_rmse_deg`: RMSE^2 = bias^2 + variance of the difference), and the frames used."""
+    d = wrap_deg(np.asarray(est) - np.asarray(ref))
+    d = d[np.isfinite(d)]
+    return (float(np.mean(d)) if len(d) else math.nan), len(d)
+
+
 @dataclass(frozen=True)
 class EventMatch:
     """A detected event matched to a reference event (error = detected - reference)."""
