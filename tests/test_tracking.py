@@ -624,7 +624,8 @@ def test_root_refined_alone_corrects_a_turned_pelvis(embedded_session):
     """A pelvis turned 12 degrees under legs and trunk that are right (as a first pass leaves it
     when the turn explained a stride): the further passes moving the root alone turn it back
     further than moving the whole body rigidly, which would also turn the legs away (so the check
-    can fail)."""
+    can fail). The pelvis rotation's half-width is set to 12 degrees here, whatever the shipped
+    one, so that the further passes (0.35 of it) can undo the turn."""
     from gaitcap.tracking.factored_ipf import FactoredIPF
 
     truth, rig, model = _truth_setup(embedded_session.session)
@@ -632,6 +633,7 @@ def test_root_refined_alone_corrects_a_turned_pelvis(embedded_session):
     for mode in ("alone", "rigid"):
         cfg = load_tracking_config()
         cfg.factored_ipf.root_refine = mode
+        cfg.intervals = {**cfg.intervals, "pelvis_rotation": 12.0}
         views = tracking_views(rig, cfg.scale)
         lik = SilhouetteLikelihood(views, cfg.beta)
         err = []
