@@ -109,18 +109,22 @@ def wrap_deg(d: np.ndarray) -> np.ndarray:
     return (np.asarray(d) + 180.0) % 360.0 - 180.0
 
 
+def _angle_differences(est: np.ndarray, ref: np.ndarray) -> np.ndarray:
+    """The wrapped differences est - ref (degrees) of two (T,) angle series where both are finite."""
+    d = wrap_deg(np.asarray(est) - np.asarray(ref))
+    return d[np.isfinite(d)]
+
+
 def angle_rmse_deg(est: np.ndarray, ref: np.ndarray) -> tuple[float, int]:
     """RMSE of the wrapped difference of two (T,) angle series in degrees, and the frames used."""
-    d = wrap_deg(np.asarray(est) - np.asarray(ref))
-    d = d[np.isfinite(d)]
+    d = _angle_differences(est, ref)
     return (float(np.sqrt(np.mean(d**2))) if len(d) else math.nan), len(d)
 
 
 def angle_bias_deg(est: np.ndarray, ref: np.ndarray) -> tuple[float, int]:
     """Mean of the wrapped difference est - ref of two (T,) angle series in degrees (the systematic
     part of :func:`angle_rmse_deg`: RMSE^2 = bias^2 + variance of the difference), and the frames used."""
-    d = wrap_deg(np.asarray(est) - np.asarray(ref))
-    d = d[np.isfinite(d)]
+    d = _angle_differences(est, ref)
     return (float(np.mean(d)) if len(d) else math.nan), len(d)
 
 
