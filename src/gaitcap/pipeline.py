@@ -171,7 +171,7 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
         height = est
         log.warning("subject height not given: estimated %.2f m from the silhouettes (give --height for accuracy)", height)
     model = load_body_model(height_m=height)
-    filt = TRACKERS[cfg.tracker](model, likelihood, cfg, np.random.default_rng(cfg.seed))
+    filt = _new_tracker(cfg, model, likelihood)
     start, settled, shape_note = None, False, "off"
     if cfg.shape.enabled:
         filt, start, settled, shape_note = _calibrate_shape(filt, likelihood, views, cfg, first)
@@ -208,6 +208,11 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
     return summary
 
 
+def _new_tracker(cfg: TrackingConfig, model, likelihood):
+    """A tracker of the configured kind for ``model``, its random stream seeded from ``cfg.seed``."""
+    return TRACKERS[cfg.tracker](model, likelihood, cfg, np.random.default_rng(cfg.seed))
+
+
 def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[Observation]):
     """Fit the subject's proportions on the buffered first frames (gaitcap.tracking.shape).
 
@@ -235,7 +240,7 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
     refit_cfg.factored_ipf.particles, refit_cfg.factored_ipf.root_particles = cfg.shape.refit_particles
 
     def retrack(model, q0: np.ndarray) -> list[np.ndarray]:
-        tracker = TRACKERS[cfg.tracker](model, likelihood, cfg, np.random.default_rng(cfg.seed))
+        tracker = _new_tracker(cfg, model, likelihood)
         tracker.start(q0, fresh=not init.legs_settled)  # the legs as the first round had them
         return [tracker.step(o).q for o in first]
 
@@ -247,7 +252,7 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
     )  # fmt: skip
     factors = ", ".join(f"{k} x{v:.3f}" for k, v in result.factors.items())
     log.info("shape: %s (mean fit %.3f -> %.3f)", factors, result.fit_before, result.fit_after)
-    tracker = TRACKERS[cfg.tracker](result.model, likelihood, cfg, np.random.default_rng(cfg.seed))
+    tracker = _new_tracker(cfg, result.model, likelihood)
     start = result.start
     settled = cfg.init.leg_frames > 1
     if settled:  # which leg is which, again, with the calibrated model
