@@ -155,6 +155,30 @@ def test_shape_targets_scale_by_a_power_of_the_factor():
     assert 0.246 * H * (1 - 1.25**-0.16) == pytest.approx(gain, rel=0.15)
 
 
+def test_neck_height_moves_the_shoulders_under_a_still_head_top():
+    """The shipped ``neck_height`` parameter scales the trunk by f and the head by a compensating
+    power of f: the neck and the shoulders move, the top of the head (the silhouettes' top) stays
+    where it was, to first order. Without it, a trunk too long could only shorten with the head
+    top sinking, and the coordinate search kept it long and sank the hips instead."""
+    from gaitcap.tracking.shape import _scaled
+
+    model = load_body_model(height_m=1.8)
+    parameters = load_tracking_config().shape.parameters
+    q = np.zeros(model.n_dofs)
+    q[model.dof_index("pelvis_tz")] = 1.0  # the pelvis, hence the lumbar joint, held in place
+
+    def heights(m):
+        pts = m.forward(q[None])[0]
+        A, B, radii = m.capsules(q[None])
+        top = max((A[0, :, 2] + radii[:, 0]).max(), (B[0, :, 2] + radii[:, 1]).max())
+        return pts[m.point_index("neck"), 2], pts[m.point_index("shoulder_l"), 2], top
+
+    neck0, shoulder0, top0 = heights(model)
+    neck, shoulder, top = heights(_scaled(model, parameters, {"neck_height": 0.92}))
+    assert neck0 - neck > 0.014 and shoulder0 - shoulder > 0.012  # 8 % of 0.19 and 0.165 x 1.8 / 1.75 m
+    assert abs(top - top0) < 0.15 * (neck0 - neck)
+
+
 def test_planted_poses_keep_the_lowest_point_on_the_floor():
     from gaitcap.tracking.shape import _scaled, lowest_points, planted_poses
 
