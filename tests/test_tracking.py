@@ -244,6 +244,25 @@ def test_posture_prior_and_coupled_dofs_are_validated(tmp_path):
         load_tracking_config(path).prior_sigmas(model)
 
 
+@pytest.mark.parametrize(
+    ("anchored", "refine", "message"),
+    [
+        (["shank_l"], "alone", "'shank_l' must be a child of the root with exactly one child segment"),
+        (["torso"], "alone", "'torso' must be a child of the root with exactly one child segment"),
+        (["thigh_x"], "alone", "unknown segment 'thigh_x'"),
+        (["thigh_l"], "rigid", "needs root_refine 'alone'"),
+    ],
+)
+def test_root_anchored_segments_are_validated(tmp_path, anchored, refine, message):
+    data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
+    data["factored_ipf"]["root_anchored"] = anchored
+    data["factored_ipf"]["root_refine"] = refine
+    path = tmp_path / "tracking.yaml"
+    path.write_text(yaml.safe_dump(data))
+    with pytest.raises(ConfigError, match=re.escape(f"factored_ipf.root_anchored: {message}")):
+        load_tracking_config(path, load_body_model())
+
+
 def test_subject_absent_from_every_frame_is_one_clear_error(embedded_session, tmp_path):
     import shutil
 
@@ -626,11 +645,12 @@ def test_kernel_threads_are_set_capped_and_restored(tmp_path):
 
 def test_root_refined_alone_keeps_the_trunk_and_thighs_still(embedded_session, rng):
     """Moving the root alone re-solves the lumbar and hip angles so that the trunk and thighs keep
-    their world orientation: R_pelvis' R_child' = R_pelvis R_child."""
+    their world orientation: R_pelvis' R_child' = R_pelvis R_child (no thigh anchored at its knee)."""
     from gaitcap.tracking.factored_ipf import FactoredIPF
 
     truth, rig, model = _truth_setup(embedded_session.session)
     cfg = load_tracking_config()
+    cfg.factored_ipf.root_anchored = []
     lik = SilhouetteLikelihood(tracking_views(rig, cfg.scale), cfg.beta)
     tracker = FactoredIPF(model, lik, cfg, np.random.default_rng(0))
     q = truth.poses[20]
@@ -649,27 +669,112 @@ def test_root_refined_alone_corrects_a_turned_pelvis(embedded_session):
     when the turn explained a stride): the further passes moving the root alone turn it back
     further than moving the whole body rigidly, which would also turn the legs away (so the check
     can fail). The pelvis rotation's half-width is set to 12 degrees here, whatever the shipped
-    one, so that the further passes (0.35 of it) can undo the turn."""
+    one, so that the further passes (0.35 of it) can undo the turn. Alone with the shipped
+    ``root_anchored`` thighs and without any."""
     from gaitcap.tracking.factored_ipf import FactoredIPF
 
     truth, rig, model = _truth_setup(embedded_session.session)
     errors = {}
-    for mode in ("alone", "rigid"):
+    for mode, anchored in (("alone", None), ("alone", []), ("rigid", [])):
         cfg = load_tracking_config()
         cfg.factored_ipf.root_refine = mode
+        if anchored is not None:
+            cfg.factored_ipf.root_anchored = anchored
         cfg.intervals = {**cfg.intervals, "pelvis_rotation": 12.0}
         views = tracking_views(rig, cfg.scale)
         lik = SilhouetteLikelihood(views, cfg.beta)
+        maker = load_tracking_config()
+        maker.factored_ipf.root_anchored = []  # the turn leaves the trunk and thighs in their orientation
         err = []
         for t in (9, 24, 39, 54):
             tracker = FactoredIPF(model, lik, cfg, np.random.default_rng(0))
             turned = truth.poses[t][None].copy()
             turned[0, 3] += np.radians(12)
-            turned[0, tracker._held] = tracker._held_angles(truth.poses[t], turned)[0]
+            held = FactoredIPF(model, lik, maker, np.random.default_rng(0))
+            turned[0, held._held] = held._held_angles(truth.poses[t], turned)[0]
             est, _ = tracker._search(observe(views, [truth.mask(c, t) for c in rig.names]), turned[0], 1.0, 1, 3)
             err.append(abs(np.degrees(est.q[3] - truth.poses[t][3])))
-        errors[mode] = float(np.mean(err))
-    assert errors["alone"] < 9.0 and errors["alone"] < errors["rigid"] - 2.0, errors
+        errors[mode, anchored is None] = float(np.mean(err))
+    for shipped in (True, False):
+        assert errors["alone", shipped] < 9.0 and errors["alone", shipped] < errors["rigid", False] - 2.0, errors
+
+
+def test_root_anchored_thighs_aim_at_the_knees_as_they_were(embedded_session, rng):
+    """With ``root_anchored`` thighs, moving the root alone turns each thigh so that it points from
+    its new hip centre at the old knee centre (the knee slides along that line only, since the
+    thigh keeps its length), and the knee flexion keeps the shank's world orientation as closely as
+    one DOF can (0.01 rad more or less flexion turns the shank further from it); the trunk keeps its
+    orientation as before."""
+    from gaitcap.tracking.factored_ipf import FactoredIPF
+
+    truth, rig, model = _truth_setup(embedded_session.session)
+    cfg = load_tracking_config()
+    cfg.factored_ipf.root_anchored = ["thigh_l", "thigh_r"]
+    tracker = FactoredIPF(model, SilhouetteLikelihood(tracking_views(rig, cfg.scale), cfg.beta), cfg,
+                          np.random.default_rng(0))  # fmt: skip
+    q = truth.poses[20]
+    Q = np.repeat(q[None], 40, axis=0)
+    Q[:, :2] += rng.normal(0, 0.02, size=(40, 2))
+    Q[:, 3:6] += rng.normal(0, np.radians(4), size=(40, 3))
+    Q[:, tracker._held] = tracker._held_angles(q, Q)
+    names = model.point_names
+    P0, P1 = model.forward(q[None])[0], model.forward(Q)
+    R0, _ = model.frames(q[None])
+    R1, _ = model.frames(Q)
+    for side in "lr":
+        hip, knee = names.index(f"hip_{side}"), names.index(f"knee_{side}")
+        aim = P0[knee] - P1[:, hip]
+        thigh = P1[:, knee] - P1[:, hip]
+        cos = np.sum(aim * thigh, axis=1) / np.linalg.norm(aim, axis=1) / np.linalg.norm(thigh, axis=1)
+        assert np.all(cos > 1 - 1e-9)
+        length = np.linalg.norm(P0[knee] - P0[hip])
+        slid = np.abs(np.linalg.norm(aim, axis=1) - length)  # the knee stays where the thigh's length allows
+        np.testing.assert_allclose(np.linalg.norm(P1[:, knee] - P0[knee], axis=1), slid, atol=1e-9)
+        s, k = model.segment(f"shank_{side}").index, model.dof_index(f"knee_flexion_{side}")
+        turns = []
+        for dk in (-0.01, 0.0, 0.01):  # the shank's rotation from its old world orientation
+            Qk = Q.copy()
+            Qk[:, k] += dk
+            Rk, _ = model.frames(Qk)
+            turns.append(np.trace(np.swapaxes(Rk[:, s], 1, 2) @ R0[0, s], axis1=1, axis2=2))  # 1 + 2 cos(angle)
+        assert np.all(turns[1] > turns[0]) and np.all(turns[1] > turns[2])
+    t = model.segment("torso").index
+    np.testing.assert_allclose(R1[:, t], np.broadcast_to(R0[0, t], R1[:, t].shape), atol=1e-9)
+
+
+def test_root_anchored_thighs_bring_back_hips_left_behind(embedded_session):
+    """The ridge of the likelihood: hips 20 mm behind the truth with the thighs leaning forward to
+    the true knees (more knee flexion) fit almost as well as the truth. Moving the root alone with
+    the thighs kept in orientation cannot follow that ridge (the knees would move too); with the
+    thighs anchored at the knees the further passes bring the hips back to within a few mm, where
+    without they stay about 10 mm behind, for every frame tried (so the check can fail)."""
+    from gaitcap.tracking.factored_ipf import FactoredIPF
+
+    truth, rig, model = _truth_setup(embedded_session.session)
+    hips = [model.point_names.index("hip_l"), model.point_names.index("hip_r")]
+    behind = {}
+    for anchored in ([], ["thigh_l", "thigh_r"]):
+        cfg = load_tracking_config()
+        cfg.factored_ipf.root_anchored = anchored
+        views = tracking_views(rig, cfg.scale)
+        lik = SilhouetteLikelihood(views, cfg.beta)
+        maker = load_tracking_config()
+        maker.factored_ipf.root_anchored = ["thigh_l", "thigh_r"]
+        errors = []
+        for t in (12, 30, 48):
+            q = truth.poses[t]
+            forward = np.array([np.cos(q[3]), np.sin(q[3])])
+            start = q[None].copy()
+            start[0, :2] -= 0.02 * forward
+            ridge = FactoredIPF(model, lik, maker, np.random.default_rng(0))
+            start[0, ridge._held] = ridge._held_angles(q, start)[0]
+            tracker = FactoredIPF(model, lik, cfg, np.random.default_rng(t))
+            est, _ = tracker._search(observe(views, [truth.mask(c, t) for c in rig.names]), start[0], 1.0, 1, 3)
+            P, T = model.forward(est.q[None])[0], model.forward(q[None])[0]
+            errors.append(1000 * float(np.mean((P[hips, :2] - T[hips, :2]) @ forward)))
+        behind[bool(anchored)] = errors
+    assert all(abs(e) < 4.0 for e in behind[True]), behind
+    assert all(e < -7.0 for e in behind[False]), behind
 
 
 def test_track_says_where_the_results_are_unless_quiet(embedded_session, tmp_path):

@@ -30,6 +30,7 @@ class FactoredIPFConfig(Strict):
     layers: list[Layer] = Field(min_length=1)
     passes: int = Field(default=2, ge=1, le=10)
     root_refine: Literal["alone", "rigid"] = "alone"
+    root_anchored: list[str] = Field(default_factory=list)
     coupled: dict[str, list[str]] = Field(default_factory=dict)
     swap_hypothesis: bool = True
     swap_search: Literal["full", "legs"] = "legs"
@@ -181,6 +182,7 @@ class TrackingConfig(Strict):
         self.prior_sigmas(model)
         self.order_indices(model)
         self.explored_dofs(model, subtrees(model))
+        self.anchored_children(model)
         self.shape.check_segments(model)
 
     def half_widths(self, model: BodyModel) -> np.ndarray:
@@ -209,6 +211,28 @@ class TrackingConfig(Strict):
                 raise ConfigError(f"tracking config: factored_ipf.order: '{model.segments[i].name}' comes before its parent")
             seen.add(i)
         return idx
+
+    def anchored_children(self, model: BodyModel) -> dict[int, int]:
+        """``factored_ipf.root_anchored`` as {segment index of a child of the root: index of its one
+        child, whose joint stays put when the root moves alone}."""
+        key = "tracking config: factored_ipf.root_anchored"
+        names = self.factored_ipf.root_anchored
+        if names and self.factored_ipf.root_refine != "alone":
+            raise ConfigError(f"{key}: needs root_refine 'alone' (the root moves rigidly with 'rigid')")
+        out = {}
+        for name in names:
+            if name not in {s.name for s in model.segments}:
+                raise ConfigError(f"{key}: unknown segment '{name}'")
+            seg = model.segment(name)
+            below = model.children(seg.index)
+            if seg.parent < 0 or model.segments[seg.parent].parent >= 0 or len(below) != 1:
+                raise ConfigError(f"{key}: '{name}' must be a child of the root with exactly one child segment")
+            child = model.segments[below[0]]
+            if any(child.translation) or child.n_dofs not in (1, 3) or len(set(child.axes)) != child.n_dofs:
+                raise ConfigError(f"{key}: '{name}': the joint below it ('{child.name}') needs one or three "
+                                  f"rotation DOF about distinct axes")  # fmt: skip
+            out[seg.index] = child.index
+        return out
 
     def explored_dofs(self, model: BodyModel, trees: list[Subtree]) -> list[np.ndarray]:
         """DOF indices each node of the factored chain explores: its segment's own, then the

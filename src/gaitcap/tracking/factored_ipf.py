@@ -25,6 +25,9 @@ orientation in the world, their joint angles re-solved for each root particle,
 
     x_c^(i) = angles(R_root(x_root^(i))^T · R_root(x̂_root) · R_c(x̂_c))       (BodyModel.local_angles)
 
+(``root_anchored`` thighs are aimed instead from the new hip centres at the knees as they were,
+the knee flexion re-solved to keep the shank's orientation: the pelvis can then slide along the
+likelihood's ridge of hips behind and thighs leaning forward, :meth:`FactoredIPF._held_angles`)
 so that the pelvis is placed by what it carries (the hip centres, the thigh tops, the trunk's
 base) and not turned to explain a stride: in the first pass, the whole body moved rigidly from
 the previous frame's pose, a pelvis rotation mimics the legs' scissoring, and the hips and lumbar
@@ -67,9 +70,6 @@ class FactoredIPF(Tracker):
         legs_dofs = np.concatenate([self.left_leg, self.right_leg])
         self._not_legs = np.setdiff1d(np.arange(self.model.n_dofs), legs_dofs)
         self._root = next(seg.index for seg in self.model.segments if seg.parent < 0)
-        #: DOF of the segments attached to the root, re-solved when the root moves alone
-        self._held = np.concatenate([np.arange(self.model.segments[c].dof_start, self.model.segments[c].dof_stop)
-                                     for c in self.model.children(self._root)] or [np.zeros(0, int)])  # fmt: skip
         if self.config.factored_ipf.root_refine == "alone":
             for c in self.model.children(self._root):
                 seg = self.model.segments[c]
@@ -77,6 +77,12 @@ class FactoredIPF(Tracker):
                     raise ConfigError(f"tracking config: factored_ipf.root_refine 'alone' needs three rotation DOF "
                                       f"about distinct axes at every joint of the root; segment '{seg.name}' has "
                                       f"{seg.n_dofs}")  # fmt: skip
+        #: anchored children of the root -> their one child, whose joint stays put when the root moves alone
+        self._anchors = self.config.anchored_children(self.model)
+        #: DOF re-solved when the root moves alone: its children's, and the anchored children's child's
+        self._held = np.concatenate([np.arange(self.model.segments[c].dof_start, self.model.segments[c].dof_stop)
+                                     for c in [*self.model.children(self._root), *self._anchors.values()]]
+                                    or [np.zeros(0, int)])  # fmt: skip
         #: position in the order of the first node that explores a leg DOF (the mirrored search
         #: with ``swap_search: legs`` walks the chain from there)
         self._legs_from = min(i for i, s in enumerate(self.order) if np.intersect1d(self._explored[s], legs_dofs).size)
@@ -280,17 +286,39 @@ class FactoredIPF(Tracker):
         return q, normalise_log_weights(logw), self.projector.points(Q, sub.points)
 
     def _held_angles(self, q: np.ndarray, Q: np.ndarray) -> np.ndarray:
-        """Joint angles (N, len(_held)) that keep the root's children at their world orientation
-        under pose q while the root takes the rotations of Q (N, D) (within the joint limits)."""
+        """Joint angles (N, len(_held)) for the root taking the pose of Q (N, D) while what it carries
+        stays put (within the joint limits).
+
+        The root's children keep their world orientation under pose q. An anchored child
+        (``root_anchored``, a thigh) is turned instead by the smallest rotation A that aims it from
+        its new joint at its child's joint as placed under q (the knee stays, the hip moves):
+        A u = u' with u, u' the old and new unit directions joint -> child joint,
+
+            A = I + [v]x + [v]x^2 / (1 + u.u'),  v = u x u'
+
+        and its child (a shank) keeps its world orientation as closely as its DOF allow (one
+        rotation: the angle of R_c'^T R_g about its axis, R_c', R_g the child's new and the
+        grandchild's old world rotations)."""
         model = self.model
         root = model.segments[self._root]
-        R_now = model.local_rotation(root, q[None, root.dofs])[0]
-        R_new = model.local_rotation(root, Q[:, root.dofs])
+        R_now, o_now = model.segment_frame(root, q[None, root.dofs], None, None)
+        R_new, o_new = model.segment_frame(root, Q[:, root.dofs], None, None)
         out = Q.copy()
         for c in model.children(self._root):
             seg = model.segments[c]
-            world = R_now @ model.local_rotation(seg, q[None, seg.dofs])[0]
-            out[:, seg.dofs] = model.local_angles(seg, np.swapaxes(R_new, 1, 2) @ world)
+            world = R_now[0] @ model.local_rotation(seg, q[None, seg.dofs])[0]
+            if c in self._anchors:
+                g = model.segments[self._anchors[c]]
+                u = world @ g.origin  # (3,) joint -> child joint, world
+                far = o_now[0] + R_now[0] @ seg.origin + u
+                u_new = far - (o_new + R_new @ seg.origin)  # (N, 3)
+                A = _aligning_rotations(u / np.linalg.norm(u), u_new / np.linalg.norm(u_new, axis=1, keepdims=True))
+                turned = A @ world  # (N, 3, 3)
+                below = world @ model.local_rotation(g, q[None, g.dofs])[0]
+                out[:, g.dofs] = _nearest_angles(model, g, np.swapaxes(turned, 1, 2) @ below)
+                out[:, seg.dofs] = model.local_angles(seg, np.swapaxes(R_new, 1, 2) @ turned)
+            else:
+                out[:, seg.dofs] = model.local_angles(seg, np.swapaxes(R_new, 1, 2) @ world)
         return model.clip(out[:, self._held], self._held)
 
     def _placed_outside(self, q: np.ndarray, s: int, obs: Observation) -> list[np.ndarray]:
@@ -306,3 +334,24 @@ class FactoredIPF(Tracker):
             return [(1, 0)] * len(masks)
         proj = self.projector.capsules(q[None], caps)
         return [self.likelihood.fill(c, proj, m) for c, m in enumerate(masks)]
+
+
+def _aligning_rotations(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Smallest rotations taking the unit vector u (3,) onto each unit vector v (N, 3): (N, 3, 3)
+    (Rodrigues; u and v are never opposite here, a root moves by centimetres)."""
+    w = np.cross(u, v)  # (N, 3)
+    K = np.zeros((len(v), 3, 3))
+    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -w[:, 2], w[:, 1], -w[:, 0]
+    K -= np.swapaxes(K, 1, 2)
+    return np.eye(3) + K + (K @ K) / (1.0 + v @ u)[:, None, None]
+
+
+def _nearest_angles(model, seg, R: np.ndarray) -> np.ndarray:  # type: ignore[no-untyped-def]
+    """Joint angles (N, k) of segment seg whose local rotation is R (N, 3, 3), or for one rotation DOF
+    the angle about its axis nearest to R (the one maximising the trace of Rot^T R)."""
+    if seg.n_dofs == 3:
+        return model.local_angles(seg, R)
+    axis = seg.axes[0]
+    i, j = [(1, 2), (2, 0), (0, 1)][axis]
+    angle = np.arctan2(R[:, j, i] - R[:, i, j], R[:, i, i] + R[:, j, j])
+    return (angle / seg.signs[0])[:, None]
