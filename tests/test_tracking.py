@@ -790,6 +790,49 @@ def test_track_says_where_the_results_are_unless_quiet(embedded_session, tmp_pat
         assert (out / "trajectories.h5").is_file()
 
 
+@pytest.mark.parametrize("challenger", ["mirror", "recovered"])
+@pytest.mark.parametrize(("challenger_refined", "winner"), [(0.86, "first"), (0.905, "first"), (0.95, "challenger")])
+def test_first_hypothesis_is_replaced_only_by_a_better_refined_fit(embedded_session, challenger,
+                                                                   challenger_refined, winner):  # fmt: skip
+    """A pose that beats the first hypothesis on the first pass (the leg-swapped mirror while the
+    legs are close: 0.83 against 0.80, over the margin; or, after a fit drop, the widened search's
+    pose: 0.85) replaces it only if it still fits ``swap_margin`` (0.01) better once both are
+    refined (0.90 for the first). The searches are stand-ins with those fits, so that the choice
+    alone is checked."""
+    from gaitcap.tracking.base import Estimate
+    from gaitcap.tracking.factored_ipf import FactoredIPF
+
+    truth, rig, model = _truth_setup(embedded_session.session)
+    cfg = load_tracking_config()
+    cfg.factored_ipf.swap_hypothesis = challenger == "mirror"
+    cfg.factored_ipf.swap_margin = 0.01
+    tracker = FactoredIPF(model, SilhouetteLikelihood(tracking_views(rig, cfg.scale), cfg.beta), cfg,
+                          np.random.default_rng(0))  # fmt: skip
+    start = truth.poses[9].copy()
+    hips = [model.dof_index("hip_flexion_l"), model.dof_index("hip_flexion_r")]
+    start[hips] = np.radians(10.0)  # the legs close: the mirror is searched
+    first, other = truth.poses[10], truth.poses[11]
+    refined_fit = {first.tobytes(): 0.90, other.tobytes(): challenger_refined}
+
+    def search(obs, q0, widen, p0, stop, from_node=0, **kwargs):
+        if p0 == 0:
+            mirror = from_node > 0 or not np.allclose(q0, start)
+            q, fit = (first, 0.80) if widen <= 1.0 and not mirror else (other, 0.83 if mirror else 0.85)
+        else:
+            q, fit = q0, refined_fit[q0.tobytes()]
+        est = Estimate(q=q.copy(), points=np.zeros((model.n_points, 3)), uncertainty=np.zeros(model.n_points),
+                       log_likelihood=0.0, fit=fit, evaluations=1)  # fmt: skip
+        return est, [np.zeros(model.n_points)] * len(tracker.order)
+
+    tracker._search = search
+    tracker.start(start, fresh=False)
+    tracker._fits.extend([0.8 if challenger == "mirror" else 0.9] * 5)  # recent fits: 0.80 is a drop after 0.9
+    est = tracker.step(None)
+    np.testing.assert_array_equal(est.q, first if winner == "first" else other)
+    assert est.fit == (0.90 if winner == "first" else challenger_refined)
+    assert est.evaluations == 4  # two first passes (first and challenger), two refinements
+
+
 def test_fit_drop_recovers_limbs_out_of_the_usual_reach(embedded_session):
     """Both knees left 60 degrees more flexed than the truth (out of reach of the usual intervals in
     one frame, and the mirror does not help) lower the fit below the recent frames'; the widened
