@@ -43,6 +43,7 @@ from collections import deque
 
 import numpy as np
 
+from gaitcap.body.model import BodyModel, Segment
 from gaitcap.errors import ConfigError
 from gaitcap.tracking.base import Estimate, Tracker, weighted_spread
 from gaitcap.tracking.chain import subtrees
@@ -360,7 +361,7 @@ def _aligning_rotations(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     return np.eye(3) + K + (K @ K) / (1.0 + v @ u)[:, None, None]
 
 
-def _nearest_angles(model, seg, R: np.ndarray) -> np.ndarray:  # type: ignore[no-untyped-def]
+def _nearest_angles(model: BodyModel, seg: Segment, R: np.ndarray) -> np.ndarray:
     """Joint angles (N, k) of segment seg whose local rotation is R (N, 3, 3), or for one rotation DOF
     the angle about its axis nearest to R (the one maximising the trace of Rot^T R)."""
     if seg.n_dofs == 3:
