@@ -5,7 +5,7 @@ import pytest
 import yaml
 
 from gaitcap.body import load_body_model
-from gaitcap.body.model import load_body_spec
+from gaitcap.body.model import axis_rotation, load_body_spec
 from gaitcap.config import default_config_path
 from gaitcap.errors import ConfigError
 from gaitcap.trajectory import POINT_NAMES
@@ -182,3 +182,21 @@ def test_local_angles_invert_local_rotation(model, rng):
         np.testing.assert_allclose(model.local_angles(seg, model.local_rotation(seg, q)), q, atol=1e-9)
     with pytest.raises(ValueError, match="shank_l"):
         model.local_angles(model.segment("shank_l"), np.eye(3)[None])
+
+
+def test_nearest_angle_inverts_one_dof_joints_and_projects_others(model, rng):
+    """For every joint with one rotation (knees, elbows) the angle recovered from its rotation is
+    the angle that made it; for a rotation with a component off the axis, the angle returned is
+    nearer (larger trace of Rot^T R) than 0.01 rad either side of it."""
+    joints = [s for s in model.segments if s.n_dofs == 1 and not any(s.translation)]
+    assert {s.name for s in joints} >= {"shank_l", "shank_r"}
+    for seg in joints:
+        q = rng.uniform(-3.0, 3.0, size=(50, 1))
+        np.testing.assert_allclose(model.nearest_angle(seg, model.local_rotation(seg, q)), q[:, 0], atol=1e-9)
+        off = model.local_rotation(seg, q) @ axis_rotation((seg.axes[0] + 1) % 3, rng.uniform(-0.3, 0.3, size=50))
+        best = model.nearest_angle(seg, off)
+        traces = [np.trace(np.swapaxes(model.local_rotation(seg, (best + d)[:, None]), 1, 2) @ off, axis1=1, axis2=2)
+                  for d in (-0.01, 0.0, 0.01)]  # fmt: skip
+        assert np.all(traces[1] > traces[0]) and np.all(traces[1] > traces[2])
+    with pytest.raises(ValueError, match="thigh_l"):
+        model.nearest_angle(model.segment("thigh_l"), np.eye(3)[None])

@@ -50,12 +50,16 @@ class Segment:
         return self.dof_stop - self.dof_start
 
 
+#: the two other axes of each principal axis, in cyclic order (x -> y, z; y -> z, x; z -> x, y)
+_OTHER_AXES = ((1, 2), (2, 0), (0, 1))
+
+
 def axis_rotation(axis: int, angle: np.ndarray) -> np.ndarray:
     """Rotation matrices about a principal axis: angles (N,) -> (N, 3, 3)."""
     c, s = np.cos(angle), np.sin(angle)
     n = angle.shape[0]
     R = np.zeros((n, 3, 3))
-    i, j = [(1, 2), (2, 0), (0, 1)][axis]
+    i, j = _OTHER_AXES[axis]
     R[:, axis, axis] = 1.0
     R[:, i, i] = c
     R[:, j, j] = c
@@ -273,6 +277,19 @@ class BodyModel:
             raise ValueError(f"segment {seg.name}: local_angles needs three rotations about distinct axes")
         seq = "".join("XYZ"[a] for a in seg.axes)  # upper case: intrinsic, R = R1 R2 R3
         return Rotation.from_matrix(R).as_euler(seq) / np.asarray(seg.signs)
+
+    def nearest_angle(self, seg: Segment, R: np.ndarray) -> np.ndarray:
+        """For a segment with one rotation DOF: the angle (N,) radians whose local rotation is
+        nearest to each R (N, 3, 3), the one maximising trace(Rot^T R) (R itself when R is such a
+        rotation; joint limits are not applied).
+
+        Raises:
+            ValueError: the segment does not have exactly one rotation DOF.
+        """
+        if any(seg.translation) or len(seg.axes) != 1:
+            raise ValueError(f"segment {seg.name}: nearest_angle needs exactly one rotation DOF")
+        i, j = _OTHER_AXES[seg.axes[0]]
+        return np.arctan2(R[:, j, i] - R[:, i, j], R[:, i, i] + R[:, j, j]) / seg.signs[0]
 
     def segment_frame(
         self, seg: Segment, q_seg: np.ndarray, parent_R: np.ndarray | None, parent_o: np.ndarray | None

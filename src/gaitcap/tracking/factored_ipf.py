@@ -43,7 +43,6 @@ from collections import deque
 
 import numpy as np
 
-from gaitcap.body.model import BodyModel, Segment
 from gaitcap.errors import ConfigError
 from gaitcap.tracking.base import Estimate, Tracker, weighted_spread
 from gaitcap.tracking.chain import subtrees
@@ -330,7 +329,8 @@ class FactoredIPF(Tracker):
                 A = _aligning_rotations(u / np.linalg.norm(u), u_new / np.linalg.norm(u_new, axis=1, keepdims=True))
                 turned = A @ world  # (N, 3, 3)
                 below = world @ model.local_rotation(g, q[None, g.dofs])[0]
-                out[:, g.dofs] = _nearest_angles(model, g, np.swapaxes(turned, 1, 2) @ below)
+                kept = np.swapaxes(turned, 1, 2) @ below  # the child's old world orientation, local
+                out[:, g.dofs] = model.local_angles(g, kept) if g.n_dofs == 3 else model.nearest_angle(g, kept)[:, None]
                 out[:, seg.dofs] = model.local_angles(seg, np.swapaxes(R_new, 1, 2) @ turned)
             else:
                 out[:, seg.dofs] = model.local_angles(seg, np.swapaxes(R_new, 1, 2) @ world)
@@ -360,13 +360,3 @@ def _aligning_rotations(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     K -= np.swapaxes(K, 1, 2)
     return np.eye(3) + K + (K @ K) / (1.0 + v @ u)[:, None, None]
 
-
-def _nearest_angles(model: BodyModel, seg: Segment, R: np.ndarray) -> np.ndarray:
-    """Joint angles (N, k) of segment seg whose local rotation is R (N, 3, 3), or for one rotation DOF
-    the angle about its axis nearest to R (the one maximising the trace of Rot^T R)."""
-    if seg.n_dofs == 3:
-        return model.local_angles(seg, R)
-    axis = seg.axes[0]
-    i, j = [(1, 2), (2, 0), (0, 1)][axis]
-    angle = np.arctan2(R[:, j, i] - R[:, i, j], R[:, i, i] + R[:, j, j])
-    return (angle / seg.signs[0])[:, None]
