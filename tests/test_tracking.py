@@ -805,7 +805,7 @@ def test_first_hypothesis_is_replaced_only_by_a_better_refined_fit(embedded_sess
     truth, rig, model = _truth_setup(embedded_session.session)
     cfg = load_tracking_config()
     cfg.factored_ipf.swap_hypothesis = challenger == "mirror"
-    cfg.factored_ipf.swap_margin = 0.01
+    cfg.factored_ipf.swap_margin, cfg.factored_ipf.keep_previous = 0.01, False  # stand-in searches only
     tracker = FactoredIPF(model, SilhouetteLikelihood(tracking_views(rig, cfg.scale), cfg.beta), cfg,
                           np.random.default_rng(0))  # fmt: skip
     start = truth.poses[9].copy()
@@ -831,6 +831,38 @@ def test_first_hypothesis_is_replaced_only_by_a_better_refined_fit(embedded_sess
     np.testing.assert_array_equal(est.q, first if winner == "first" else other)
     assert est.fit == (0.90 if winner == "first" else challenger_refined)
     assert est.evaluations == 4  # two first passes (first and challenger), two refinements
+
+
+@pytest.mark.parametrize("keep", [False, True])
+def test_keep_previous_lets_the_previous_estimate_compete_unchanged(embedded_session, keep):
+    """Started at the true pose of the very frame it observes, the first pass (each node weighted
+    against the silhouette the nodes before it left, Img_n) ends a little below the truth's fit
+    on most frames (greedy: 0.001-0.01 lower on the embedded walk). With ``keep_previous`` the
+    previous estimate competes unchanged with that pass, so the frame's fit is never below it,
+    and where it won the pose is the previous estimate itself."""
+    from gaitcap.tracking.factored_ipf import FactoredIPF
+
+    truth, rig, model = _truth_setup(embedded_session.session)
+    cfg = load_tracking_config()
+    fip = cfg.factored_ipf
+    fip.passes, fip.swap_hypothesis, fip.recover_widen, fip.keep_previous = 1, False, None, keep
+    views = tracking_views(rig, cfg.scale)
+    tracker = FactoredIPF(model, SilhouetteLikelihood(views, cfg.beta), cfg, np.random.default_rng(3))
+    below = kept = 0
+    frames = range(4, 56, 8)
+    for t in frames:
+        obs = observe(views, [truth.mask(c, t) for c in rig.names])
+        tracker.start(truth.poses[t], fresh=False)
+        truth_fit = tracker.full_fit(obs, truth.poses[t])[1]
+        est = tracker.step(obs)
+        below += est.fit < truth_fit - 1e-12
+        if keep:
+            assert est.fit >= truth_fit - 1e-12, f"frame {t}: {est.fit:.4f} below the previous estimate's {truth_fit:.4f}"
+            kept += bool(np.array_equal(est.q, model.clip(truth.poses[t][None])[0]))
+    if not keep:
+        assert below > len(frames) // 2  # what keep_previous is for: the greedy pass usually ends lower
+    else:
+        assert kept > len(frames) // 2  # the same searches (same seed): the truth stood where they fell short
 
 
 def test_fit_drop_recovers_limbs_out_of_the_usual_reach(embedded_session):
@@ -886,7 +918,7 @@ def test_swap_margin_keeps_the_first_hypothesis_unless_the_mirror_fits_clearly_b
              (True, 0.01, 0.805, True), (True, 0.01, 0.795, False)]  # fmt: skip
     for fresh, margin, mirror_fit, mirror_wins in cases:
         cfg = load_tracking_config()
-        cfg.factored_ipf.swap_margin, cfg.factored_ipf.passes = margin, 1
+        cfg.factored_ipf.swap_margin, cfg.factored_ipf.passes, cfg.factored_ipf.keep_previous = margin, 1, False
         tracker = FactoredIPF(model, SilhouetteLikelihood(views, cfg.beta), cfg, np.random.default_rng(0))
         tracker.start(truth.poses[9])
         tracker._fresh = fresh  # False: as if a frame had been tracked since the start
@@ -911,6 +943,7 @@ def test_recovery_searches_the_mirror_only_with_the_swap_hypothesis(embedded_ses
     views = tracking_views(rig, 0.5)
     cfg = load_tracking_config()
     cfg.factored_ipf.swap_hypothesis, cfg.factored_ipf.passes = swap_hypothesis, 1
+    cfg.factored_ipf.keep_previous = False  # the first passes' fits are the stand-ins' alone
     tracker = FactoredIPF(model, SilhouetteLikelihood(views, cfg.beta), cfg, np.random.default_rng(0))
     tracker.start(truth.poses[9])
     tracker._fits.extend([0.9, 0.9, 0.9])

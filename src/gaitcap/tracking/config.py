@@ -40,6 +40,7 @@ class FactoredIPFConfig(Strict):
     swap_margin: float = Field(default=0.01, ge=0, le=1)
     swap_shanks: bool = False
     recover_widen: float | None = Field(default=3.0, gt=1, le=10)
+    keep_previous: bool = True
     ess_threshold: float = Field(default=0.5, ge=0, le=1)
 
 

@@ -120,6 +120,9 @@ class FactoredIPF(Tracker):
         settled over several frames instead, :func:`gaitcap.tracking.init.settle_legs`: one frame
         can prefer the swap.)
 
+        With ``keep_previous`` the previous estimate, unchanged, competes with the first pass (the
+        drift step keeps the best, and a greedy walk of the chain can end below where it started).
+
         With ``swap_shanks``, while the legs are close a third hypothesis keeps the thighs and
         exchanges the shanks and feet (:meth:`_shanks_exchanged`), walked from the legs like the
         mirror: legs that crossed below the knees only.
@@ -137,6 +140,8 @@ class FactoredIPF(Tracker):
         start = self.q.copy()
         cfg = self.config.factored_ipf
         best, spreads = self._search(obs, start, widen, 0, 1)
+        if cfg.keep_previous:
+            best = self._kept_if_better(obs, start, best)
         first = best
         dropped = self._fit_dropped(best.fit)
         fresh, self._fresh = self._fresh or widen > 1.0, False
@@ -169,6 +174,15 @@ class FactoredIPF(Tracker):
             best = refined
         self.q = best.q
         return best
+
+    def _kept_if_better(self, obs: Observation, start: np.ndarray, best: Estimate) -> Estimate:
+        """The previous estimate ``start`` (D,) unchanged, when it fits this frame better than the
+        first pass ``best`` did (a greedy walk of the chain can end below where it started)."""
+        ll, fit = self.full_fit(obs, start)
+        if fit <= best.fit:
+            return best
+        return Estimate(q=start.copy(), points=self.projector.points(start[None])[0], uncertainty=best.uncertainty,
+                        log_likelihood=ll, fit=fit, evaluations=best.evaluations + 1)  # fmt: skip
 
     def _search_legs(self, obs: Observation, legs: np.ndarray, first: Estimate, spreads: list[np.ndarray],
                      widen: float) -> Estimate:  # fmt: skip
