@@ -799,7 +799,6 @@ def test_first_hypothesis_is_replaced_only_by_a_better_refined_fit(embedded_sess
     pose: 0.85) replaces it only if it still fits ``swap_margin`` (0.01) better once both are
     refined (0.90 for the first). The searches are stand-ins with those fits, so that the choice
     alone is checked."""
-    from gaitcap.tracking.base import Estimate
     from gaitcap.tracking.factored_ipf import FactoredIPF
 
     truth, rig, model = _truth_setup(embedded_session.session)
@@ -820,9 +819,7 @@ def test_first_hypothesis_is_replaced_only_by_a_better_refined_fit(embedded_sess
             q, fit = (first, 0.80) if widen <= 1.0 and not mirror else (other, 0.83 if mirror else 0.85)
         else:
             q, fit = q0, refined_fit[q0.tobytes()]
-        est = Estimate(q=q.copy(), points=np.zeros((model.n_points, 3)), uncertainty=np.zeros(model.n_points),
-                       log_likelihood=0.0, fit=fit, evaluations=1)  # fmt: skip
-        return est, [np.zeros(model.n_points)] * len(tracker.order)
+        return _stub_estimate(model, q, fit), [np.zeros(model.n_points)] * len(tracker.order)
 
     tracker._search = search
     tracker.start(start, fresh=False)

@@ -166,9 +166,9 @@ class FactoredIPF(Tracker):
         if cfg.passes > 1:
             refined, _ = self._search(obs, best.q, widen, 1, cfg.passes)
             if first is not best:  # replaced only if it still loses by swap_margin once refined
-                other, _ = self._search(obs, first.q, widen, 1, cfg.passes)
-                spent = refined.evaluations + other.evaluations
-                refined = other if other.fit + cfg.swap_margin >= refined.fit else refined
+                first_refined, _ = self._search(obs, first.q, widen, 1, cfg.passes)
+                spent = refined.evaluations + first_refined.evaluations
+                refined = first_refined if first_refined.fit + cfg.swap_margin >= refined.fit else refined
                 refined.evaluations = spent
             refined.evaluations += best.evaluations
             best = refined
