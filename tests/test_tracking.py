@@ -417,6 +417,50 @@ def test_random_shape_moves_only_ever_raise_the_fit(embedded_session):
     assert again.factors == moved.factors and again.fit_after == moved.fit_after
 
 
+def test_shape_candidates_scored_side_by_side_give_the_one_thread_result(embedded_session):
+    """With ``workers`` > 1 the candidates' re-fits run on a thread pool (each thread set up by
+    ``worker_setup``) and the random moves are scored ``workers`` at a time; those after an accepted
+    move are scored again from the new shape, so the result is the one-thread result exactly. The
+    extra re-fits show that an accepted move did discard scored candidates here."""
+    import threading
+
+    from gaitcap.tracking.shape import calibrate_shape
+
+    truth, rig, true_model = _truth_setup(embedded_session.session)
+    views, make_tracker = _refit_tracker(rig, 60, 150)
+    scales = {k: v.copy() for k, v in true_model.scales.items()}
+    for seg in ("thigh_l", "thigh_r", "shank_l", "shank_r"):
+        scales[seg][2] *= 0.88
+    wrong = true_model.with_proportions(scales, true_model.shifts)
+    frames = [10, 14, 18]
+    obs = [observe(views, [truth.mask(c, t) for c in rig.names]) for t in frames]
+    parameters = {"thigh_length": ["thigh_l.z", "thigh_r.z"], "shank_length": ["shank_l.z", "shank_r.z"]}
+    threads, setups = [], []
+
+    def counting(m):
+        threads.append(threading.current_thread().name)
+        return make_tracker(m)
+
+    def run(workers):
+        threads.clear()
+        result = calibrate_shape(wrong, counting, obs, [truth.poses[t] for t in frames], parameters, steps=[0.08],
+                                 bounds=(0.8, 1.25), samples=3, seed=3, planted=True, random_candidates=12,
+                                 random_sigma=0.05, workers=workers,
+                                 worker_setup=lambda: setups.append(threading.current_thread().name))  # fmt: skip
+        return result, list(threads)
+
+    one, one_threads = run(1)
+    assert not setups  # one thread: no pool
+    two, two_threads = run(2)
+    assert two.factors == one.factors and two.fit_after == one.fit_after
+    assert np.array_equal(two.start, one.start)
+    assert two.fit_after > two.fit_before and two.factors != {"thigh_length": 1.0, "shank_length": 1.0}
+    assert set(one_threads) == {threading.current_thread().name}
+    assert sum(t.startswith("gaitcap-shape") for t in two_threads) == len(two_threads) - 1  # all but the first
+    assert len(set(setups)) == 2 and all(t.startswith("gaitcap-shape") for t in setups)
+    assert len(two_threads) > len(one_threads)  # scored candidates discarded after an accepted move
+
+
 @pytest.mark.parametrize(("parameter", "targets", "twice"),
                          [("arm_length", ["upper_arm_l.z", "upper_arm_r.z"], False),
                           ("trunk_length", ["torso.z"], False), ("thigh_length", ["thigh_l.z", "thigh_r.z"], True)])

@@ -16,6 +16,7 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass
+from functools import partial
 from pathlib import Path
 
 import numba
@@ -117,11 +118,16 @@ def kernel_threads(n: int | None) -> Iterator[None]:
     """The compiled kernels launched from this thread run on ``n`` threads (None: numba's
     maximum, one per core), restored on exit."""
     before = numba.get_num_threads()
-    numba.set_num_threads(min(n or numba.config.NUMBA_NUM_THREADS, numba.config.NUMBA_NUM_THREADS))
+    numba.set_num_threads(_thread_count(n))
     try:
         yield
     finally:
         numba.set_num_threads(before)
+
+
+def _thread_count(n: int | None) -> int:
+    """The kernels' threads for a configured ``threads`` (None: one per core), within numba's maximum."""
+    return min(n or numba.config.NUMBA_NUM_THREADS, numba.config.NUMBA_NUM_THREADS)
 
 
 def _observations(ses: Session, cams: tuple[str, ...], views, sil_cfg: SilhouetteConfig,
@@ -248,7 +254,7 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
         filt.model, lambda m: FactoredIPF(m, likelihood, refit_cfg, np.random.default_rng(cfg.seed)), first, poses,
         cfg.shape.parameters, cfg.shape.steps, cfg.shape.bounds, cfg.shape.samples, cfg.seed, cfg.shape.max_moves,
         cfg.shape.planted, cfg.shape.random_candidates, cfg.shape.random_sigma,
-        retrack if cfg.shape.retrack else None,
+        retrack if cfg.shape.retrack else None, _shape_workers(cfg), partial(numba.set_num_threads, _thread_count(cfg.threads)),
     )  # fmt: skip
     factors = ", ".join(f"{k} x{v:.3f}" for k, v in result.factors.items())
     log.info("shape: %s (mean fit %.3f -> %.3f)", factors, result.fit_before, result.fit_after)
@@ -259,6 +265,15 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
         start = settle_legs(tracker, first[: cfg.init.leg_frames], start)
     note = f"{factors}; mean fit {result.fit_before:.4f} -> {result.fit_after:.4f} on {len(first)} frames"
     return tracker, start, settled, note
+
+
+def _shape_workers(cfg: TrackingConfig) -> int:
+    """``shape.workers``, or 1 when numba's threading layer cannot run kernels from several threads
+    at once (workqueue: neither OpenMP nor TBB available)."""
+    if cfg.shape.workers > 1 and numba.threading_layer() == "workqueue":
+        log.info("shape calibration on one thread: numba's workqueue threading layer is not thread-safe")
+        return 1
+    return cfg.shape.workers
 
 
 def _track_frames(filt, likelihood, views, cfg: TrackingConfig, first, stream: Iterator[Observation],

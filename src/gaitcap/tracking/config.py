@@ -104,6 +104,9 @@ class ShapeConfig(Strict):
     #: track the window again with the shape found so far before each round of ``steps`` but the
     #: first (the re-fits of a round start from poses tracked with a wrong shape otherwise)
     retrack: bool = False
+    #: threads that score candidates side by side (their re-fits are independent, the result the
+    #: same as one after the other); the compiled kernels of each run on ``threads``
+    workers: int = Field(default=1, ge=1, le=64)
 
     @field_validator("refit_particles")
     @classmethod

@@ -40,6 +40,8 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import ExitStack
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -54,6 +56,9 @@ log = logging.getLogger("gaitcap.tracking.shape")
 #: a planted move smaller than this (metres) is not re-fitted again: the re-fit from the unmoved
 #: poses stands for it (a trunk, head or arm parameter leaves the soles exactly where they were)
 _PLANT_TOL_M = 1e-4
+
+#: a re-fit's result: the mean fit over the scored frames and the re-fitted poses (D,)
+_Scored = tuple[float, list[np.ndarray]]
 
 
 @dataclass
@@ -105,6 +110,8 @@ def calibrate_shape(
     random_candidates: int = 0,
     random_sigma: float = 0.04,
     retrack: Callable[[BodyModel, np.ndarray], list[np.ndarray]] | None = None,
+    workers: int = 1,
+    worker_setup: Callable[[], object] | None = None,
 ) -> ShapeResult:
     """Coordinate search, then random search, of the shape ``parameters`` (module docstring).
 
@@ -115,75 +122,101 @@ def calibrate_shape(
     """
     if len(observations) != len(poses) or not observations:
         raise ValueError("calibrate_shape needs one pose per observation")
-    pick = np.unique(np.linspace(0, len(observations) - 1, min(samples, len(observations))).round().astype(int))
-    obs = [observations[i] for i in pick]
+    with ExitStack() as stack:
+        pool = (stack.enter_context(ThreadPoolExecutor(workers, "gaitcap-shape", initializer=worker_setup))
+                if workers > 1 else None)  # fmt: skip
+        pick = np.unique(np.linspace(0, len(observations) - 1, min(samples, len(observations))).round().astype(int))
+        obs = [observations[i] for i in pick]
 
-    def refit(candidate: BodyModel, start: list[np.ndarray]) -> tuple[float, list[np.ndarray]]:
-        tracker = make_tracker(candidate)
-        tracker.rng = np.random.default_rng(seed)  # paired comparison: one random stream
-        fits, out = [], []
-        for o, q in zip(obs, start):
-            tracker.start(q)
-            est = tracker.step(o)
-            fits.append(est.fit)
-            out.append(est.q)
-        return float(np.mean(fits)), out
+        def refit(candidate: BodyModel, start: list[np.ndarray]) -> _Scored:
+            tracker = make_tracker(candidate)
+            tracker.rng = np.random.default_rng(seed)  # paired comparison: one random stream
+            fits, out = [], []
+            for o, q in zip(obs, start):
+                tracker.start(q)
+                est = tracker.step(o)
+                fits.append(est.fit)
+                out.append(est.q)
+            return float(np.mean(fits)), out
 
-    factors = {name: 1.0 for name in parameters}
-    current = [poses[i] for i in pick]
-    best_fit, current = refit(model, current)
-    fit_before = best_fit
+        factors = {name: 1.0 for name in parameters}
+        current = [poses[i] for i in pick]
+        best_fit, current = refit(model, current)
+        fit_before = best_fit
 
-    def try_factors(trial: dict[str, float], both: bool = True) -> tuple[float, list[np.ndarray]] | None:
-        """Mean fit and re-fitted poses with the parameters at ``trial``; None out of bounds. With
-        ``planted`` and ``both``, the better of the re-fits from the unmoved and the planted poses;
-        without ``both``, from the planted poses only."""
-        if not all(bounds[0] <= f <= bounds[1] for f in trial.values()):
-            return None
-        candidate = _scaled(model, parameters, trial)
-        if not planted:
-            return refit(candidate, current)
-        moved = planted_poses(_scaled(model, parameters, factors), candidate, current)
-        if np.max(np.abs(np.array(moved) - np.array(current))) <= _PLANT_TOL_M:
-            return refit(candidate, current)  # the lowest point does not move (trunk, arms): one re-fit
-        other = refit(candidate, moved)
-        if not both:
-            return other
-        plain = refit(candidate, current)
-        return other if other[0] > plain[0] else plain
+        def refits_of(trial: dict[str, float], both: bool = True) -> list[tuple[BodyModel, list[np.ndarray]]] | None:
+            """The re-fits (candidate model, start poses) that score the parameters at ``trial``; None
+            out of bounds. With ``planted`` and ``both``, from the unmoved and from the planted poses
+            (the better counts); without ``both``, from the planted poses only."""
+            if not all(bounds[0] <= f <= bounds[1] for f in trial.values()):
+                return None
+            candidate = _scaled(model, parameters, trial)
+            if not planted:
+                return [(candidate, current)]
+            moved = planted_poses(_scaled(model, parameters, factors), candidate, current)
+            if np.max(np.abs(np.array(moved) - np.array(current))) <= _PLANT_TOL_M:
+                return [(candidate, current)]  # the lowest point does not move (trunk, arms): one re-fit
+            return [(candidate, current), (candidate, moved)] if both else [(candidate, moved)]
 
-    def try_factor(name: str, f: float) -> tuple[float, list[np.ndarray]] | None:
-        return try_factors({**factors, name: f})
+        def score_all(trials: list[dict[str, float]], both: bool = True) -> list[_Scored | None]:
+            """Mean fit and re-fitted poses of each trial (None: out of bounds), every re-fit of every
+            trial run side by side on ``pool``; of a trial's two re-fits the planted one counts only
+            when it fits strictly better."""
+            plans = [refits_of(t, both) for t in trials]
+            jobs = [job for plan in plans if plan for job in plan]
+            if pool is None:
+                done = [refit(*job) for job in jobs]
+            else:
+                done = [f.result() for f in [pool.submit(refit, *job) for job in jobs]]
+            scored: list[_Scored | None] = []
+            for plan in plans:
+                if not plan:
+                    scored.append(None)
+                    continue
+                best, done = done[0], done[1:]
+                for _ in plan[1:]:
+                    if done[0][0] > best[0]:
+                        best = done[0]
+                    done = done[1:]
+                scored.append(best)
+            return scored
 
-    for round_index, delta in enumerate(steps):
-        if round_index > 0 and retrack is not None:  # poses tracked with the shape found so far
-            now = _scaled(model, parameters, factors)
-            window = retrack(now, current[0])
-            best_fit, current = refit(now, [window[i] for i in pick])
-        for name in parameters:
-            trial_best = None  # (fit, factor, direction, poses) of the better improving neighbour
-            for direction in (-1, 1):
-                f = factors[name] * (1 + direction * delta)
-                tried = try_factor(name, f)
-                if tried is not None and tried[0] > best_fit and (trial_best is None or tried[0] > trial_best[0]):
-                    trial_best = (tried[0], f, direction, tried[1])
-            if trial_best is None:
-                continue
-            best_fit, factors[name], direction, current = trial_best
-            for _ in range(max_moves - 1):  # pattern search: keep going while the fit improves
-                f = factors[name] * (1 + direction * delta)
-                tried = try_factor(name, f)
-                if tried is None or tried[0] <= best_fit:
+        for round_index, delta in enumerate(steps):
+            if round_index > 0 and retrack is not None:  # poses tracked with the shape found so far
+                now = _scaled(model, parameters, factors)
+                window = retrack(now, current[0])
+                best_fit, current = refit(now, [window[i] for i in pick])
+            for name in parameters:
+                trial_best = None  # (fit, factor, direction, poses) of the better improving neighbour
+                steps_to = {direction: factors[name] * (1 + direction * delta) for direction in (-1, 1)}
+                tried_both = score_all([{**factors, name: f} for f in steps_to.values()])
+                for (direction, f), tried in zip(steps_to.items(), tried_both):
+                    if tried is not None and tried[0] > best_fit and (trial_best is None or tried[0] > trial_best[0]):
+                        trial_best = (tried[0], f, direction, tried[1])
+                if trial_best is None:
+                    continue
+                best_fit, factors[name], direction, current = trial_best
+                for _ in range(max_moves - 1):  # pattern search: keep going while the fit improves
+                    f = factors[name] * (1 + direction * delta)
+                    tried = score_all([{**factors, name: f}])[0]
+                    if tried is None or tried[0] <= best_fit:
+                        break
+                    (best_fit, current), factors[name] = tried, f
+                log.debug("shape: %s x%.3f (fit %.4f)", name, factors[name], best_fit)
+        rng = np.random.default_rng([seed, 1])  # its own stream: the re-fits keep theirs
+        draws = [[rng.standard_normal() for _ in factors] for _ in range(random_candidates)]
+        i = 0
+        while i < len(draws):  # (1+1) evolution strategy, ``workers`` candidates scored side by side: those
+            # after an accepted one moved from the shape it replaced, so they are scored again from the new
+            # one (the same draws): the result is that of one candidate after the other
+            trials = [{k: float(np.clip(f * np.exp(random_sigma * z), *bounds))
+                       for (k, f), z in zip(factors.items(), zs)} for zs in draws[i : i + workers]]  # fmt: skip
+            scored = score_all(trials, both=False)  # every parameter moves: the soles stay on the floor
+            for trial, tried in zip(trials, scored):
+                i += 1
+                if tried is not None and tried[0] > best_fit:
+                    (best_fit, current), factors = tried, trial
+                    log.debug("shape: random move (fit %.4f)", best_fit)
                     break
-                (best_fit, current), factors[name] = tried, f
-            log.debug("shape: %s x%.3f (fit %.4f)", name, factors[name], best_fit)
-    rng = np.random.default_rng([seed, 1])  # its own stream: the re-fits keep theirs
-    for _ in range(random_candidates):
-        trial = {k: float(np.clip(f * np.exp(random_sigma * rng.standard_normal()), *bounds))
-                 for k, f in factors.items()}  # fmt: skip
-        tried = try_factors(trial, both=False)  # every parameter moves: the soles stay on the floor
-        if tried is not None and tried[0] > best_fit:
-            (best_fit, current), factors = tried, trial
-            log.debug("shape: random move (fit %.4f)", best_fit)
-    return ShapeResult(model=_scaled(model, parameters, factors), start=current[0], factors=factors,
-                       fit_before=fit_before, fit_after=best_fit)
+        return ShapeResult(model=_scaled(model, parameters, factors), start=current[0], factors=factors,
+                           fit_before=fit_before, fit_after=best_fit)
