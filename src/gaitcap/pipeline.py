@@ -254,7 +254,8 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
         filt.model, lambda m: FactoredIPF(m, likelihood, refit_cfg, np.random.default_rng(cfg.seed)), first, poses,
         cfg.shape.parameters, cfg.shape.steps, cfg.shape.bounds, cfg.shape.samples, cfg.seed, cfg.shape.max_moves,
         cfg.shape.planted, cfg.shape.random_candidates, cfg.shape.random_sigma,
-        retrack if cfg.shape.retrack else None, _shape_workers(cfg), partial(numba.set_num_threads, _thread_count(cfg.threads)),
+        retrack if cfg.shape.retrack else None, _shape_workers(cfg),
+        partial(numba.set_num_threads, _thread_count(cfg.threads)),
     )  # fmt: skip
     factors = ", ".join(f"{k} x{v:.3f}" for k, v in result.factors.items())
     log.info("shape: %s (mean fit %.3f -> %.3f)", factors, result.fit_before, result.fit_after)
