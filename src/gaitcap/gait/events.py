@@ -67,7 +67,8 @@ from scipy.signal import find_peaks, peak_prominences
 
 from gaitcap.errors import InputError
 from gaitcap.gait.options import GaitOptions
-from gaitcap.gait.signals import fill_short_gaps, finite_runs, lowpass, parabolic_peak, velocity
+from gaitcap.gait.signals import fill_short_gaps, lowpass, parabolic_peak, velocity
+from gaitcap.timeseries import finite_runs
 from gaitcap.trajectory import SIDES, GaitEvent, Side, Trajectory, side_suffix
 
 log = logging.getLogger("gaitcap.gait.events")

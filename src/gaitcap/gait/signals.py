@@ -7,14 +7,9 @@ short gaps are bridged linearly, long gaps stay NaN and split the signal into se
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import butter, sosfiltfilt
+from scipy.signal import butter
 
-
-def finite_runs(valid: np.ndarray) -> list[tuple[int, int]]:
-    """Start (inclusive) and stop (exclusive) indices of the runs of True in a (T,) bool array."""
-    v = np.concatenate([[False], np.asarray(valid, dtype=bool), [False]])
-    d = np.diff(v.astype(np.int8))
-    return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist(), strict=True))
+from gaitcap.timeseries import filtfilt_runs, finite_runs
 
 
 def fill_short_gaps(x: np.ndarray, max_gap: int) -> np.ndarray:
@@ -52,18 +47,10 @@ def lowpass(x: np.ndarray, rate_hz: float, cutoff_hz: float, order: int = 2) -> 
     Returns:
         Filtered copy, same shape. Runs too short for the filter's padding are left unfiltered.
     """
-    x = np.array(x, dtype=np.float64, copy=True)
     if cutoff_hz <= 0:
-        return x
+        return np.array(x, dtype=np.float64, copy=True)
     wn = min(cutoff_hz, 0.4 * rate_hz) / (0.5 * rate_hz)
-    sos = butter(order, wn, output="sos")
-    flat = x.reshape(len(x), -1)
-    ok = np.all(np.isfinite(flat), axis=1)
-    pad = 3 * (2 * len(sos) + 1)
-    for start, stop in finite_runs(ok):
-        if stop - start > pad:
-            flat[start:stop] = sosfiltfilt(sos, flat[start:stop], axis=0)
-    return flat.reshape(x.shape)
+    return filtfilt_runs(x, butter(order, wn, output="sos"))
 
 
 def velocity(x: np.ndarray, rate_hz: float) -> np.ndarray:

@@ -1,0 +1,61 @@
+"""The zero-lag filtering shared by the tracking output's smoothing and the gait analysis."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.signal import butter
+
+from gaitcap.gait.signals import lowpass as gait_lowpass
+from gaitcap.timeseries import filtfilt_runs, finite_runs
+from gaitcap.tracking.smoothing import lowpass as track_lowpass
+
+RATE = 25.0
+
+
+def test_finite_runs_are_the_runs_of_true():
+    assert finite_runs(np.array([1, 1, 0, 0, 1, 0, 1, 1, 1], bool)) == [(0, 2), (4, 5), (6, 9)]
+    assert finite_runs(np.zeros(3, bool)) == []
+
+
+def test_each_run_is_filtered_on_its_own_and_short_runs_are_kept():
+    """A gap splits the signal: each side equals the filter of that side alone (nothing reaches
+    across the gap), NaN rows stay NaN, and a run no longer than the padding is left untouched."""
+    rng = np.random.default_rng(0)
+    x = rng.standard_normal((120, 2, 3))
+    x[50:53] = np.nan
+    x[53:60] = 5.0 + rng.standard_normal((7, 2, 3))  # 7 samples, then another gap: too short
+    x[60:62] = np.nan
+    sos = butter(4, 0.3, output="sos")  # 2 sections: padding 15
+    y = filtfilt_runs(x, sos)
+    assert np.all(np.isnan(y[50:53])) and np.all(np.isnan(y[60:62]))
+    np.testing.assert_array_equal(y[53:60], x[53:60])
+    np.testing.assert_allclose(y[:50], filtfilt_runs(x[:50], sos))
+    np.testing.assert_allclose(y[62:], filtfilt_runs(x[62:], sos))
+    assert not np.allclose(y[:50], x[:50])  # it did filter
+    assert y.shape == x.shape and y.dtype == np.float64
+
+
+@pytest.mark.parametrize("order", [2, 4])
+def test_tracking_smoothing_is_minus_3_db_at_its_cut_off(order):
+    """Two passes of the Butterworth, each designed at cutoff / C, leave a sine at the cut-off at
+    1/sqrt(2) of its amplitude (away from the ends), pass a constant and a slow sine, and stop a
+    fast one; the gait analysis's filter (cut-off per pass) attenuates the same sine to 1/2."""
+    t = np.arange(1000) / RATE
+    cut = 6.0
+    mid = slice(200, 800)
+
+    def gain(f, filt):
+        y = filt(np.sin(2 * np.pi * f * t), RATE, cut, order)
+        return np.sqrt(2 * np.mean(y[mid] ** 2))
+
+    assert gain(cut, track_lowpass) == pytest.approx(2**-0.5, abs=0.01)
+    assert gain(1.0, track_lowpass) == pytest.approx(1.0, abs=0.01)
+    assert gain(11.0, track_lowpass) < 0.1
+    assert gain(cut, gait_lowpass) == pytest.approx(0.5, abs=0.01)
+    np.testing.assert_allclose(track_lowpass(np.full((40, 3), 2.5), RATE, cut, order), 2.5)
+
+
+def test_tracking_smoothing_refuses_a_cut_off_at_or_above_nyquist():
+    with pytest.raises(ValueError, match="Nyquist"):
+        track_lowpass(np.zeros((40, 3)), RATE, 12.5)
