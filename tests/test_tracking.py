@@ -198,6 +198,25 @@ def test_planted_poses_keep_the_lowest_point_on_the_floor():
     np.testing.assert_allclose(np.array(same), np.array(poses), atol=1e-12)
 
 
+def test_averaged_shapes_are_the_geometric_mean_with_the_first_start_planted():
+    """Several calibrations averaged: each factor is the geometric mean of theirs (x0.9 and x1.2 ->
+    x1.039), the model scaled by it, the fits the means, and the first calibration's start moved
+    vertically so that the averaged model's lowest point is where the first model's was."""
+    from gaitcap.tracking.shape import ShapeResult, _scaled, average_shapes, lowest_points
+
+    model = load_body_model()
+    parameters = {"legs": ["thigh_l.z", "thigh_r.z", "shank_l.z", "shank_r.z"], "arms": ["upper_arm_l.z"]}
+    start = model.neutral_pose()
+    results = [ShapeResult(_scaled(model, parameters, f), start, f, fb, fa)
+               for f, fb, fa in [({"legs": 0.9, "arms": 1.0}, 0.80, 0.85), ({"legs": 1.2, "arms": 1.0}, 0.82, 0.89)]]
+    avg = average_shapes(model, parameters, results)
+    assert avg.factors["legs"] == pytest.approx((0.9 * 1.2) ** 0.5) and avg.factors["arms"] == pytest.approx(1.0)
+    assert avg.model.scales["thigh_l"][2] == pytest.approx(model.scales["thigh_l"][2] * (0.9 * 1.2) ** 0.5)
+    assert (avg.fit_before, avg.fit_after) == (pytest.approx(0.81), pytest.approx(0.87))
+    assert lowest_points(avg.model, avg.start[None])[0] == pytest.approx(lowest_points(results[0].model, start[None])[0])
+    assert avg.start[model.dof_index("pelvis_tz")] > start[model.dof_index("pelvis_tz")]  # longer legs than the first
+
+
 def test_every_dof_has_an_interval():
     cfg = load_tracking_config()
     model = load_body_model()

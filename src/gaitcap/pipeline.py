@@ -45,7 +45,7 @@ from gaitcap.tracking.ipf import IntervalPF
 from gaitcap.tracking.likelihood import SilhouetteLikelihood
 from gaitcap.tracking.observation import Observation, tracking_views
 from gaitcap.tracking.raster import warm_up
-from gaitcap.tracking.shape import calibrate_shape
+from gaitcap.tracking.shape import ShapeResult, average_shapes, calibrate_shape
 from gaitcap.tracking.smoothing import lowpass
 from gaitcap.trajectory import Trajectory
 from gaitcap.video import iter_synchronised
@@ -219,6 +219,10 @@ def _new_tracker(cfg: TrackingConfig, model, likelihood):
     return TRACKERS[cfg.tracker](model, likelihood, cfg, np.random.default_rng(cfg.seed))
 
 
+#: the k-th of ``shape.repeats`` calibrations uses the random streams of tracker seed + k x this
+_REPEAT_SEED_STEP = 7919
+
+
 def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[Observation]):
     """Fit the subject's proportions on the buffered first frames (gaitcap.tracking.shape).
 
@@ -226,7 +230,9 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
     (None: initialise as usual), whether that pose's leg assignment was settled over the first
     ``init.leg_frames`` frames with that model (:func:`~gaitcap.tracking.init.settle_legs`) and a
     note for the output's attributes. Skipped, with a warning, when the subject is not in every
-    view of the first frame or the window is too short.
+    view of the first frame or the window is too short. With ``shape.repeats`` > 1 the calibrations
+    run side by side, the k-th with the random streams of seed + 7919 k, and their factors are
+    averaged (:func:`~gaitcap.tracking.shape.average_shapes`).
     """
     in_view = all(np.all(o.fractions() >= cfg.quality.min_silhouette_fraction) for o in first)
     if not in_view or len(first) < 2:
@@ -250,13 +256,28 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
         tracker.start(q0, fresh=not init.legs_settled)  # the legs as the first round had them
         return [tracker.step(o).q for o in first]
 
-    result = calibrate_shape(
-        filt.model, lambda m: FactoredIPF(m, likelihood, refit_cfg, np.random.default_rng(cfg.seed)), first, poses,
-        cfg.shape.parameters, cfg.shape.steps, cfg.shape.bounds, cfg.shape.samples, cfg.seed, cfg.shape.max_moves,
-        cfg.shape.planted, cfg.shape.random_candidates, cfg.shape.random_sigma,
-        retrack if cfg.shape.retrack else None, _shape_workers(cfg),
-        partial(numba.set_num_threads, _thread_count(cfg.threads)),
-    )  # fmt: skip
+    setup = partial(numba.set_num_threads, _thread_count(cfg.threads))
+
+    def calibrate(k: int, workers: int) -> ShapeResult:  # the k-th calibration, its own random streams
+        return calibrate_shape(
+            filt.model, lambda m: FactoredIPF(m, likelihood, refit_cfg, np.random.default_rng(cfg.seed)), first,
+            poses, cfg.shape.parameters, cfg.shape.steps, cfg.shape.bounds, cfg.shape.samples,
+            cfg.seed + _REPEAT_SEED_STEP * k, cfg.shape.max_moves, cfg.shape.planted, cfg.shape.random_candidates,
+            cfg.shape.random_sigma, retrack if cfg.shape.retrack else None, workers, setup,
+        )  # fmt: skip
+
+    concurrent = (cfg.shape.workers > 1 or cfg.shape.repeats > 1) and _concurrent_kernels()
+    if cfg.shape.repeats == 1:
+        result = calibrate(0, cfg.shape.workers if concurrent else 1)
+    else:
+        if concurrent:
+            with ThreadPoolExecutor(cfg.shape.repeats, initializer=setup) as pool:
+                results = list(pool.map(lambda k: calibrate(k, 1), range(cfg.shape.repeats)))
+        else:
+            results = [calibrate(k, 1) for k in range(cfg.shape.repeats)]
+        for r in results:
+            log.info("shape, one calibration: %s", ", ".join(f"{k} x{v:.3f}" for k, v in r.factors.items()))
+        result = average_shapes(filt.model, cfg.shape.parameters, results)
     factors = ", ".join(f"{k} x{v:.3f}" for k, v in result.factors.items())
     log.info("shape: %s (mean fit %.3f -> %.3f)", factors, result.fit_before, result.fit_after)
     tracker = _new_tracker(cfg, result.model, likelihood)
@@ -268,13 +289,13 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
     return tracker, start, settled, note
 
 
-def _shape_workers(cfg: TrackingConfig) -> int:
-    """``shape.workers``, or 1 when numba's threading layer cannot run kernels from several threads
-    at once (workqueue: neither OpenMP nor TBB available)."""
-    if cfg.shape.workers > 1 and numba.threading_layer() == "workqueue":
+def _concurrent_kernels() -> bool:
+    """Whether the compiled kernels may run from several threads at once: not with numba's workqueue
+    threading layer (neither OpenMP nor TBB available), which is not thread-safe."""
+    if numba.threading_layer() == "workqueue":
         log.info("shape calibration on one thread: numba's workqueue threading layer is not thread-safe")
-        return 1
-    return cfg.shape.workers
+        return False
+    return True
 
 
 def _track_frames(filt, likelihood, views, cfg: TrackingConfig, first, stream: Iterator[Observation],

@@ -107,6 +107,9 @@ class ShapeConfig(Strict):
     #: threads that score candidates side by side (their re-fits are independent, the result the
     #: same as one after the other); the compiled kernels of each run on ``threads``
     workers: int = Field(default=1, ge=1, le=64)
+    #: calibrations run side by side (one thread each) with their own random streams, their factors
+    #: averaged (geometric mean): one calibration's factors are noisy at the same fit
+    repeats: int = Field(default=1, ge=1, le=8)
 
     @field_validator("refit_particles")
     @classmethod

@@ -220,3 +220,14 @@ def calibrate_shape(
                     break
         return ShapeResult(model=_scaled(model, parameters, factors), start=current[0], factors=factors,
                            fit_before=fit_before, fit_after=best_fit)
+
+
+def average_shapes(model: BodyModel, parameters: dict[str, list[str]], results: list[ShapeResult]) -> ShapeResult:
+    """The geometric mean of several calibrations' factors; the first one's start, moved vertically
+    so that the averaged model's lowest point stays where the first model's was."""
+    factors = {k: float(np.exp(np.mean([np.log(r.factors[k]) for r in results]))) for k in results[0].factors}
+    averaged = _scaled(model, parameters, factors)
+    start = planted_poses(results[0].model, averaged, [results[0].start])[0]
+    return ShapeResult(model=averaged, start=start, factors=factors,
+                       fit_before=float(np.mean([r.fit_before for r in results])),
+                       fit_after=float(np.mean([r.fit_after for r in results])))
