@@ -405,12 +405,9 @@ def test_shape_rounds_after_the_first_start_from_the_window_tracked_again(embedd
     assert result.fit_after >= result.fit_before
 
 
-def test_random_shape_moves_only_ever_raise_the_fit(embedded_session):
-    """The random stage after the coordinate search (every parameter moved at once) keeps a move
-    only when it fits better: from a leg 12 % too short in both segments it lengthens the leg, it
-    is reproducible for a seed, and without candidates nothing moves (so the checks can fail)."""
-    from gaitcap.tracking.shape import calibrate_shape
-
+def _short_legs_window(embedded_session):
+    """A shape calibration problem: the true model with thighs and shanks 12 % too short, the re-fit
+    tracker factory, three frames' observations and true poses, and the two leg parameters."""
     truth, rig, true_model = _truth_setup(embedded_session.session)
     views, make_tracker = _refit_tracker(rig, 60, 150)
     scales = {k: v.copy() for k, v in true_model.scales.items()}
@@ -420,9 +417,19 @@ def test_random_shape_moves_only_ever_raise_the_fit(embedded_session):
     frames = [10, 14, 18]
     obs = [observe(views, [truth.mask(c, t) for c in rig.names]) for t in frames]
     parameters = {"thigh_length": ["thigh_l.z", "thigh_r.z"], "shank_length": ["shank_l.z", "shank_r.z"]}
+    return wrong, make_tracker, obs, [truth.poses[t] for t in frames], parameters
+
+
+def test_random_shape_moves_only_ever_raise_the_fit(embedded_session):
+    """The random stage after the coordinate search (every parameter moved at once) keeps a move
+    only when it fits better: from a leg 12 % too short in both segments it lengthens the leg, it
+    is reproducible for a seed, and without candidates nothing moves (so the checks can fail)."""
+    from gaitcap.tracking.shape import calibrate_shape
+
+    wrong, make_tracker, obs, starts, parameters = _short_legs_window(embedded_session)
 
     def run(candidates):
-        return calibrate_shape(wrong, make_tracker, obs, [truth.poses[t] for t in frames], parameters, steps=[],
+        return calibrate_shape(wrong, make_tracker, obs, starts, parameters, steps=[],
                                bounds=(0.8, 1.25), samples=3, seed=3, random_candidates=candidates,
                                random_sigma=0.05)  # fmt: skip
 
@@ -445,15 +452,7 @@ def test_shape_candidates_scored_side_by_side_give_the_one_thread_result(embedde
 
     from gaitcap.tracking.shape import calibrate_shape
 
-    truth, rig, true_model = _truth_setup(embedded_session.session)
-    views, make_tracker = _refit_tracker(rig, 60, 150)
-    scales = {k: v.copy() for k, v in true_model.scales.items()}
-    for seg in ("thigh_l", "thigh_r", "shank_l", "shank_r"):
-        scales[seg][2] *= 0.88
-    wrong = true_model.with_proportions(scales, true_model.shifts)
-    frames = [10, 14, 18]
-    obs = [observe(views, [truth.mask(c, t) for c in rig.names]) for t in frames]
-    parameters = {"thigh_length": ["thigh_l.z", "thigh_r.z"], "shank_length": ["shank_l.z", "shank_r.z"]}
+    wrong, make_tracker, obs, starts, parameters = _short_legs_window(embedded_session)
     threads, setups = [], []
 
     def counting(m):
@@ -462,7 +461,7 @@ def test_shape_candidates_scored_side_by_side_give_the_one_thread_result(embedde
 
     def run(workers):
         threads.clear()
-        result = calibrate_shape(wrong, counting, obs, [truth.poses[t] for t in frames], parameters, steps=[0.08],
+        result = calibrate_shape(wrong, counting, obs, starts, parameters, steps=[0.08],
                                  bounds=(0.8, 1.25), samples=3, seed=3, planted=True, random_candidates=12,
                                  random_sigma=0.05, workers=workers,
                                  worker_setup=lambda: setups.append(threading.current_thread().name))  # fmt: skip

@@ -231,7 +231,7 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
     ``init.leg_frames`` frames with that model (:func:`~gaitcap.tracking.init.settle_legs`) and a
     note for the output's attributes. Skipped, with a warning, when the subject is not in every
     view of the first frame or the window is too short. With ``shape.repeats`` > 1 the calibrations
-    run side by side, the k-th with the random streams of seed + 7919 k, and their factors are
+    run side by side, the k-th with the random streams of seed + k x ``_REPEAT_SEED_STEP``, and their factors are
     averaged (:func:`~gaitcap.tracking.shape.average_shapes`).
     """
     in_view = all(np.all(o.fractions() >= cfg.quality.min_silhouette_fraction) for o in first)
@@ -270,11 +270,8 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
     if cfg.shape.repeats == 1:
         result = calibrate(0, cfg.shape.workers if concurrent else 1)
     else:
-        if concurrent:
-            with ThreadPoolExecutor(cfg.shape.repeats, initializer=setup) as pool:
-                results = list(pool.map(lambda k: calibrate(k, 1), range(cfg.shape.repeats)))
-        else:
-            results = [calibrate(k, 1) for k in range(cfg.shape.repeats)]
+        with ThreadPoolExecutor(cfg.shape.repeats if concurrent else 1, initializer=setup) as pool:
+            results = list(pool.map(lambda k: calibrate(k, 1), range(cfg.shape.repeats)))
         for r in results:
             log.info("shape, one calibration: %s", ", ".join(f"{k} x{v:.3f}" for k, v in r.factors.items()))
         result = average_shapes(filt.model, cfg.shape.parameters, results)

@@ -164,22 +164,9 @@ def calibrate_shape(
             when it fits strictly better."""
             plans = [refits_of(t, both) for t in trials]
             jobs = [job for plan in plans if plan for job in plan]
-            if pool is None:
-                done = [refit(*job) for job in jobs]
-            else:
-                done = [f.result() for f in [pool.submit(refit, *job) for job in jobs]]
-            scored: list[_Scored | None] = []
-            for plan in plans:
-                if not plan:
-                    scored.append(None)
-                    continue
-                best, done = done[0], done[1:]
-                for _ in plan[1:]:
-                    if done[0][0] > best[0]:
-                        best = done[0]
-                    done = done[1:]
-                scored.append(best)
-            return scored
+            done = iter(list((pool.map if pool else map)(lambda job: refit(*job), jobs)))
+            # max keeps the first of equal fits: the planted re-fit (second) must be strictly better
+            return [max((next(done) for _ in plan), key=lambda r: r[0]) if plan else None for plan in plans]
 
         for round_index, delta in enumerate(steps):
             if round_index > 0 and retrack is not None:  # poses tracked with the shape found so far
