@@ -28,13 +28,13 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--data", type=Path, default=REPO.parent / "shared" / "data")
     ap.add_argument("--out", type=Path, default=Path("/tmp/gaitcap-synth"))
-    ap.add_argument("--clothing", default="default")
+    ap.add_argument("--seed", type=int, default=0, help="look seed (person, clothes, room, light, cameras)")
     args = ap.parse_args()
     print(f"| trial | frames | s to render | fit residual hips/knees/ankles mm | truth in mask % per camera | max bone variation % |")
     print("|---|---|---|---|---|---|")
     for name, rel in TRIALS.items():
         t0 = time.perf_counter()
-        res = synthesize(args.data / rel, args.out / name, SynthOptions(clothing=args.clothing), force=True, progress=False)
+        res = synthesize(args.data / rel, args.out / name, SynthOptions(seed=args.seed), force=True, progress=False)
         dt = time.perf_counter() - t0
         lower = [res.fit.residual_m[k] * 1000 for k in ("hip_l", "hip_r", "knee_l", "knee_r", "ankle_l", "ankle_r")]
         inside = truth_inside_masks(res.session)

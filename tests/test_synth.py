@@ -3,6 +3,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import cv2
+import h5py
 import numpy as np
 import pytest
 import yaml
@@ -28,7 +29,7 @@ def vicon_session(tmp_path_factory):
 @pytest.fixture(scope="module")
 def opensim_session(tmp_path_factory):
     out = tmp_path_factory.mktemp("synth") / "opensim"
-    opts = SynthOptions(cameras=3, size=(320, 240), clothing="dark", codec="ffv1")
+    opts = SynthOptions(cameras=3, size=(320, 240), seed=3, codec="ffv1")
     return synthesize(FIXTURES / "subject01_walk1.trc", out, opts, progress=False)
 
 
@@ -84,11 +85,22 @@ def test_truth_points_fall_inside_the_rendered_silhouettes(vicon_session, opensi
         assert min(inside.values()) >= 0.99, inside
 
 
-def test_bone_lengths_are_constant(vicon_session, opensim_session):
+def test_truth_is_the_motions_own_joint_centres(vicon_session, opensim_session):
+    """The truth's points are the recording's joint centres (not the tracker's model refitted), so
+    bones vary in length as marker-based joint centres do, within a real-data range."""
     for result in (vicon_session, opensim_session):
+        with h5py.File(result.session / "truth.h5", "r") as f:
+            raw, raw_names = f["raw_points"][()], [str(n) for n in f["raw_points"].attrs["names"]]
+        truth = result.truth
+        for name in LOWER_LIMB:
+            obs = raw[:, raw_names.index(name)]
+            ok = np.all(np.isfinite(obs), axis=1)
+            assert ok.mean() > 0.8
+            np.testing.assert_allclose(truth.point(name)[ok], obs[ok], atol=1e-9)
         variation = bone_length_variation(result.session)
         assert len(variation) == 15
-        assert max(variation.values()) < 0.02
+        assert max(variation[b] for b in ("hip_l-knee_l", "knee_l-ankle_l", "hip_r-knee_r", "knee_r-ankle_r")) < 0.15
+        assert max(variation.values()) > 0.005  # not a rigid model's points
 
 
 def test_body_fit_follows_the_real_joint_centres(vicon_session, opensim_session):

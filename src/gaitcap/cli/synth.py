@@ -10,7 +10,6 @@ import click
 from gaitcap.cli.options import force_option, handle_errors, seed_option
 from gaitcap.data import embedded_walk
 from gaitcap.io.video_write import CODECS
-from gaitcap.synth.render import CLOTHING
 from gaitcap.synth.session import SynthOptions, synthesize
 
 log = logging.getLogger("gaitcap")
@@ -41,16 +40,15 @@ def parse_floats(_ctx: click.Context, _param: click.Parameter, value: str | None
 @click.option("--cameras", default=2, show_default=True, type=click.IntRange(1, 8), help="Number of cameras.")
 @click.option("--size", default="640x480", show_default=True, callback=parse_size, help="Image size WIDTHxHEIGHT.")
 @click.option("--fps", default=25.0, show_default=True, type=click.FloatRange(min=1), help="Video frame rate.")
-@click.option("--clothing", default="default", show_default=True, type=click.Choice(sorted(CLOTHING)))
-@click.option("--shadow/--no-shadow", default=True, show_default=True, help="Cast a soft shadow on the floor.")
-@click.option("--noise", default=2.5, show_default=True, type=click.FloatRange(min=0), help="Sensor noise (grey levels).")
-@click.option("--drift", default=0.06, show_default=True, type=click.FloatRange(0, 0.5), help="Lighting drift (fraction).")
-@click.option("--distortion/--no-distortion", default=True, show_default=True, help="Mild barrel lens distortion.")
-@click.option("--camera-height", default=1.1, show_default=True, type=click.FloatRange(0.2, 5), help="Camera height (m).")
+@click.option("--shadow/--no-shadow", default=True, show_default=True, help="Cast the lights' shadows on the floor.")
+@click.option("--distortion/--no-distortion", default=True, show_default=True, help="Lens distortion (drawn per seed).")
 @click.option("--azimuths", default=None, callback=parse_floats,
-              help="Camera azimuths in degrees from the walking direction (left positive), e.g. 90,-45.")
+              help="Camera azimuths in degrees from the walking direction (left positive), e.g. 90,-45 "
+                   "(default: a layout drawn from the seed).")
 @click.option("--height", "height_m", type=click.FloatRange(0.5, 2.6), default=None,
-              help="Subject height (m) when the motion file has none.")
+              help="The recorded subject's height (m) when the motion file has none.")
+@click.option("--subject-height", "subject_height_m", type=click.FloatRange(0.8, 2.2), default=None,
+              help="Scale the walk to a subject of this height (m), e.g. 1.1 for a child.")
 @click.option("--codec", default="mp4v", show_default=True, type=click.Choice(sorted(CODECS)),
               help="mp4v (.mp4, lossy), ffv1 (.mkv, lossless) or mjpg (.avi).")
 @seed_option
@@ -58,27 +56,30 @@ def parse_floats(_ctx: click.Context, _param: click.Parameter, value: str | None
 @click.pass_context
 @handle_errors
 def command(ctx: click.Context, motion: Path | None, out: Path, cameras: int, size: tuple[int, int], fps: float,
-            clothing: str, shadow: bool, noise: float, drift: float, distortion: bool, camera_height: float,
-            azimuths: tuple[float, ...] | None, height_m: float | None, codec: str, seed: int, force: bool) -> None:
+            shadow: bool, distortion: bool, azimuths: tuple[float, ...] | None, height_m: float | None,
+            subject_height_m: float | None, codec: str, seed: int, force: bool) -> None:
     """Render a synthetic session with ground truth from a real walk (C3D or TRC).
 
-    MOTION defaults to the embedded Plug-in-Gait walk. The session gets calibration.toml,
-    videos/, background/, session.yaml and truth.h5 (true points, poses, events, masks).
+    MOTION defaults to the embedded Plug-in-Gait walk. The person (build, clothes, skin, hair),
+    the room, the lights and the camera placement are drawn from --seed, so that seeds give
+    different sessions; the person is a mannequin of its own, not gaitcap's tracking model. The
+    session gets calibration.toml, videos/, background/, session.yaml and truth.h5 (true joint
+    centres, events, masks, and the drawn conditions).
 
     \b
     Example:
         gaitcap synth -o sessions/demo
-        gaitcap synth subject01_walk1.trc -o sessions/opensim --cameras 3 --clothing dark
+        gaitcap synth subject01_walk1.trc -o sessions/opensim --cameras 3 --seed 7 --subject-height 1.2
     """
     if azimuths is not None and len(azimuths) != cameras:
         raise click.BadParameter(f"{len(azimuths)} azimuths for {cameras} cameras", param_hint="--azimuths")
     options = SynthOptions(
-        cameras=cameras, size=size, fps=fps, clothing=clothing, shadow=shadow, noise_sigma=noise, drift=drift,
-        distortion=distortion, camera_height_m=camera_height, azimuths_deg=azimuths, codec=codec, seed=seed,
-        height_m=height_m,
+        cameras=cameras, size=size, fps=fps, shadow=shadow, distortion=distortion, azimuths_deg=azimuths,
+        codec=codec, seed=seed, height_m=height_m, subject_height_m=subject_height_m,
     )  # fmt: skip
     result = synthesize(motion or embedded_walk(), out, options, force=force, progress=not ctx.obj.get("quiet"))
     residual = {k: round(v * 1000, 1) for k, v in result.fit.residual_m.items()}
     log.info("session %s: %d frames x %d cameras (%s)", result.session, result.n_frames, len(result.cameras),
              ", ".join(result.cameras))
     log.info("body fit residual to the marker joint centres (mm): %s", residual)
+    log.info("drawn conditions: %s", ", ".join(f"{k} {v}" for k, v in result.look.describe().items()))

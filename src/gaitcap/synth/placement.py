@@ -59,11 +59,7 @@ def place_cameras(
         raise ValueError(f"{n_cameras} cameras need {n_cameras} azimuths, got {len(azimuths)}")
     d = walking_direction(pelvis, hip_l, hip_r)
     n = np.cross([0.0, 0.0, 1.0], d)  # to the subject's left
-    pts = points.reshape(-1, 3)
-    pts = pts[np.all(np.isfinite(pts), axis=1)]
-    pad = np.array([[dx, dy, dz] for dx in (-0.15, 0.15) for dy in (-0.15, 0.15) for dz in (0.0, 0.12)])
-    padded = (pts[:, None, :] + pad[None]).reshape(-1, 3)
-    padded[:, 2] = np.maximum(padded[:, 2], 0.0)
+    padded = padded_walk(points)
     lo, hi = padded.min(axis=0), padded.max(axis=0)
     centre = 0.5 * (lo + hi)
     target = np.array([centre[0], centre[1], 0.5 * (hi[2] + lo[2])])
@@ -81,4 +77,57 @@ def place_cameras(
                 break
             dist *= 1.05
         cams.append(cam)
+    return cams
+
+
+def padded_walk(points: np.ndarray) -> np.ndarray:
+    """The walk's points (T, P, 3), finite ones, padded by the body's thickness: (N, 3)."""
+    pts = points.reshape(-1, 3)
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    pad = np.array([[dx, dy, dz] for dx in (-0.15, 0.15) for dy in (-0.15, 0.15) for dz in (0.0, 0.12)])
+    padded = (pts[:, None, :] + pad[None]).reshape(-1, 3)
+    padded[:, 2] = np.maximum(padded[:, 2], 0.0)
+    return padded
+
+
+def place_cameras_at(
+    points: np.ndarray,
+    direction: np.ndarray,
+    azimuths_deg: Sequence[float],
+    distances_m: Sequence[float],
+    heights_m: Sequence[float],
+    size: tuple[int, int] = (640, 480),
+    distortion: Sequence[float] = DEFAULT_DISTORTION,
+    margin: float = 0.04,
+    min_clearance_m: float = 1.5,
+) -> list[Camera]:
+    """Cameras cam1..camN at given azimuths, distances and heights around the walk, each zoomed
+    (focal length) so that the whole padded walk ``points`` (T, P, 3) fits with ``margin``.
+
+    The distance is measured from the middle of the walk and raised where needed so that the
+    camera stands at least ``min_clearance_m`` beyond the walk (a frontal camera the subject
+    walks towards).
+    """
+    padded = padded_walk(points)
+    lo, hi = padded.min(axis=0), padded.max(axis=0)
+    centre = 0.5 * (lo + hi)
+    target = np.array([centre[0], centre[1], 0.5 * (hi[2] + lo[2])])
+    n = np.cross([0.0, 0.0, 1.0], direction)
+    w, h = size
+    cams = []
+    for i, (az, dist, height) in enumerate(zip(azimuths_deg, distances_m, heights_m)):
+        a = np.radians(az)
+        way = np.cos(a) * direction + np.sin(a) * n
+        reach = float(np.max((padded[:, :2] - target[:2]) @ way[:2]))
+        dist = max(float(dist), reach + min_clearance_m)
+        pos = target + dist * way
+        pos[2] = height
+        unit = Camera.look_at(f"cam{i + 1}", pos, target, size=size, focal_px=1.0)
+        xy = unit.to_camera(padded)
+        xn = np.abs(xy[:, 0] / xy[:, 2]).max()
+        yn = np.abs(xy[:, 1] / xy[:, 2]).max()
+        focal = min((0.5 - margin) * w / xn, (0.5 - margin) * h / yn)
+        # lens distortion pulls the corners in (barrel) or out: leave room for it
+        focal *= 0.97 if distortion[0] >= 0 else 1.0
+        cams.append(Camera.look_at(f"cam{i + 1}", pos, target, size=size, focal_px=float(focal), dist=distortion))
     return cams

@@ -17,6 +17,7 @@ import cv2
 import numpy as np
 
 from gaitcap.camera import Camera
+from gaitcap.synth.variety import RoomStyle
 
 TEXTURE_RES_M = 0.005  # metres per texel
 SHADOW_RES_M = 0.01  # metres per shadow-grid cell
@@ -56,30 +57,69 @@ def _value_noise(rng: np.random.Generator, shape: tuple[int, int], cell: int) ->
     return cv2.resize(small, (shape[1], shape[0]), interpolation=cv2.INTER_CUBIC)
 
 
-def floor_texture(rng: np.random.Generator, width_m: float, depth_m: float) -> np.ndarray:
-    """Grey tiles with grout lines, per-tile variation and grain: (rows=y, cols=x, 3) float32 BGR 0-255."""
+def _tint(color: tuple[float, float, float], value: np.ndarray) -> np.ndarray:
+    """(rows, cols, 3) float32: ``value`` (rows, cols), around 1, times the BGR ``color``."""
+    return (value[..., None] * np.asarray(color, np.float32)).astype(np.float32)
+
+
+def floor_texture(rng: np.random.Generator, width_m: float, depth_m: float, style: RoomStyle,
+                  mat: tuple[np.ndarray, np.ndarray, float, float] | None = None) -> np.ndarray:
+    """The floor seen from above: (rows=y, cols=x, 3) float32 BGR 0-255.
+
+    Tiles with grout, wooden planks, carpet or plain lino in ``style.floor_color``; ``mat`` =
+    (centre xy, unit direction xy, length, width) lays a walkway mat of ``style.mat_color``.
+    """
     h, w = int(depth_m / TEXTURE_RES_M) + 2, int(width_m / TEXTURE_RES_M) + 2
     y, x = np.mgrid[0:h, 0:w].astype(np.float32) * TEXTURE_RES_M
-    tile = 0.6
-    ti, tj = np.floor(x / tile).astype(int), np.floor(y / tile).astype(int)
-    tile_var = rng.uniform(-0.06, 0.06, size=(ti.max() + 1, tj.max() + 1)).astype(np.float32)[ti, tj]
-    gx, gy = np.mod(x, tile), np.mod(y, tile)
-    grout = ((gx < 0.008) | (gy < 0.008)).astype(np.float32)
-    base = 120.0 * (1 + tile_var + 0.05 * _value_noise(rng, (h, w), 80) + 0.03 * rng.standard_normal((h, w)).astype(np.float32))
-    base = base * (1 - 0.35 * grout)
-    return np.stack([base * 0.98, base, base * 1.01], axis=-1).astype(np.float32)
+    grain = 0.03 * rng.standard_normal((h, w)).astype(np.float32)
+    if style.floor_kind == "tiles":
+        tile = style.tile_m
+        ti, tj = np.floor(x / tile).astype(int), np.floor(y / tile).astype(int)
+        tile_var = rng.uniform(-0.06, 0.06, size=(ti.max() + 1, tj.max() + 1)).astype(np.float32)[ti, tj]
+        grout = ((np.mod(x, tile) < 0.008) | (np.mod(y, tile) < 0.008)).astype(np.float32)
+        value = (1 + tile_var + 0.05 * _value_noise(rng, (h, w), 80) + grain) * (1 - 0.35 * grout)
+    elif style.floor_kind == "wood":
+        plank = 0.18
+        pj = np.floor(y / plank).astype(int)
+        plank_var = rng.uniform(-0.12, 0.12, size=pj.max() + 1).astype(np.float32)[pj]
+        # grain streaks along the planks (x): noise stretched along x
+        streaks = 0.08 * cv2.resize(rng.uniform(-1, 1, (h, max(2, w // 60))).astype(np.float32), (w, h),
+                                    interpolation=cv2.INTER_LINEAR)
+        seams = (np.mod(y, plank) < 0.004).astype(np.float32)
+        value = (1 + plank_var + streaks + grain) * (1 - 0.4 * seams)
+    elif style.floor_kind == "carpet":
+        value = 1 + 0.08 * _value_noise(rng, (h, w), 30) + 3 * grain
+    else:
+        value = 1 + 0.03 * _value_noise(rng, (h, w), 150) + 0.5 * grain
+    tex = _tint(style.floor_color, value)
+    if mat is not None and style.mat_color is not None:
+        centre, d, length, width = mat
+        rel_x, rel_y = x - centre[0], y - centre[1]
+        along = rel_x * d[0] + rel_y * d[1]
+        across = -rel_x * d[1] + rel_y * d[0]
+        on = (np.abs(along) <= length / 2) & (np.abs(across) <= width / 2)
+        edge = on & ((np.abs(across) > width / 2 - 0.03) | (np.abs(along) > length / 2 - 0.03))
+        mat_tex = _tint(style.mat_color, 1 + 0.05 * _value_noise(rng, (h, w), 20) + grain)
+        tex[on] = mat_tex[on]
+        tex[edge] *= 0.8
+    return tex
 
 
-def wall_texture(rng: np.random.Generator, length_m: float, height_m: float) -> np.ndarray:
-    """Pale painted wall with a dark skirting board and a few posters: (rows=z from top, cols, 3)."""
+def wall_texture(rng: np.random.Generator, length_m: float, height_m: float, style: RoomStyle) -> np.ndarray:
+    """A painted wall with a skirting board, maybe a door, and posters: (rows=z from top, cols, 3)."""
     h, w = int(height_m / TEXTURE_RES_M) + 2, int(length_m / TEXTURE_RES_M) + 2
-    hue = rng.uniform(0.85, 1.0, size=3).astype(np.float32)
-    tex = np.empty((h, w, 3), np.float32)
-    tex[:] = 200.0 * hue
-    tex *= (1 + 0.04 * _value_noise(rng, (h, w), 120))[..., None]
+    hue = rng.uniform(0.92, 1.05, size=3).astype(np.float32)
+    tex = _tint(tuple(float(c) for c in np.asarray(style.wall_color) * hue), 1 + 0.04 * _value_noise(rng, (h, w), 120))
     skirting = int(0.10 / TEXTURE_RES_M)
-    tex[h - skirting :] = 70.0
-    for _ in range(max(1, int(length_m / 2.5))):
+    tex[h - skirting :] = rng.uniform(40, 200)
+    if style.door_color is not None and length_m > 2.0 and rng.random() < 0.7:
+        dw, dh = 0.9, min(2.05, height_m - 0.2)
+        c0 = int(rng.uniform(0.2, length_m - dw - 0.2) / TEXTURE_RES_M)
+        r0 = int((height_m - dh) / TEXTURE_RES_M)
+        frame = int(0.05 / TEXTURE_RES_M)
+        tex[r0 - frame : h, c0 - frame : c0 + int(dw / TEXTURE_RES_M) + frame] = 0.8 * np.asarray(style.door_color, np.float32)
+        tex[r0:h, c0 : c0 + int(dw / TEXTURE_RES_M)] = np.asarray(style.door_color, np.float32)
+    for _ in range(style.n_posters):
         pw, ph = rng.uniform(0.4, 1.2), rng.uniform(0.5, 1.0)
         px, pz = rng.uniform(0, max(0.1, length_m - pw)), rng.uniform(1.0, 2.0)
         c0, r0 = int(px / TEXTURE_RES_M), int((height_m - pz - ph) / TEXTURE_RES_M)
@@ -119,14 +159,17 @@ class CameraView:
 class Scene:
     """The room, its textures, and what each camera sees of it."""
 
-    def __init__(self, room: Room, seed: int = 0) -> None:
-        rng = np.random.default_rng(seed)
+    def __init__(self, room: Room, style: RoomStyle = RoomStyle(),
+                 mat: tuple[np.ndarray, np.ndarray, float, float] | None = None) -> None:
+        rng = np.random.default_rng(style.seed)
         self.room = room
         w, d, h = room.xmax - room.xmin, room.ymax - room.ymin, room.height
-        self.floor = floor_texture(rng, w, d)
+        if mat is not None:  # floor coordinates of the texture start at (xmin, ymin)
+            mat = (np.asarray(mat[0], float) - [room.xmin, room.ymin], mat[1], mat[2], mat[3])
+        self.floor = floor_texture(rng, w, d, style, mat)
         self.walls = {
-            "ymax": wall_texture(rng, w, h), "ymin": wall_texture(rng, w, h),
-            "xmax": wall_texture(rng, d, h), "xmin": wall_texture(rng, d, h),
+            "ymax": wall_texture(rng, w, h, style), "ymin": wall_texture(rng, w, h, style),
+            "xmax": wall_texture(rng, d, h, style), "xmin": wall_texture(rng, d, h, style),
         }  # fmt: skip
         self.ceiling_value = 215.0
 

@@ -1,8 +1,12 @@
 """``gaitcap synth``: render a synthetic session, with ground truth, from a real walk.
 
-motion file -> joint centres (gaitcap.markers) -> resampled to the video rate -> body model fitted
-(gaitcap.synth.fit) -> cameras placed (placement) -> textured room (scene) -> frames rendered and
-streamed to one video per camera and to the truth masks -> the session folder.
+motion file -> joint centres (gaitcap.markers) -> scaled to the subject's height, resampled to
+the video rate -> the truth: those joint centres, frame by frame (gaps and the points a marker set
+lacks, such as the upper body of a lower-body recording, completed by the body model fitted to
+them, gaitcap.synth.fit) -> a look drawn from the seed (gaitcap.synth.variety: build, clothes,
+room, light, cameras) -> cameras placed -> textured room (scene) -> the mannequin
+(gaitcap.synth.mannequin, not the tracker's capsules) rendered around the truth's joint centres
+and streamed to one video per camera and to the truth masks -> the session folder.
 
 The session is assembled in a temporary folder beside the target and renamed into place at the
 end, so an interrupted run never leaves a half-written session.
@@ -16,7 +20,7 @@ import os
 import shutil
 import tempfile
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import cv2
@@ -34,12 +38,14 @@ from gaitcap.io.calibration_toml import write_calibration
 from gaitcap.io.video_write import CODECS, AtomicVideoWriter
 from gaitcap.markers.motion import read_motion
 from gaitcap.session import BACKGROUND_DIR, CALIBRATION_FILE, SESSION_FILE, VIDEOS_DIR
-from gaitcap.synth.fit import FitResult, fit_body
-from gaitcap.synth.placement import DEFAULT_DISTORTION, place_cameras
-from gaitcap.synth.render import Renderer, RenderOptions
+from gaitcap.synth.fit import FitResult, estimate_height, fit_body
+from gaitcap.synth.mannequin import Mannequin
+from gaitcap.synth.placement import place_cameras_at, walking_direction
+from gaitcap.synth.render import Renderer
 from gaitcap.synth.scene import Room, Scene
 from gaitcap.synth.truth import write_events
-from gaitcap.trajectory import GaitEvent, Trajectory
+from gaitcap.synth.variety import Look, draw_look
+from gaitcap.trajectory import POINT_NAMES, GaitEvent, Trajectory
 
 log = logging.getLogger("gaitcap.synth")
 
@@ -48,23 +54,24 @@ TRUTH_FILE = "truth.h5"
 
 @dataclass(frozen=True)
 class SynthOptions:
-    """Everything ``gaitcap synth`` can be told (defaults: 2 cameras, 640x480, 25 fps)."""
+    """Everything ``gaitcap synth`` can be told (defaults: 2 cameras, 640x480, 25 fps).
+
+    The person, clothes, room, light and camera placement are drawn from ``seed``
+    (:func:`gaitcap.synth.variety.draw_look`); ``azimuths_deg``, ``shadow`` and ``distortion``
+    override the drawn ones.
+    """
 
     cameras: int = 2
     size: tuple[int, int] = (640, 480)
     fps: float = 25.0
-    clothing: str = "default"
     shadow: bool = True
-    noise_sigma: float = 2.5
-    drift: float = 0.06
     distortion: bool = True
-    camera_height_m: float = 1.1
     azimuths_deg: tuple[float, ...] | None = None
     codec: str = "mp4v"
     seed: int = 0
-    height_m: float | None = None
+    height_m: float | None = None  # the recorded subject's height when the file has none
+    subject_height_m: float | None = None  # scale the walk uniformly to a subject of this height
     body_config: str | None = None
-    light_direction: tuple[float, float, float] | None = None  # default: from the walk's geometry
     extra: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -74,6 +81,10 @@ class SynthOptions:
             raise ValueError("fps must be positive")
         if self.codec not in CODECS:
             raise ValueError(f"unknown codec {self.codec!r} (choose from {', '.join(CODECS)})")
+        if self.azimuths_deg is not None and len(self.azimuths_deg) != self.cameras:
+            raise ValueError(f"{len(self.azimuths_deg)} azimuths for {self.cameras} cameras")
+        if self.subject_height_m is not None and not 0.8 <= self.subject_height_m <= 2.2:
+            raise ValueError("subject_height_m must be between 0.8 and 2.2 m")
 
 
 @dataclass(frozen=True)
@@ -83,17 +94,7 @@ class SynthResult:
     cameras: list[str]
     fit: FitResult
     truth: Trajectory
-
-
-def _light_direction(rig: CameraRig, fit_points: np.ndarray) -> tuple[float, float, float]:
-    """Light from the far side, high: the shadow falls towards the first (lateral) camera and ahead."""
-    centre = np.nanmean(fit_points.reshape(-1, 3), axis=0)
-    towards = rig[0].center - centre
-    towards[2] = 0
-    towards /= np.linalg.norm(towards)
-    d = np.array([towards[1], -towards[0], 0.0])  # along the walk
-    L = 0.45 * towards + 0.2 * d + np.array([0.0, 0.0, -0.85])
-    return tuple(float(v) for v in L / np.linalg.norm(L))
+    look: Look
 
 
 def _events_on_video_time(events: Sequence[GaitEvent], t0: float, duration: float) -> tuple[GaitEvent, ...]:
@@ -103,6 +104,38 @@ def _events_on_video_time(events: Sequence[GaitEvent], t0: float, duration: floa
         if -1e-9 <= t <= duration + 1e-9:
             out.append(GaitEvent(float(t), e.side, e.event, e.source))
     return tuple(out)
+
+
+def scale_walk(traj: Trajectory, height_m: float, source_height_m: float) -> Trajectory:
+    """The walk of a subject ``height_m`` tall: points scaled about the walk's mean floor position."""
+    k = height_m / source_height_m
+    pts = traj.points.copy()
+    centre = np.nanmean(pts.reshape(-1, 3), axis=0)
+    centre[2] = 0.0
+    pts = centre + k * (pts - centre)
+    return replace(traj, points=pts, meta={**traj.meta, "height_m": height_m})
+
+
+def truth_points(traj: Trajectory, fit: FitResult) -> np.ndarray:
+    """(T, P, 3) under POINT_NAMES: the motion's joint centres, completed by the fitted model's."""
+    names = fit.model.point_names
+    out = np.array(fit.points, dtype=np.float64)
+    for name in POINT_NAMES:
+        if traj.has(name):
+            obs = traj.point(name)
+            ok = np.all(np.isfinite(obs), axis=1)
+            out[ok, names.index(name)] = obs[ok]
+    return out[:, [names.index(n) for n in POINT_NAMES]]
+
+
+def _floor_mat(points: np.ndarray, direction: np.ndarray, width: float) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """A walkway mat under the walk: (centre xy, direction xy, length, width)."""
+    xy = points.reshape(-1, 3)[:, :2]
+    xy = xy[np.all(np.isfinite(xy), axis=1)]
+    centre = 0.5 * (xy.min(axis=0) + xy.max(axis=0))
+    along = (xy - centre) @ direction[:2]
+    length = float(np.ptp(along)) + 2.0
+    return centre, direction[:2] / np.linalg.norm(direction[:2]), length, width
 
 
 def synthesize(
@@ -115,37 +148,41 @@ def synthesize(
         raise OutputError(f"{out}: already exists (use --force to replace it)")
     traj = read_motion(motion)
     source_t0 = traj.t0_s
+    if options.height_m and not traj.meta.get("height_m"):
+        traj = replace(traj, meta={**traj.meta, "height_m": options.height_m})
+    if options.subject_height_m is not None:
+        traj = scale_walk(traj, options.subject_height_m, estimate_height(traj))
     traj = traj.resample(options.fps)
     spec = load_body_spec(options.body_config)
-    log.info("fitting the body model to %d frames of %s", traj.n_frames, Path(motion).name)
-    fit = fit_body(spec, traj, height_m=options.height_m)
-    points = fit.points
-    k = fit.model.point_index
-    cams = place_cameras(
-        points, points[:, k("pelvis")], points[:, k("hip_l")], points[:, k("hip_r")],
-        n_cameras=options.cameras, size=options.size, height_m=options.camera_height_m,
-        azimuths_deg=options.azimuths_deg, distortion=DEFAULT_DISTORTION if options.distortion else (0, 0, 0, 0),
+    log.info("fitting the body model to %d frames of %s (to complete the truth)", traj.n_frames, Path(motion).name)
+    fit = fit_body(spec, traj)
+    points = truth_points(traj, fit)
+    height = float(fit.model.height_m)
+    look = draw_look(options.seed, height, options.cameras)
+    plan = look.cameras
+    k = POINT_NAMES.index
+    direction = walking_direction(points[:, k("pelvis")], points[:, k("hip_l")], points[:, k("hip_r")])
+    cams = place_cameras_at(
+        points, direction, options.azimuths_deg or plan.azimuths_deg, plan.distances_m, plan.heights_m,
+        size=options.size, distortion=(plan.k1, 0.2 * abs(plan.k1), 0.0, 0.0) if options.distortion else (0, 0, 0, 0),
     )  # fmt: skip
     rig = CameraRig(tuple(cams))
     room = Room.around(np.vstack([points.reshape(-1, 3), [c.center for c in cams]]))
-    scene = Scene(room, seed=options.seed)
+    scene = Scene(room, look.room, _floor_mat(points, direction, look.room.mat_width_m))
     views = [scene.view(c) for c in cams]
-    render_opts = RenderOptions(
-        clothing=options.clothing, shadow=options.shadow, noise_sigma=options.noise_sigma, drift=options.drift,
-        seed=options.seed, light_direction=options.light_direction or _light_direction(rig, points),
-    )  # fmt: skip
+    lighting = look.lighting if options.shadow else replace(look.lighting, shadow_strength=0.0)
     T = traj.n_frames
-    renderer = Renderer(fit.model, room, views, render_opts, T)
+    renderer = Renderer(Mannequin(look.build, look.outfit), room, views, lighting, T, seed=options.seed)
     truth = Trajectory(
-        names=fit.model.point_names, points=points, rate_hz=options.fps, t0_s=0.0,
+        names=POINT_NAMES, points=points, rate_hz=options.fps, t0_s=0.0,
         events=_events_on_video_time(traj.events, traj.t0_s, (T - 1) / options.fps),
-        meta={"source": str(motion), "height_m": fit.model.height_m},
+        meta={"source": str(motion), "height_m": height},
     )  # fmt: skip
 
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=out.parent))
     try:
-        _write_session(tmp, rig, renderer, fit, traj, truth, options, motion, source_t0, progress)
+        _write_session(tmp, rig, renderer, fit, traj, truth, options, look, motion, source_t0, progress)
         if out.exists():
             shutil.rmtree(out) if out.is_dir() else out.unlink()
         os.chmod(tmp, default_dir_mode())
@@ -154,12 +191,12 @@ def synthesize(
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     log.info("wrote %s: %d frames, %d cameras", out, T, len(cams))
-    return SynthResult(session=out, n_frames=T, cameras=rig.names, fit=fit, truth=truth)
+    return SynthResult(session=out, n_frames=T, cameras=rig.names, fit=fit, truth=truth, look=look)
 
 
 def _write_session(
     root: Path, rig: CameraRig, renderer: Renderer, fit: FitResult, traj: Trajectory, truth: Trajectory,
-    options: SynthOptions, motion: str | Path, source_t0: float, progress: bool,
+    options: SynthOptions, look: Look, motion: str | Path, source_t0: float, progress: bool,
 ) -> None:  # fmt: skip
     (root / VIDEOS_DIR).mkdir()
     (root / BACKGROUND_DIR).mkdir()
@@ -174,14 +211,14 @@ def _write_session(
     T = truth.n_frames
     w, h = options.size
     with h5py.File(root / TRUTH_FILE, "w") as f:
-        _write_truth_header(f, fit, traj, truth, options, motion, source_t0)
+        _write_truth_header(f, fit, traj, truth, options, look, motion, source_t0)
         masks = {c.name: f.create_dataset(f"masks/{c.name}", shape=(T, h, w), dtype=np.uint8,
                                           chunks=(1, h, w), compression="gzip", compression_opts=4)
                  for c in rig}  # fmt: skip
         writers = [AtomicVideoWriter(root / VIDEOS_DIR / f"{c.name}{ext}", options.fps, options.size, options.codec) for c in rig]
         try:
             for t in tqdm(range(T), desc="rendering", unit="frame", disable=not progress, leave=False):
-                for (img, mask), cam, writer in zip(renderer.render(fit.poses[t], t), rig, writers):
+                for (img, mask), cam, writer in zip(renderer.render(truth.points[t], t), rig, writers):
                     writer.write(img)
                     masks[cam.name][t] = mask
         except BaseException as e:
@@ -193,7 +230,7 @@ def _write_session(
 
 
 def _write_truth_header(
-    f: h5py.File, fit: FitResult, traj: Trajectory, truth: Trajectory, options: SynthOptions,
+    f: h5py.File, fit: FitResult, traj: Trajectory, truth: Trajectory, options: SynthOptions, look: Look,
     motion: str | Path, source_t0: float,
 ) -> None:  # fmt: skip
     pts = f.create_dataset("points", data=truth.points)
@@ -215,5 +252,6 @@ def _write_truth_header(
     f.attrs["source_file_t0_s"] = float(source_t0)
     f.attrs["height_m"] = float(fit.model.height_m)
     f.attrs["proportions"] = json.dumps({"scales": scales, "shifts": shifts})
-    opts = asdict(options)
-    f.attrs["options"] = json.dumps(opts)
+    f.attrs["options"] = json.dumps(asdict(options))
+    f.attrs["look"] = json.dumps(asdict(look))
+    f.attrs["conditions"] = json.dumps(look.describe())
