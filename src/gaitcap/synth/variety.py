@@ -108,13 +108,12 @@ class Look:
         }  # fmt: skip
 
     def contrast(self) -> str:
-        """"low" when a garment or the skin is within 25 grey levels of the floor, mat or wall."""
-        grounds = [self.room.floor_color, self.room.wall_color]
-        if self.room.mat_color is not None:
-            grounds.append(self.room.mat_color)
-        o = self.outfit
-        parts = [o.top, o.bottom, o.shoes] + ([o.skin] if o.lower != "trousers" else [])
-        return "low" if min(_grey_distance(p, g) for p in parts for g in grounds) < 25 else "normal"
+        """"low" when the legs' surface (trousers, or the skin of bare legs) is within 15 grey
+        levels of the floor, the mat or the wall behind them."""
+        o, room = self.outfit, self.room
+        grounds = [room.floor_color, room.wall_color] + ([room.mat_color] if room.mat_color is not None else [])
+        legs = o.bottom if o.lower == "trousers" else o.skin
+        return "low" if min(_grey_distance(legs, g) for g in grounds) <= 15 else "normal"
 
 
 def _grey(c: Color) -> float:

@@ -1,0 +1,307 @@
+"""The varied validation suite: accuracy as a distribution over people, clothes, rooms and cameras.
+
+Builds N synthetic sessions (default 24) with ``gaitcap synth`` from the real walks the project has
+(the embedded Plug-in-Gait walk, the shared OpenSim walk and the C3D.ORG Plug-in-Gait sample when
+gaitcap can read it), each walked by a subject of another height (1.0-1.95 m) and drawn with its own
+seed (person, clothes, room, light, cameras: ``gaitcap.synth.variety``), 2 cameras mostly, 3 or 4 in
+some; adds the independent external sessions (``../shared/data/external_sessions``), tracks every
+one with ``gaitcap track`` (default configuration), evaluates it with ``gaitcap eval`` against its
+truth, measures the silhouettes' IoU against the true masks (``gaitcap silhouettes``), and prints
+for each metric the median, the 90th percentile and the worst case, then a breakdown by condition.
+
+Deterministic for a given seed list (the renderer and the tracker are seeded). Sessions are kept in
+``--work`` and re-used when they exist, so a second run only re-tracks.
+
+    python scripts/bench_suite.py                      # 24 + 6 sessions, about 30-40 min on 2 cores
+    python scripts/bench_suite.py --sessions 6 --no-external   # a quick look
+    python scripts/bench_suite.py --only-external
+
+Per-session rows are written to ``WORK/suite.csv`` and ``WORK/suite.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "src"))
+
+from gaitcap.data import embedded_walk  # noqa: E402
+from gaitcap.synth.variety import draw_look  # noqa: E402
+
+SHARED = ROOT.parent / "shared" / "data"
+WALKS = {
+    "vicon": lambda: embedded_walk(),
+    "opensim": lambda: SHARED / "walking" / "opensim_gait2354_subject01" / "subject01_walk1.trc",
+    "c3dorg": lambda: SHARED / "walking" / "c3d_org_sample03" / "gait-pig.c3d",
+}
+#: subject heights, cycled through the sessions (children to tall adults)
+HEIGHTS = (1.05, 1.72, 1.38, 1.95, 1.60, 1.22, 1.85, 1.48, 1.66, 1.12, 1.78, 1.30)
+#: camera counts, cycled (mostly 2)
+CAMERAS = (2, 2, 2, 4, 2, 2, 3, 2)
+METRICS = (
+    ("lower_mm", "lower-limb MPJPE (mm)"), ("knee_deg", "knee flexion RMSE (deg)"),
+    ("swap_frames", "frames with swapped legs"), ("longest_swap", "longest swap (frames)"),
+    ("iou", "silhouette IoU (mean)"), ("iou_p10", "silhouette IoU (10th pct of frames)"),
+    ("event_ms", "event timing |error| (ms)"), ("events_missed", "events missed"),
+    ("cadence_pct", "cadence |error| (%)"), ("stride_pct", "stride length |error| (%)"), ("seconds", "seconds per session"),
+)  # fmt: skip
+HIGHER_IS_BETTER = {"iou", "iou_p10"}
+
+
+def gaitcap(*args: str, check: bool = True) -> subprocess.CompletedProcess:
+    cmd = [sys.executable, "-m", "gaitcap", "-q", *args]
+    env = {**os.environ, "PYTHONPATH": str(ROOT / "src")}
+    return subprocess.run(cmd, check=check, capture_output=True, text=True, env=env)
+
+
+def plan(n: int, walks: list[str]) -> list[dict]:
+    """The suite's own sessions: walk, seed, subject height and cameras of each."""
+    return [{"name": f"s{i:02d}_{walks[i % len(walks)]}", "walk": walks[i % len(walks)], "seed": i,
+             "height": HEIGHTS[i % len(HEIGHTS)], "cameras": CAMERAS[i % len(CAMERAS)]} for i in range(n)]  # fmt: skip
+
+
+def unreadable(walk: str) -> str | None:
+    """Why gaitcap cannot read ``walk`` here (missing file, unknown marker set), or None."""
+    from gaitcap.markers.motion import read_motion
+
+    try:
+        read_motion(WALKS[walk]())
+    except Exception as e:  # noqa: BLE001 - such a walk's sessions are reported as skipped, with the reason
+        return str(e).splitlines()[0][:160]
+    return None
+
+
+def mask_iou(est_file: Path, truth_masks: Path, truth_group: str) -> tuple[float, float, dict[str, float]]:
+    """Mean IoU over cameras and frames, its 10th percentile over frames, and the mean per camera."""
+    per_cam, frames = {}, []
+    with h5py.File(est_file, "r") as fe, h5py.File(truth_masks, "r") as ft:
+        tg = ft[truth_group] if truth_group else ft
+        for cam in fe["masks"]:
+            if cam not in tg:
+                continue
+            est, ref = fe["masks"][cam], tg[cam]
+            n = min(len(est), len(ref))
+            ious = []
+            for t in range(n):
+                a, b = est[t] > 0, ref[t] > 0
+                union = np.count_nonzero(a | b)
+                if union:
+                    ious.append(np.count_nonzero(a & b) / union)
+            per_cam[cam] = float(np.mean(ious)) if ious else math.nan
+            frames += ious
+    if not frames:
+        return math.nan, math.nan, per_cam
+    return float(np.mean(frames)), float(np.percentile(frames, 10)), per_cam
+
+
+def longest_run(runs: list) -> int:
+    return max((int(r[1]) - int(r[0]) + 1 for r in runs), default=0) if runs else 0
+
+
+def measure(session: Path, truth: Path, truth_masks: Path, truth_group: str, run: Path, reuse: bool = False,
+            silhouettes_only: bool = False) -> dict:  # fmt: skip
+    """Track, evaluate and score one session (``reuse``: the row of an earlier run, if it finished)."""
+    row_file = run / "suite_row.json"
+    if reuse and row_file.exists() and not silhouettes_only:
+        return json.loads(row_file.read_text())
+    row = _measure(session, truth, truth_masks, truth_group, run, silhouettes_only)
+    if silhouettes_only:
+        return row
+    run.mkdir(parents=True, exist_ok=True)
+    row_file.write_text(json.dumps(row, default=str))
+    return row
+
+
+def silhouette_row(session: Path, truth_masks: Path, truth_group: str, run: Path) -> dict:
+    """IoU of ``gaitcap silhouettes`` against the true masks (mean, 10th percentile of frames, per camera)."""
+    sil = gaitcap("silhouettes", str(session), "-o", str(run / "sil"), "--force", check=False)
+    if sil.returncode != 0:
+        return {}
+    iou, p10, per_cam = mask_iou(run / "sil" / "silhouettes.h5", truth_masks, truth_group)
+    return {"iou": iou, "iou_p10": p10, "iou_per_camera": per_cam}
+
+
+def _measure(session: Path, truth: Path, truth_masks: Path, truth_group: str, run: Path,
+             silhouettes_only: bool = False) -> dict:  # fmt: skip
+    if silhouettes_only:
+        return {"status": "silhouettes only", **silhouette_row(session, truth_masks, truth_group, run)}
+    t0 = time.perf_counter()
+    tr = gaitcap("track", str(session), "-o", str(run), "--force", check=False)
+    row: dict = {"seconds": time.perf_counter() - t0, "status": "ok"}
+    row.update(silhouette_row(session, truth_masks, truth_group, run))
+    if tr.returncode != 0:
+        row["status"] = f"track failed (exit {tr.returncode}): " + ((tr.stderr or tr.stdout).strip().splitlines() or [""])[-1]
+        return row
+    ev = gaitcap("eval", str(run), "--truth", str(truth), "-o", str(run / "eval.json"), "--force", check=False)
+    if ev.returncode != 0:
+        row["status"] = "lost: " + ((ev.stderr or ev.stdout).strip().splitlines() or [""])[-1].removeprefix("Error: ")
+        return row
+    d = json.loads((run / "eval.json").read_text())
+    lower = (d["positions_mm"].get("lower_limb") or {}).get("mpjpe_mm")
+    knees = [d["angles_rmse_deg"].get(k) for k in ("knee_flexion_l", "knee_flexion_r")]
+    knees = [k for k in knees if k is not None]
+    swaps = d.get("left_right_swaps") or {}
+    events = d.get("events") or {}
+    params = (d.get("parameters") or {}).get("values") or {}
+
+    def pct(name: str) -> float | None:
+        v = params.get(name) or {}
+        return abs(v["diff_pct"]) if v.get("diff_pct") is not None else None
+
+    row.update(
+        lower_mm=lower, knee_deg=float(np.mean(knees)) if knees else None, swap_frames=swaps.get("n_frames"),
+        longest_swap=longest_run(swaps.get("runs") or []), event_ms=events.get("mean_abs_ms"),
+        events_missed=events.get("n_missed"), cadence_pct=pct("cadence_steps_per_min"), stride_pct=pct("stride_length_m"),
+        flagged=d["frames"]["flagged"], frames=d["frames"]["total"],
+    )  # fmt: skip
+    return row
+
+
+def own_sessions(args: argparse.Namespace) -> list[dict]:
+    why = {w: unreadable(w) for w in WALKS}
+    for w, reason in why.items():
+        if reason:
+            print(f"# sessions of the {w} walk skipped: {reason}", file=sys.stderr)
+    rows = []
+    for p in plan(args.sessions, list(WALKS)):
+        if why[p["walk"]]:
+            continue
+        session = args.work / "sessions" / p["name"]
+        if not (session / "truth.h5").exists():
+            gaitcap("synth", str(WALKS[p["walk"]]()), "-o", str(session), "--seed", str(p["seed"]),
+                    "--cameras", str(p["cameras"]), "--subject-height", str(p["height"]), "--force")  # fmt: skip
+        with h5py.File(session / "truth.h5", "r") as f:
+            height = float(f.attrs["height_m"])
+        cond = draw_look(p["seed"], height, p["cameras"]).describe()
+        rows.append({**p, "source": "suite", "session": session, "truth": session / "truth.h5",
+                     "masks": session / "truth.h5", "group": "masks", "conditions": cond})  # fmt: skip
+    return rows
+
+
+def external_sessions() -> list[dict]:
+    base = SHARED / "external_sessions"
+    rows = []
+    for session in sorted(p for p in base.glob("*") if (p / "truth").is_dir()):
+        info = json.loads((session / "truth" / "info.json").read_text())
+        readme = (base / "README.md").read_text()
+        line = next((ln for ln in readme.splitlines() if f"`{session.name}`" in ln), "")
+        bare = "shorts" in line
+        cams = len(info.get("cameras", [])) or 2
+        cond = {"height_m": info.get("height_m"), "legs": "bare" if bare else "covered", "cameras": cams,
+                "contrast": "low" if "low contrast" in line else "normal"}  # fmt: skip
+        rows.append({"name": f"ext_{session.name}", "walk": "vicon", "seed": None, "height": info.get("height_m"),
+                     "cameras": cams, "source": "external", "session": session, "truth": session / "truth",
+                     "masks": session / "truth" / "masks.h5", "group": "", "conditions": cond})  # fmt: skip
+    return rows
+
+
+def value(row: dict, key: str) -> float | None:
+    """A row's metric; a run that lost the person counts as infinitely wrong for the tracking metrics."""
+    v = row.get(key)
+    lost = str(row.get("status", "")).startswith(("lost", "track failed"))
+    if v is None and lost and key not in ("iou", "iou_p10", "seconds"):
+        return math.inf
+    return v
+
+
+def stats(values: list[float | None], higher_better: bool) -> tuple[float, float, float]:
+    v = np.asarray([x for x in values if x is not None and not math.isnan(x)], float)
+    if not len(v):
+        return (math.nan,) * 3
+    if higher_better:
+        return float(np.median(v)), float(np.percentile(v, 10)), float(v.min())
+    return float(np.median(v)), float(np.percentile(v, 90)), float(v.max())
+
+
+def fmt(x: float) -> str:
+    if x is None or math.isnan(x):
+        return "-"
+    if math.isinf(x):
+        return "lost"
+    return f"{x:.3f}" if abs(x) < 2 else f"{x:.1f}"
+
+
+def print_tables(rows: list[dict]) -> None:
+    print(f"\n## Distribution over {len(rows)} sessions (for IoU: median, 10th percentile, worst)\n")
+    print("| metric | median | 90th pct | worst | worst session |")
+    print("|---|---|---|---|---|")
+    for key, label in METRICS:
+        hb = key in HIGHER_IS_BETTER
+        med, p90, worst = stats([value(r, key) for r in rows], hb)
+        known = [r for r in rows if value(r, key) is not None and not math.isnan(value(r, key))]
+        who = (min if hb else max)(known, key=lambda r: value(r, key))["name"] if known else "-"
+        print(f"| {label} | {fmt(med)} | {fmt(p90)} | {fmt(worst)} | {who} |")
+    failed = [f"{r['name']} ({r['status']})" for r in rows if str(r.get("status", "")).startswith(("lost", "track"))]
+    print(f"\nruns without a result (counted as the worst): {'; '.join(failed) or 'none'}")
+    groups = {
+        "source": lambda r: r["source"], "cameras": lambda r: str(r["cameras"]),
+        "legs": lambda r: r["conditions"].get("legs"), "contrast": lambda r: r["conditions"].get("contrast"),
+        "subject": lambda r: "child (< 1.5 m)" if (r["height"] or 1.7) < 1.5 else "adult",
+        "walk": lambda r: r["walk"],
+    }  # fmt: skip
+    print("\n## By condition (median [worst]): lower-limb mm, knee deg, IoU, swap frames\n")
+    print("| condition | n | lower-limb mm | knee deg | IoU | swap frames |")
+    print("|---|---|---|---|---|---|")
+    for gname, key in groups.items():
+        for level in sorted({key(r) for r in rows}, key=str):
+            sub = [r for r in rows if key(r) == level]
+            cells = []
+            for m in ("lower_mm", "knee_deg", "iou", "swap_frames"):
+                med, _, worst = stats([value(r, m) for r in sub], m in HIGHER_IS_BETTER)
+                cells.append(f"{fmt(med)} [{fmt(worst)}]")
+            print(f"| {gname} = {level} | {len(sub)} | " + " | ".join(cells) + " |")
+    print("\n## Per session\n")
+    print("| session | walk | height m | cams | legs | contrast | lower mm | knee deg | swaps | IoU | events ms | s |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for r in rows:
+        c = r["conditions"]
+        print(f"| {r['name']} | {r['walk']} | {fmt(r['height'] or math.nan)} | {r['cameras']} | {c.get('legs')} | "
+              f"{c.get('contrast')} | {fmt(value(r, 'lower_mm'))} | {fmt(value(r, 'knee_deg'))} | {r.get('swap_frames', '-')} | "
+              f"{fmt(r.get('iou'))} | {fmt(r.get('event_ms'))} | {fmt(r.get('seconds'))} |")  # fmt: skip
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--sessions", type=int, default=24, help="number of the suite's own sessions")
+    ap.add_argument("--work", type=Path, default=Path("/tmp/gaitcap_suite"), help="sessions, runs and tables")
+    ap.add_argument("--no-external", action="store_true", help="leave out ../shared/data/external_sessions")
+    ap.add_argument("--only-external", action="store_true")
+    ap.add_argument("--reuse", action="store_true", help="re-use the rows of runs that finished before (same code!)")
+    ap.add_argument("--silhouettes-only", action="store_true", help="only the silhouettes' IoU (no tracking): a minute")
+    args = ap.parse_args()
+    args.work.mkdir(parents=True, exist_ok=True)
+    todo = [] if args.only_external else own_sessions(args)
+    if not args.no_external and (SHARED / "external_sessions").is_dir():
+        todo += external_sessions()
+    rows = []
+    for i, s in enumerate(todo):
+        r = {k: v for k, v in s.items() if k not in ("session", "truth", "masks", "group")}
+        r.update(measure(s["session"], s["truth"], s["masks"], s["group"], args.work / ("sil_runs" if args.silhouettes_only else "runs") / s["name"], args.reuse,
+                         args.silhouettes_only))
+        rows.append(r)
+        print(f"[{i + 1}/{len(todo)}] {s['name']}: lower {fmt(r.get('lower_mm'))} mm, knee {fmt(r.get('knee_deg'))} deg, "
+              f"IoU {fmt(r.get('iou'))}, {r.get('seconds', 0):.0f} s", file=sys.stderr, flush=True)  # fmt: skip
+    (args.work / "suite.json").write_text(json.dumps(rows, indent=1, default=str))
+    keys = ["name", "source", "walk", "seed", "height", "cameras", "status"] + [k for k, _ in METRICS]
+    with open(args.work / "suite.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(keys + ["legs", "contrast"])
+        for r in rows:
+            w.writerow([r.get(k) for k in keys] + [r["conditions"].get("legs"), r["conditions"].get("contrast")])
+    print_tables(rows)
+
+
+if __name__ == "__main__":
+    main()
