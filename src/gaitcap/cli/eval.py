@@ -15,7 +15,7 @@ EXIT_THRESHOLD = 1
 @click.command("eval")
 @click.argument("out", type=click.Path(path_type=Path))
 @click.option("--truth", type=click.Path(path_type=Path), default=None,
-              help="A truth folder (joints.csv, optional events.csv, parameters.json, masks.h5: see below), "
+              help="A truth folder (joints.csv, optional events.csv, parameters.json, masks.h5: layout above), "
                    "or truth.h5 of a synthetic session (or the session folder holding it).")
 @click.option("--reference", type=click.Path(path_type=Path), default=None,
               help="Another tracking output (folder or trajectories.h5) to compare with.")
@@ -49,7 +49,8 @@ def command(
       events.csv       optional: side,event,frame,time_s (left/right, foot_strike/foot_off)
       parameters.json  optional: {"overall": {...}, "left": {...}, "right": {...}} with the names
                        of gaitcap's parameters.json (cadence_steps_per_min, stride_length_m, ...)
-      masks.h5         optional: one dataset per camera, (frames, H, W) uint8 0/1
+      masks.h5         optional: one dataset per camera, (frames, H, W) uint8 0/1, as many
+                       frames as joints.csv has rows
 
     Exit codes: 0 done (and every threshold given is met); 1 a threshold is exceeded, or an error
     (a bad truth folder names the file); 2 usage.
