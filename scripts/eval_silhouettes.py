@@ -31,6 +31,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "src"))
 
 from gaitcap.config import model_from_mapping  # noqa: E402
+from gaitcap.evaluation.metrics import mask_iou  # noqa: E402
 from gaitcap.io.silhouettes_h5 import read_masks  # noqa: E402
 from gaitcap.session import Session  # noqa: E402
 from gaitcap.silhouette import SilhouetteConfig, SilhouetteExtractor  # noqa: E402
@@ -40,12 +41,6 @@ from gaitcap.video import VideoReader, sample_frames  # noqa: E402
 
 DEFAULT_DATA = REPO.parent / "shared" / "data"
 log = logging.getLogger("eval_silhouettes")
-
-
-def iou(a: np.ndarray, b: np.ndarray) -> float:
-    a, b = a.astype(bool), b.astype(bool)
-    union = np.logical_or(a, b).sum()
-    return float(np.logical_and(a, b).sum() / union) if union else float("nan")
 
 
 def synth(session: Path, args: argparse.Namespace, seed: int) -> None:
@@ -71,7 +66,7 @@ def session_ious(session: Path, config: SilhouetteConfig, use_plate: bool) -> di
             for k, frame in video:
                 mask, _ = ex.process(frame)
                 if k < len(truth) and truth[k].any():
-                    scores.append(iou(mask, truth[k]))
+                    scores.append(float(mask_iou(mask[None], truth[k][None])[0]))
         out[cam] = float(np.mean(scores))
         if not report.usable:
             out[cam + " (no usable bg)"] = out[cam]

@@ -1,9 +1,9 @@
 """``run_track``: one session, from videos to joint trajectories. One stage after another:
 
-session + videos -> silhouettes (gaitcap.silhouette, per camera, streamed) -> observation (soft,
-undistorted, downscaled) -> initialisation -> the chosen tracker per frame -> trajectories.h5
-(streamed) -> zero-lag filtering -> joints.csv, joints.trc -> track.json (written last: a session
-with it is finished).
+session + videos -> silhouettes (gaitcap.silhouette, per camera, streamed; optionally saved to
+silhouettes.h5) -> observation (soft, undistorted, downscaled) -> initialisation -> the chosen
+tracker per frame -> trajectories.h5 (streamed) -> zero-lag filtering -> joints.csv, joints.trc ->
+track.json (written last: a session with it is finished).
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ import logging
 import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -35,7 +35,8 @@ from gaitcap.prefetch import Prefetched
 from gaitcap.session import Session
 from gaitcap.session_check import check_session_videos
 from gaitcap.silhouette.config import SilhouetteConfig
-from gaitcap.silhouette.run import Source, prepare_extractor
+from gaitcap.io.silhouettes_h5 import SILHOUETTES_FILE, SilhouetteWriter
+from gaitcap.silhouette.run import Source, camera_attrs, file_attrs, prepare_extractor, quality_row
 from gaitcap.track_summary import TrackSummary, is_finished, write_track_json
 from gaitcap.tracking.condensation import Condensation
 from gaitcap.tracking.config import TrackingConfig, load_tracking_config
@@ -90,9 +91,13 @@ def _height(session: Session, height_m: float | None) -> tuple[float | None, str
 def run_track(
     session: Path, out: Path, *, config: Path | None = None, tracker: str | None = None,
     height_m: float | None = None, force: bool = False, progress: bool = True, max_frames: int | None = None,
-    on_frame: Callable[[int, FrameTiming], None] | None = None,
+    on_frame: Callable[[int, FrameTiming], None] | None = None, save_masks: bool = False,
 ) -> TrackSummary:  # fmt: skip
-    """Track one session into ``out`` (see the module docstring). Returns the run's summary."""
+    """Track one session into ``out`` (see the module docstring). Returns the run's summary.
+
+    ``save_masks``: also stream the full-resolution silhouettes the tracker saw, frame by frame, to
+    ``out/silhouettes.h5`` (the layout of ``gaitcap silhouettes``; ``gaitcap eval`` scores them).
+    """
     t_start = time.perf_counter()
     session, out = Path(session), Path(out)
     cfg = load_tracking_config(config, model=load_body_model())  # names only: the height comes later
@@ -107,7 +112,8 @@ def run_track(
     views = tracking_views(rig, cfg.scale)
     likelihood = SilhouetteLikelihood(views, cfg.beta)
     # the videos are read and the silhouettes extracted in a worker thread, a few frames ahead
-    stream = Prefetched(_observations(ses, rig.names, views, sil_cfg, n_frames), depth=PREFETCH_FRAMES)
+    masks = out / SILHOUETTES_FILE if save_masks else None
+    stream = Prefetched(_observations(ses, rig.names, views, sil_cfg, n_frames, masks), depth=PREFETCH_FRAMES)
     with stream, kernel_threads(cfg.threads):
         return _track_session(session, out, ses, videos, cfg, views, likelihood, stream, height_m, n_frames,
                               progress, on_frame, t_start)  # fmt: skip
@@ -131,26 +137,44 @@ def _thread_count(n: int | None) -> int:
 
 
 def _observations(ses: Session, cams: tuple[str, ...], views, sil_cfg: SilhouetteConfig,
-                  n_frames: int) -> Iterator[Observation]:  # fmt: skip
+                  n_frames: int, masks_path: Path | None = None) -> Iterator[Observation]:  # fmt: skip
     """The session's observations, frame by frame (run by the prefetch thread): each camera's
     background is fitted first, then each frame's silhouettes are extracted and prepared, with
     the row prefix sums and areas the likelihood reads. The frames' cameras are processed side by
     side, one thread each (OpenCV and numpy release the GIL); each camera's frames stay in order,
     and an error is raised for the first camera (rig order) that has one, as one after the other.
-    The backgrounds are fitted one after the other: side by side, the peak memory of the 5 s
-    bench_memory.py session rose from 429 to 497 MB for no measurable time."""
-    extractors = {cam: prepare_extractor(Source(cam, ses.videos[cam], ses.backgrounds.get(cam)), sil_cfg)[0]
-                  for cam in cams}  # fmt: skip
-    with ThreadPoolExecutor(max_workers=len(cams), thread_name_prefix="gaitcap-camera") as pool:
-        def silhouette(c: int, image: np.ndarray) -> np.ndarray:
-            return views[c].prepare(extractors[cams[c]].process(image)[0])
+    The backgrounds are fitted one after the other: side by side, they raise the peak memory for
+    no measurable time. With ``masks_path`` the full-resolution masks are appended to that
+    silhouettes HDF5 file as they come (renamed into place once the last frame is written)."""
+    sources = {cam: Source(cam, ses.videos[cam], ses.backgrounds.get(cam)) for cam in cams}
+    prepared = {cam: prepare_extractor(sources[cam], sil_cfg) for cam in cams}
+    extractors = {cam: p[0] for cam, p in prepared.items()}
+    saving = SilhouetteWriter(masks_path, file_attrs(sil_cfg)) if masks_path is not None else nullcontext()
+    with saving as writer, ThreadPoolExecutor(max_workers=len(cams), thread_name_prefix="gaitcap-camera") as pool:
+        def silhouette(c: int, image: np.ndarray) -> tuple[np.ndarray, np.ndarray, object]:
+            mask, quality = extractors[cams[c]].process(image)
+            return views[c].prepare(mask), mask, quality
 
-        for _, images in iter_synchronised({c: ses.videos[c] for c in cams}, 0, n_frames):
-            obs = Observation(list(pool.map(silhouette, range(len(cams)), [images[c] for c in cams])))
+        for t, images in iter_synchronised({c: ses.videos[c] for c in cams}, 0, n_frames):
+            done = list(pool.map(silhouette, range(len(cams)), [images[c] for c in cams]))
+            if writer is not None:
+                _save_masks(writer, t, sources, prepared, [(m, q) for _, m, q in done])
+            obs = Observation([prep for prep, _, _ in done])
             for c in range(len(cams)):
                 obs.prefix(c)
             obs.areas  # noqa: B018 - cached here, off the tracking thread
             yield obs
+
+
+def _save_masks(writer: SilhouetteWriter, t: int, sources: dict[str, Source], prepared: dict, masks: list) -> None:
+    """Append frame ``t``'s (H, W) masks and quality rows, one per camera in rig order (each camera's
+    datasets are created with its first frame)."""
+    for (cam, source), (mask, quality) in zip(sources.items(), masks, strict=True):
+        extractor, fps = prepared[cam]
+        if t == 0:
+            height, width = mask.shape
+            writer.add_camera(cam, width, height, extractor.background, camera_attrs(source, extractor.report, fps))
+        writer.append(cam, mask, quality_row(quality))
 
 
 def _track_session(session: Path, out: Path, ses: Session, videos, cfg: TrackingConfig, views, likelihood,

@@ -15,7 +15,8 @@ EXIT_THRESHOLD = 1
 @click.command("eval")
 @click.argument("out", type=click.Path(path_type=Path))
 @click.option("--truth", type=click.Path(path_type=Path), default=None,
-              help="truth.h5 of a synthetic session (or the session folder holding it).")
+              help="A truth folder (joints.csv, optional events.csv, parameters.json, masks.h5: layout above), "
+                   "or truth.h5 of a synthetic session (or the session folder holding it).")
 @click.option("--reference", type=click.Path(path_type=Path), default=None,
               help="Another tracking output (folder or trajectories.h5) to compare with.")
 @click.option("-o", "--output", type=click.Path(path_type=Path), default=None,
@@ -35,27 +36,53 @@ def command(
 
     Reports position errors (MPJPE over all points, lower limb, heel/toe, per point; frames NaN
     in OUT are flagged and excluded), left/right swaps, joint-angle RMSE, gait event timing and
-    gait parameter differences; writes them to OUT/eval.json.
+    gait parameter differences, and, when OUT holds silhouettes.h5 (gaitcap track --save-masks)
+    and the truth has masks, the silhouette IoU per camera; writes them to OUT/eval.json.
 
-    Exit codes: 0 done (and every threshold given is met); 1 a threshold is exceeded, or an error;
-    2 usage.
+    A truth folder is gaitcap's own output formats, so a lab can export its marker-based joint
+    centres and check gaitcap against its own system:
+
+    \b
+      joints.csv       frame,time_s,<point>_x,<point>_y,<point>_z,... metres, the calibration's
+                       world frame (z up), uniform rate, NaN = missing; points named as gaitcap's
+                       (pelvis, hip_l, knee_r, ankle_l, heel_r, toe_l, ...)
+      events.csv       optional: side,event,frame,time_s (left/right, foot_strike/foot_off)
+      parameters.json  optional: {"overall": {...}, "left": {...}, "right": {...}} with the names
+                       of gaitcap's parameters.json (cadence_steps_per_min, stride_length_m, ...)
+      masks.h5         optional: one dataset per camera, (frames, H, W) uint8 0/1, as many
+                       frames as joints.csv has rows
+
+    Exit codes: 0 done (and every threshold given is met); 1 a threshold is exceeded, or an error
+    (a bad truth folder names the file); 2 usage.
 
     \b
     Example:
         gaitcap eval OUT --truth sessions/walk01/truth.h5 --max-mpjpe-mm 40
+        gaitcap eval OUT --truth external_sessions/ktk_e/truth
         gaitcap eval OUT --reference OUT_previous
     """
     from gaitcap.evaluation import Thresholds, check_thresholds, evaluate
     from gaitcap.evaluation.report import (
-        EVAL_FILE, format_evaluation, read_tracked, read_truth_trajectory, tracked_path, write_evaluation,
+        EVAL_FILE, TruthReference, format_evaluation, out_masks, read_tracked, read_truth_reference, tracked_path,
+        write_evaluation,
     )  # fmt: skip
+    from gaitcap.evaluation.silhouettes import silhouette_iou
 
     if (truth is None) == (reference is None):
         raise click.UsageError("give exactly one of --truth and --reference")
     tracked = read_tracked(out)
-    ref_path = truth if truth is not None else tracked_path(reference)  # type: ignore[arg-type]
-    ref = read_truth_trajectory(truth) if truth is not None else read_tracked(reference)  # type: ignore[arg-type]
-    ev = evaluate(tracked, ref, out_source=str(tracked_path(out)), reference_source=str(ref_path))
+    if truth is not None:
+        ref = read_truth_reference(truth)
+    else:
+        ref = TruthReference(tracked_path(reference), read_tracked(reference))  # type: ignore[arg-type]
+    ev = evaluate(tracked, ref.trajectory, out_source=str(tracked_path(out)), reference_source=str(ref.source),
+                  reference_parameters=ref.parameters)  # fmt: skip
+    masks = out_masks(out)
+    if ref.masks is not None and masks is not None:
+        ev.silhouettes, notes = silhouette_iou(masks, ref.masks)
+        ev.notes += notes
+    elif ref.masks is not None:
+        ev.notes.append("silhouettes not compared: OUT holds no silhouettes.h5 (track with --save-masks)")
     ev.failures = check_thresholds(ev, Thresholds(max_mpjpe_mm, max_angle_rmse_deg, max_event_error_frames))
     target = output or (out / EVAL_FILE if out.is_dir() else out.parent / EVAL_FILE)
     write_evaluation(target, ev, force=force)

@@ -30,15 +30,20 @@ log = logging.getLogger("gaitcap")
               help="Sessions tracked in parallel (folders of sessions).")
 @click.option("--scheduler", default=None,
               help="Run the sessions on a Dask cluster: tcp://HOST:8786, or 'local' (needs gaitcap[distributed]).")
+@click.option("--save-masks", is_flag=True, default=False,
+              help="Also save the full-resolution silhouettes to OUT/silhouettes.h5 (streamed frame by frame; "
+                   "gaitcap eval reports their IoU against a truth's masks).")
 @force_option
 @click.pass_context
 @handle_errors
 def command(ctx: click.Context, source: Path, out: Path, tracker: str | None, config: Path | None,
-            height_m: float | None, max_frames: int | None, jobs: int, scheduler: str | None, force: bool) -> None:
+            height_m: float | None, max_frames: int | None, jobs: int, scheduler: str | None, save_masks: bool,
+            force: bool) -> None:
     """Track the subject in a session (or every session of a folder).
 
     Writes OUT/trajectories.h5 (points, per-point uncertainty, poses, likelihood, quality),
-    OUT/joints.csv (metres, NaN where flagged) and OUT/joints.trc (OpenSim, mm). A folder of
+    OUT/joints.csv (metres, NaN where flagged) and OUT/joints.trc (OpenSim, mm); with --save-masks
+    also OUT/silhouettes.h5 (the masks the tracker saw, as gaitcap silhouettes writes them). A folder of
     sessions gives OUT/<session>/..., a log per session and a summary; finished sessions are
     skipped unless --force; the exit code is 1 when any session failed.
 
@@ -48,7 +53,8 @@ def command(ctx: click.Context, source: Path, out: Path, tracker: str | None, co
         gaitcap track sessions/ -o results/ --jobs 2
     """
     quiet = bool(ctx.obj.get("quiet"))
-    kwargs = {"config": config, "tracker": tracker, "height_m": height_m, "max_frames": max_frames}
+    kwargs = {"config": config, "tracker": tracker, "height_m": height_m, "max_frames": max_frames,
+              "save_masks": save_masks}
     if is_session(source) and scheduler is None:
         summary = run_track(source, out, force=force, progress=not quiet, **kwargs)
         log.info("%s", summary.message)

@@ -15,7 +15,11 @@ Steps, each a small function:
    has none, the events detected on the reference; plus the *method baseline*: events detected on
    the reference itself against its recorded events (what the event detector alone costs).
 6. gait parameters of OUT against the reference's (computed with the recorded events when there
-   are some).
+   are some), or against the values the truth states (a truth folder's ``parameters.json``: the
+   names both have, overall and per side).
+
+The silhouette IoU (:mod:`gaitcap.evaluation.silhouettes`) is added by the caller when OUT holds
+masks and the truth has some.
 """
 
 from __future__ import annotations
@@ -40,7 +44,7 @@ from gaitcap.evaluation.metrics import (
 from gaitcap.gait.analysis import GaitAnalysis, analyse
 from gaitcap.gait.angles import ANGLE_NAMES, joint_angles
 from gaitcap.gait.options import GaitOptions
-from gaitcap.gait.parameters import OVERALL_KEYS, GaitParameters, compute_parameters
+from gaitcap.gait.parameters import OVERALL_KEYS, SIDE_KEYS, GaitParameters, compute_parameters
 from gaitcap.trajectory import FOOT, LOWER_LIMB, SIDES, GaitEvent, Trajectory, side_suffix
 
 log = logging.getLogger(__name__)
@@ -145,6 +149,7 @@ class Evaluation:
     events: dict[str, Any]
     events_baseline: dict[str, Any] | None
     parameters: dict[str, Any]
+    silhouettes: dict[str, dict[str, Any]] | None = None
     notes: list[str] = field(default_factory=list)
     failures: list[str] = field(default_factory=list)
 
@@ -178,6 +183,7 @@ class Evaluation:
             "events": self.events,
             "events_method_baseline": self.events_baseline,
             "parameters": self.parameters,
+            "silhouette_iou": self.silhouettes,
             "notes": self.notes,
             "thresholds_failed": self.failures,
             "passed": not self.failures,
@@ -247,19 +253,38 @@ def _event_section(detected: list[GaitEvent], reference: list[GaitEvent], rate_h
     }
 
 
-def _parameters(out_p: GaitParameters | None, ref_p: GaitParameters | None) -> dict[str, Any]:
+def _differences(out: dict[str, float], ref: dict[str, float], keys) -> dict[str, dict[str, float]]:
+    """reference, out, diff = out - reference and diff % of each of ``keys``."""
+    doc = {}
+    for key in keys:
+        r, o = ref.get(key, math.nan), out.get(key, math.nan)
+        diff = o - r
+        doc[key] = {"reference": r, "out": o, "diff": diff,
+                    "diff_pct": 100.0 * diff / abs(r) if math.isfinite(r) and r != 0 else math.nan}  # fmt: skip
+    return doc
+
+
+def _parameters(
+    out_p: GaitParameters | None, ref_p: GaitParameters | None, stated: dict[str, dict[str, float]] | None = None
+) -> dict[str, Any]:
+    """OUT's gait parameters against the reference's, or against the ``stated`` values (scope ->
+    name -> value) of a truth's parameters.json: the names both have, overall and per side."""
     doc: dict[str, Any] = {
         "out_status": out_p.status if out_p else "not computed",
-        "reference_status": ref_p.status if ref_p else "not computed",
+        "reference_status": "stated in the truth's parameters.json" if stated is not None
+                            else ref_p.status if ref_p else "not computed",
         "values": {},
-    }
-    if out_p is None or ref_p is None:
+    }  # fmt: skip
+    if out_p is None or (ref_p is None and stated is None):
         return doc
-    for key in OVERALL_KEYS:
-        r, o = ref_p.overall.get(key, math.nan), out_p.overall.get(key, math.nan)
-        diff = o - r
-        doc["values"][key] = {"reference": r, "out": o, "diff": diff,
-                              "diff_pct": 100.0 * diff / abs(r) if math.isfinite(r) and r != 0 else math.nan}  # fmt: skip
+    if stated is None:
+        doc["values"] = _differences(out_p.overall, ref_p.overall, OVERALL_KEYS)  # type: ignore[union-attr]
+        return doc
+    doc["values"] = _differences(out_p.overall, stated.get("overall", {}),
+                                 [k for k in OVERALL_KEYS if k in stated.get("overall", {})])  # fmt: skip
+    doc["sides"] = {side: _differences(out_p.sides[side], stated.get(side, {}),
+                                       [k for k in SIDE_KEYS if k in stated.get(side, {})])
+                    for side in SIDES}  # fmt: skip
     return doc
 
 
@@ -278,6 +303,7 @@ def evaluate(
     options: GaitOptions | None = None,
     out_source: str = "",
     reference_source: str = "",
+    reference_parameters: dict[str, dict[str, float]] | None = None,
 ) -> Evaluation:
     """Compare ``out`` with ``reference`` (see the module docstring).
 
@@ -285,6 +311,8 @@ def evaluate(
         out: the tracked trajectory (NaN frames are flagged).
         reference: the truth or another run; its ``events`` are used as the recorded events.
         options: gait analysis options for event detection on both.
+        reference_parameters: gait parameters the truth states (scope ``overall``/``left``/``right``
+            -> name -> value); OUT's are compared with them instead of with the reference's computed ones.
 
     Raises:
         InputError: no common point or frame.
@@ -313,7 +341,7 @@ def evaluate(
             ref_params = ref_analysis.parameters
         if out_analysis is not None:
             events = _event_section(out_analysis.events, reference_events, a.rate_hz, label)
-    parameters = _parameters(out_analysis.parameters if out_analysis else None, ref_params)
+    parameters = _parameters(out_analysis.parameters if out_analysis else None, ref_params, reference_parameters)
     return Evaluation(
         out_source=out_source, reference_source=reference_source, rate_hz=a.rate_hz,
         n_frames=len(a.times), n_flagged=int(a.flagged.sum()), n_reference_missing=int((a.ref_missing & ~a.flagged).sum()),

@@ -195,3 +195,29 @@ def event_error_summary(matches: Sequence[EventMatch], rate_hz: float) -> dict[s
         for key, value in stats([m.error_s for m in matches if m.event == kind]).items():
             out[f"{kind}_{key}"] = value
     return out
+
+
+def mask_iou(est: np.ndarray, ref: np.ndarray) -> np.ndarray:
+    """Intersection over union of two stacks of silhouettes, frame by frame.
+
+    Args:
+        est, ref: (F, H, W) masks, nonzero = person.
+
+    Returns:
+        (F,) float; NaN where both masks are empty.
+    """
+    if est.shape != ref.shape:
+        raise ValueError(f"masks must have the same shape, got {est.shape} and {ref.shape}")
+    a, b = est.astype(bool), ref.astype(bool)
+    inter = np.logical_and(a, b).sum(axis=(1, 2))
+    union = np.logical_or(a, b).sum(axis=(1, 2))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(union > 0, inter / np.maximum(union, 1), np.nan)
+
+
+def iou_summary(iou: np.ndarray) -> dict[str, float | int]:
+    """mean, median and 10th percentile of the finite values of a (F,) IoU series, and their count."""
+    v = iou[np.isfinite(iou)]
+    if len(v) == 0:
+        return {"n_frames": 0, "mean": math.nan, "median": math.nan, "p10": math.nan}
+    return {"n_frames": len(v), "mean": float(v.mean()), "median": float(np.median(v)), "p10": float(np.percentile(v, 10))}

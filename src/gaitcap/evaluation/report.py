@@ -5,14 +5,17 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
-from gaitcap.errors import OutputError
+from gaitcap.errors import InputError, OutputError
 from gaitcap.evaluation.compare import CHECKED_ANGLES, Evaluation
 from gaitcap.gait.angles import ANGLE_NAMES
 from gaitcap.gait.parameters import OVERALL_KEYS
 from gaitcap.io.atomic import write_text_atomic
+from gaitcap.io.silhouettes_h5 import SILHOUETTES_FILE
 from gaitcap.io.trajectories_h5 import read_trajectory
+from gaitcap.io.truth_folder import JOINTS_FILE, is_truth_folder, read_truth_folder
 from gaitcap.synth.truth import read_truth
 from gaitcap.trajectory import Trajectory
 
@@ -32,11 +35,52 @@ def read_tracked(path: str | Path) -> Trajectory:
     return read_trajectory(tracked_path(path))
 
 
-def read_truth_trajectory(path: str | Path) -> Trajectory:
-    """The ground-truth trajectory (with its recorded events) of a ``truth.h5`` file, or of the
-    synthetic session folder holding one."""
+@dataclass(frozen=True)
+class TruthReference:
+    """A ground truth as ``gaitcap eval --truth`` reads it.
+
+    Attributes:
+        source: the file or folder it was read from.
+        trajectory: the true points (with the recorded events, if any).
+        parameters: gait parameters the truth states (truth folder's parameters.json), or None.
+        masks: a file holding the true silhouettes (masks.h5, or truth.h5 with masks), or None.
+    """
+
+    source: Path
+    trajectory: Trajectory
+    parameters: dict[str, dict[str, float]] | None = None
+    masks: Path | None = None
+
+
+def read_truth_reference(path: str | Path) -> TruthReference:
+    """A truth folder (``joints.csv`` [+ ``events.csv``, ``parameters.json``, ``masks.h5``], see
+    :mod:`gaitcap.io.truth_folder`), a ``truth.h5`` file, or a synthetic session folder holding one.
+
+    Raises:
+        InputError: none of these, or a malformed one (the message names the file).
+    """
     path = Path(path)
-    return read_truth(path / TRUTH_FILE if path.is_dir() else path).trajectory
+    if is_truth_folder(path):
+        folder = read_truth_folder(path)
+        return TruthReference(path, folder.trajectory, folder.parameters, folder.masks)
+    if path.is_dir() and not (path / TRUTH_FILE).is_file():
+        raise InputError(f"{path}: not a truth: holds neither {JOINTS_FILE} (a truth folder) nor {TRUTH_FILE} "
+                         "(a synthetic session)")  # fmt: skip
+    h5 = path / TRUTH_FILE if path.is_dir() else path
+    truth = read_truth(h5)
+    return TruthReference(h5, truth.trajectory, None, h5 if truth.cameras else None)
+
+
+def read_truth_trajectory(path: str | Path) -> Trajectory:
+    """The ground-truth trajectory (with its recorded events) of a truth (see :func:`read_truth_reference`)."""
+    return read_truth_reference(path).trajectory
+
+
+def out_masks(path: str | Path) -> Path | None:
+    """The ``silhouettes.h5`` of a tracking output (folder, or beside its ``trajectories.h5``), if any."""
+    path = Path(path)
+    masks = (path if path.is_dir() else path.parent) / SILHOUETTES_FILE
+    return masks if masks.is_file() else None
 
 
 def write_evaluation(path: str | Path, ev: Evaluation, force: bool = False) -> Path:
@@ -100,18 +144,33 @@ def _event_lines(ev: Evaluation) -> list[str]:
     return lines
 
 
+def _parameter_rows(values: dict[str, dict[str, float]], prefix: str = "") -> list[str]:
+    lines = []
+    for key, v in values.items():
+        d = 3 if key.endswith(("_m", "_s", "_m_s")) else 1
+        lines.append(f"  {prefix + key:<30}{_f(v['reference'], d):>10}{_f(v['out'], d):>10}{_f(v['diff'], d):>10}"
+                     f"{_f(v['diff_pct']):>8}")  # fmt: skip
+    return lines
+
+
 def _parameter_lines(ev: Evaluation) -> list[str]:
     p = ev.parameters
     lines = [f"gait parameters (OUT {p['out_status']}, reference {p['reference_status']})"]
-    if not p["values"]:
+    if not p["values"] and not p.get("sides"):
         return lines
-    lines.append(f"  {'':<24}{'reference':>10}{'OUT':>10}{'diff':>10}{'diff %':>8}")
-    for key in OVERALL_KEYS:
-        v = p["values"].get(key)
-        if v is None:
-            continue
-        d = 3 if key.endswith(("_m", "_s", "_m_s")) else 1
-        lines.append(f"  {key:<24}{_f(v['reference'], d):>10}{_f(v['out'], d):>10}{_f(v['diff'], d):>10}{_f(v['diff_pct']):>8}")
+    lines.append(f"  {'':<30}{'reference':>10}{'OUT':>10}{'diff':>10}{'diff %':>8}")
+    lines += _parameter_rows({k: p["values"][k] for k in OVERALL_KEYS if k in p["values"]})
+    for side, values in p.get("sides", {}).items():
+        lines += _parameter_rows(values, f"{side} ")
+    return lines
+
+
+def _silhouette_lines(ev: Evaluation) -> list[str]:
+    if not ev.silhouettes:
+        return []
+    lines = [f"{'silhouette IoU':<22}{'mean':>7}{'median':>8}{'p10':>7}   frames scored (true mask not empty)"]
+    for cam, s in ev.silhouettes.items():
+        lines.append(f"  {cam:<20}{_f(s['mean'], 3):>7}{_f(s['median'], 3):>8}{_f(s['p10'], 3):>7}   {s['n_frames']} of {s['frames']}")
     return lines
 
 
@@ -121,7 +180,7 @@ def format_evaluation(ev: Evaluation) -> str:
     head = [f"{ev.out_source} against {ev.reference_source}",
             f"{compared} of {ev.n_frames} frames compared at {ev.rate_hz:g} Hz ({ev.n_flagged} flagged in OUT, "
             f"{ev.n_reference_missing} missing in the reference), {len(ev.points)} points"]  # fmt: skip
-    sections = [head, _positions_lines(ev), _angle_lines(ev), _event_lines(ev), _parameter_lines(ev)]
+    sections = [head, _positions_lines(ev), _angle_lines(ev), _event_lines(ev), _parameter_lines(ev), _silhouette_lines(ev)]
     if ev.notes:
         sections.append(["notes:", *(f"  {n}" for n in ev.notes)])
     if ev.failures:

@@ -1,6 +1,7 @@
 """Read and write ``silhouettes.h5``: masks and per-frame quality, streamed frame by frame.
 
-Layout (the same mask convention as ``truth.h5`` of ``gaitcap synth``)::
+Layout (the same mask convention as ``truth.h5`` of ``gaitcap synth``; the readers also take a
+truth folder's ``masks.h5``, whose (T, H, W) datasets are at the root, one per camera)::
 
     /masks/<camera>            uint8 (T, H, W) 0/1, gzip, one chunk per frame
                                attrs: fps, video, background_source, background_usable,
@@ -28,6 +29,9 @@ import numpy as np
 
 from gaitcap.errors import InputError, OutputError
 from gaitcap.io.atomic import atomic_path
+
+#: the file name of the silhouettes in an output folder (``gaitcap silhouettes``, ``gaitcap track --save-masks``)
+SILHOUETTES_FILE = "silhouettes.h5"
 
 _QUALITY = {
     "fraction": (np.float32, ()),
@@ -109,21 +113,43 @@ def _open(path: str | Path) -> h5py.File:
         raise InputError(f"{path}: cannot open as HDF5 ({e})") from e
 
 
+def _mask_group(path: str | Path, f: h5py.File) -> h5py.Group:
+    """Where the masks are: the ``/masks`` group, or the root when it holds (T, H, W) datasets
+    (a truth folder's ``masks.h5``: one dataset per camera)."""
+    if "masks" in f and isinstance(f["masks"], h5py.Group):
+        return f["masks"]
+    if any(isinstance(d, h5py.Dataset) and d.ndim == 3 for d in f.values()):
+        return f
+    raise InputError(f"{path}: no masks (neither a /masks group nor (frames, H, W) datasets at the root)")
+
+
+def _mask_dataset(path: str | Path, f: h5py.File, camera: str) -> h5py.Dataset:
+    group = _mask_group(path, f)
+    if camera not in group or not isinstance(group[camera], h5py.Dataset):
+        raise InputError(f"{path}: no masks for camera {camera!r} (have: {', '.join(group.keys())})")
+    ds = group[camera]
+    if ds.ndim != 3:
+        raise InputError(f"{path}: masks of camera {camera!r} must be (frames, H, W), got shape {ds.shape}")
+    return ds
+
+
 def read_cameras(path: str | Path) -> list[str]:
     """Names of the cameras stored in a silhouettes (or truth) HDF5 file."""
     with _open(path) as f:
-        if "masks" not in f:
-            raise InputError(f"{path}: no /masks group")
-        return list(f["masks"].keys())
+        group = _mask_group(path, f)
+        return [k for k, v in group.items() if isinstance(v, h5py.Dataset) and v.ndim == 3]
 
 
 def read_masks(path: str | Path, camera: str, frames: slice | None = None) -> np.ndarray:
     """Masks of ``camera``: (T, H, W) uint8 0/1 (or the ``frames`` slice of them)."""
     with _open(path) as f:
-        key = f"masks/{camera}"
-        if key not in f:
-            raise InputError(f"{path}: no masks for camera {camera!r} (have: {', '.join(f.get('masks', {}).keys())})")
-        return f[key][frames if frames is not None else slice(None)]
+        return _mask_dataset(path, f, camera)[frames if frames is not None else slice(None)]
+
+
+def read_mask_shape(path: str | Path, camera: str) -> tuple[int, int, int]:
+    """(T, H, W) of ``camera``'s masks, without reading them."""
+    with _open(path) as f:
+        return tuple(_mask_dataset(path, f, camera).shape)  # type: ignore[return-value]
 
 
 def read_quality(path: str | Path, camera: str) -> dict[str, np.ndarray]:

@@ -24,7 +24,7 @@ import yaml
 from gaitcap import __version__
 from gaitcap.errors import InputError, OutputError
 from gaitcap.io.atomic import atomic_path
-from gaitcap.io.silhouettes_h5 import SilhouetteWriter
+from gaitcap.io.silhouettes_h5 import SILHOUETTES_FILE, SilhouetteWriter
 from gaitcap.io.video_write import AtomicVideoWriter as VideoWriter
 from gaitcap.session import IMAGE_EXTENSIONS, VIDEO_EXTENSIONS, Session
 from gaitcap.silhouette.background import BackgroundReport
@@ -35,7 +35,7 @@ from gaitcap.video import VideoReader, sample_frames
 
 log = logging.getLogger(__name__)
 
-H5_NAME = "silhouettes.h5"
+H5_NAME = SILHOUETTES_FILE
 CSV_NAME = "silhouettes_quality.csv"
 
 
@@ -155,8 +155,7 @@ def run_silhouettes(
     if not sources:
         raise InputError("no video to process")
     _check_outputs(out, force)
-    attrs = {"config": yaml.safe_dump(config.model_dump(), sort_keys=False), "gaitcap_version": __version__}
-    attrs.update({f"flag_{name}": bit for bit, name in FLAG_NAMES.items()})
+    attrs = file_attrs(config)
     # prepare every camera first: bad input fails before anything is written
     prepared = [(s, *prepare_extractor(s, config)) for s in sources]
     summaries = []
@@ -190,14 +189,7 @@ def _run_camera(
     cam = source.camera
     with VideoReader(source.video, stop=max_frames) as video:
         w, h = video.info.size
-        writer.add_camera(
-            cam, w, h, extractor.background,
-            {
-                "fps": fps, "video": str(source.video), "background_source": report.source,
-                "background_usable": report.usable, "background_message": report.message,
-                "ambiguous_fraction": report.ambiguous_fraction,
-            },
-        )
+        writer.add_camera(cam, w, h, extractor.background, camera_attrs(source, report, fps))
         png_dir = out / "silhouettes" / cam
         if png:
             png_dir.mkdir(parents=True, exist_ok=True)
@@ -207,7 +199,7 @@ def _run_camera(
             counts = dict.fromkeys(FLAG_NAMES.values(), 0)
             for index, frame in video:
                 mask, q = extractor.process(frame)
-                writer.append(cam, mask, _quality_row(q))
+                writer.append(cam, mask, quality_row(q))
                 table.writerow(
                     [cam, index, f"{index / fps:.4f}" if fps else "", f"{q.fraction:.6f}",
                      f"{q.shadow_fraction:.6f}", q.components, "|".join(q.flag_names)]
@@ -226,7 +218,25 @@ def _run_camera(
     return CameraSummary(cam, len(fractions), report, float(np.mean(fractions)), counts)
 
 
-def _quality_row(q: FrameQuality) -> dict[str, object]:
+def file_attrs(config: SilhouetteConfig) -> dict[str, object]:
+    """The root attributes of ``silhouettes.h5``: the configuration (YAML), the version, the flag bits."""
+    attrs: dict[str, object] = {"config": yaml.safe_dump(config.model_dump(), sort_keys=False),
+                                "gaitcap_version": __version__}  # fmt: skip
+    attrs.update({f"flag_{name}": bit for bit, name in FLAG_NAMES.items()})
+    return attrs
+
+
+def camera_attrs(source: Source, report: BackgroundReport, fps: float) -> dict[str, object]:
+    """The attributes of one camera's masks in ``silhouettes.h5`` (video, fps, background provenance)."""
+    return {
+        "fps": fps, "video": str(source.video), "background_source": report.source,
+        "background_usable": report.usable, "background_message": report.message,
+        "ambiguous_fraction": report.ambiguous_fraction,
+    }  # fmt: skip
+
+
+def quality_row(q: FrameQuality) -> dict[str, object]:
+    """One frame's quality values in the layout of :class:`~gaitcap.io.silhouettes_h5.SilhouetteWriter`."""
     return {
         "fraction": q.fraction,
         "shadow_fraction": q.shadow_fraction,
@@ -239,8 +249,11 @@ def _quality_row(q: FrameQuality) -> dict[str, object]:
 __all__ = [
     "CameraSummary",
     "Source",
+    "camera_attrs",
+    "file_attrs",
     "flag_names",
     "prepare_extractor",
+    "quality_row",
     "read_plate",
     "run_silhouettes",
     "sources_from_session",

@@ -31,8 +31,7 @@ likelihood's ridge of hips behind and thighs leaning forward, :meth:`FactoredIPF
 so that the pelvis is placed by what it carries (the hip centres, the thigh tops, the trunk's
 base) and not turned to explain a stride: in the first pass, the whole body moved rigidly from
 the previous frame's pose, a pelvis rotation mimics the legs' scissoring, and the hips and lumbar
-joint then compensate a rotation the image never had (pelvis rotation errors of 15-30 degrees
-while the legs crossed). The re-solved angles enter the posture prior. A point's
+joint then compensate a rotation the image never had. The re-solved angles enter the posture prior. A point's
 uncertainty is the square root of the sum, over the nodes that move it, of the weighted variance
 of its position across that node's particles.
 """
@@ -108,9 +107,7 @@ class FactoredIPF(Tracker):
         and also whenever the first pass fits worse than the recent frames did (``swap_fit_drop``
         below the median of the last ``swap_fit_frames``): a swap made while the legs crossed lowers
         the fit until it is undone, possibly with the legs far apart. That mirror walks the whole
-        chain whatever ``swap_search`` says, since a swap that has lasted turns the pelvis too (on
-        the Vicon walk at 150/360 particles, tracker seed 3, a swap over frames 12-24 kept the fit at
-        0.74-0.76 against 0.85-0.89 before: lower-limb error 65.0 mm; with this, 26.1 mm). The
+        chain whatever ``swap_search`` says, since a swap that has lasted turns the pelvis too. The
         mirror replaces the first hypothesis only when it fits ``swap_margin`` better: while the legs
         cross, both assignments fit within a few thousandths and a coin-flip choice swaps them for a
         frame or two. On the first frame after a fresh :meth:`start` (a pose whose leg assignment
@@ -132,10 +129,10 @@ class FactoredIPF(Tracker):
 
         Whatever beat the first hypothesis on the first pass (the mirror, the exchanged shanks, a
         recovered pose) replaces it only if it still fits ``swap_margin`` better once both have had
-        the further passes: a first pass's fit is a noisy judge of two leg assignments. On the OpenSim walk a
-        mirror fitting 0.860 against 0.844 (tracker seed 13) and a widened mirror fitting 0.850
-        against 0.822 (seed 31) each swapped the legs for 3-4 frames. Such wins are rare, so the
-        second refinement costs little.
+        the further passes: a first pass's fit is a noisy judge of two leg assignments. Such wins
+        are rare, so the second refinement costs little.
+
+        The runs behind these choices are in docs/tuning_history.md (``factored_ipf`` keys).
         """
         start = self.q.copy()
         cfg = self.config.factored_ipf
@@ -229,7 +226,7 @@ class FactoredIPF(Tracker):
 
     def _legs_close(self, q: np.ndarray) -> bool:
         """Whether the legs are near enough to each other to be confused: their hip flexions differ
-        by less than ``swap_within_deg`` (a swap was seen to win only below 18 degrees)."""
+        by less than ``swap_within_deg``."""
         left, right = self._hip_flex
         return bool(abs(q[left] - q[right]) < np.radians(self.config.factored_ipf.swap_within_deg))
 
