@@ -38,6 +38,8 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
 from gaitcap.data import embedded_walk  # noqa: E402
+from gaitcap.evaluation.silhouettes import camera_iou  # noqa: E402
+from gaitcap.io.silhouettes_h5 import read_cameras, read_mask_shape  # noqa: E402
 from gaitcap.synth.variety import draw_look  # noqa: E402
 
 SHARED = ROOT.parent / "shared" / "data"
@@ -83,40 +85,34 @@ def unreadable(walk: str) -> str | None:
     return None
 
 
-def mask_iou(est_file: Path, truth_masks: Path, truth_group: str) -> tuple[float, float, dict[str, float]]:
-    """Mean IoU over cameras and frames, its 10th percentile over frames, and the mean per camera."""
+def pooled_iou(est_file: Path, truth_masks: Path) -> tuple[float, float, dict[str, float]]:
+    """Mean IoU over cameras and frames, its 10th percentile over frames, and the mean per camera
+    (frames whose true mask is empty are not scored)."""
     per_cam, frames = {}, []
-    with h5py.File(est_file, "r") as fe, h5py.File(truth_masks, "r") as ft:
-        tg = ft[truth_group] if truth_group else ft
-        for cam in fe["masks"]:
-            if cam not in tg:
-                continue
-            est, ref = fe["masks"][cam], tg[cam]
-            n = min(len(est), len(ref))
-            ious = []
-            for t in range(n):
-                a, b = est[t] > 0, ref[t] > 0
-                union = np.count_nonzero(a | b)
-                if union:
-                    ious.append(np.count_nonzero(a & b) / union)
-            per_cam[cam] = float(np.mean(ious)) if ious else math.nan
-            frames += ious
-    if not frames:
+    truth_cams = read_cameras(truth_masks)
+    for cam in (c for c in read_cameras(est_file) if c in truth_cams):
+        n = min(read_mask_shape(est_file, cam)[0], read_mask_shape(truth_masks, cam)[0])
+        iou = camera_iou(est_file, truth_masks, cam, n)
+        iou = iou[np.isfinite(iou)]
+        per_cam[cam] = float(iou.mean()) if len(iou) else math.nan
+        frames.append(iou)
+    pooled = np.concatenate(frames) if frames else np.empty(0)
+    if not len(pooled):
         return math.nan, math.nan, per_cam
-    return float(np.mean(frames)), float(np.percentile(frames, 10)), per_cam
+    return float(pooled.mean()), float(np.percentile(pooled, 10)), per_cam
 
 
 def longest_run(runs: list) -> int:
     return max((int(r[1]) - int(r[0]) + 1 for r in runs), default=0) if runs else 0
 
 
-def measure(session: Path, truth: Path, truth_masks: Path, truth_group: str, run: Path, reuse: bool = False,
+def measure(session: Path, truth: Path, truth_masks: Path, run: Path, reuse: bool = False,
             silhouettes_only: bool = False) -> dict:  # fmt: skip
     """Track, evaluate and score one session (``reuse``: the row of an earlier run, if it finished)."""
     row_file = run / "suite_row.json"
     if reuse and row_file.exists() and not silhouettes_only:
         return json.loads(row_file.read_text())
-    row = _measure(session, truth, truth_masks, truth_group, run, silhouettes_only)
+    row = _measure(session, truth, truth_masks, run, silhouettes_only)
     if silhouettes_only:
         return row
     run.mkdir(parents=True, exist_ok=True)
@@ -124,23 +120,23 @@ def measure(session: Path, truth: Path, truth_masks: Path, truth_group: str, run
     return row
 
 
-def silhouette_row(session: Path, truth_masks: Path, truth_group: str, run: Path) -> dict:
-    """IoU of ``gaitcap silhouettes`` against the true masks (mean, 10th percentile of frames, per camera)."""
-    sil = gaitcap("silhouettes", str(session), "-o", str(run / "sil"), "--force", check=False)
-    if sil.returncode != 0:
+def silhouette_row(masks: Path, truth_masks: Path) -> dict:
+    """IoU of a run's ``silhouettes.h5`` against the true masks (mean, 10th percentile of frames, per camera)."""
+    if not masks.exists():
         return {}
-    iou, p10, per_cam = mask_iou(run / "sil" / "silhouettes.h5", truth_masks, truth_group)
+    iou, p10, per_cam = pooled_iou(masks, truth_masks)
     return {"iou": iou, "iou_p10": p10, "iou_per_camera": per_cam}
 
 
-def _measure(session: Path, truth: Path, truth_masks: Path, truth_group: str, run: Path,
+def _measure(session: Path, truth: Path, truth_masks: Path, run: Path,
              silhouettes_only: bool = False) -> dict:  # fmt: skip
     if silhouettes_only:
-        return {"status": "silhouettes only", **silhouette_row(session, truth_masks, truth_group, run)}
+        gaitcap("silhouettes", str(session), "-o", str(run), "--force", check=False)
+        return {"status": "silhouettes only", **silhouette_row(run / "silhouettes.h5", truth_masks)}
     t0 = time.perf_counter()
-    tr = gaitcap("track", str(session), "-o", str(run), "--force", check=False)
+    tr = gaitcap("track", str(session), "-o", str(run), "--force", "--save-masks", check=False)
     row: dict = {"seconds": time.perf_counter() - t0, "status": "ok"}
-    row.update(silhouette_row(session, truth_masks, truth_group, run))
+    row.update(silhouette_row(run / "silhouettes.h5", truth_masks))
     if tr.returncode != 0:
         row["status"] = f"track failed (exit {tr.returncode}): " + ((tr.stderr or tr.stdout).strip().splitlines() or [""])[-1]
         return row
@@ -186,7 +182,7 @@ def own_sessions(args: argparse.Namespace) -> list[dict]:
             height = float(f.attrs["height_m"])
         cond = draw_look(p["seed"], height, p["cameras"]).describe()
         rows.append({**p, "source": "suite", "session": session, "truth": session / "truth.h5",
-                     "masks": session / "truth.h5", "group": "masks", "conditions": cond})  # fmt: skip
+                     "masks": session / "truth.h5", "conditions": cond})  # fmt: skip
     return rows
 
 
@@ -203,7 +199,7 @@ def external_sessions() -> list[dict]:
                 "contrast": "low" if "low contrast" in line else "normal"}  # fmt: skip
         rows.append({"name": f"ext_{session.name}", "walk": "vicon", "seed": None, "height": info.get("height_m"),
                      "cameras": cams, "source": "external", "session": session, "truth": session / "truth",
-                     "masks": session / "truth" / "masks.h5", "group": "", "conditions": cond})  # fmt: skip
+                     "masks": session / "truth" / "masks.h5", "conditions": cond})  # fmt: skip
     return rows
 
 
@@ -287,8 +283,8 @@ def main() -> None:
         todo += external_sessions()
     rows = []
     for i, s in enumerate(todo):
-        r = {k: v for k, v in s.items() if k not in ("session", "truth", "masks", "group")}
-        r.update(measure(s["session"], s["truth"], s["masks"], s["group"], args.work / ("sil_runs" if args.silhouettes_only else "runs") / s["name"], args.reuse,
+        r = {k: v for k, v in s.items() if k not in ("session", "truth", "masks")}
+        r.update(measure(s["session"], s["truth"], s["masks"], args.work / ("sil_runs" if args.silhouettes_only else "runs") / s["name"], args.reuse,
                          args.silhouettes_only))
         rows.append(r)
         print(f"[{i + 1}/{len(todo)}] {s['name']}: lower {fmt(r.get('lower_mm'))} mm, knee {fmt(r.get('knee_deg'))} deg, "
