@@ -8,7 +8,8 @@ What is read:
 - time: ``t0_s = first_frame / rate`` where ``first_frame`` is ezc3d's 0-based header value
   (the C3D header stores it 1-based: a Vicon file with header frame 153 starts at 1.52 s at
   100 Hz), so frame i is at ``t0_s + i / rate``, the axis C3D EVENT:TIMES use;
-- events from the EVENT group: contexts Left/Right, labels Foot Strike/Foot Off;
+- events from the EVENT group: contexts Left/Right, labels Foot Strike/Foot Off (a subject
+  prefix such as ``A22:Foot Strike`` is ignored);
 - subject height from PROCESSING:Height (``meta["height_m"]``);
 - the file's up axis from POINT:Y_SCREEN (``meta["up_axis"]``, e.g. ``"+Z"`` -> ``"z"``);
 - model angles (POINT:ANGLES channels, degrees) through :func:`read_c3d_angles`.
@@ -108,13 +109,18 @@ def _events(c3d: Any, source: Path) -> tuple[GaitEvent, ...]:
     seconds = 60.0 * times[0] + times[1]  # row 0 minutes, row 1 seconds; float32 in the file
     out = []
     for label, context, t in zip(labels, contexts, seconds, strict=False):
-        kind = _EVENT_KINDS.get(label.lower().replace("_", " "))
-        side = _EVENT_SIDES.get(context.lower())
+        kind = _EVENT_KINDS.get(_unprefixed(label).lower().replace("_", " "))
+        side = _EVENT_SIDES.get(_unprefixed(context).lower())
         if kind is None or side is None:
             log.debug("%s: event %s/%s at %.3f s ignored", source, context, label, t)
             continue
         out.append(GaitEvent(round(float(t), 6), side, kind, source="c3d"))  # type: ignore[arg-type]
     return tuple(sorted(out))
+
+
+def _unprefixed(text: str) -> str:
+    """``"A22:Foot Strike"`` -> ``"Foot Strike"`` (some systems prefix event labels with the subject)."""
+    return text.rsplit(":", 1)[-1].strip()
 
 
 def _height_m(c3d: Any) -> float | None:
