@@ -187,4 +187,5 @@ def read_c3d_angles(path: str | Path) -> AngleSeries:
     angle_names = set(_strings(_param(c3d, "POINT", "ANGLES")))
     keep = [i for i, n in enumerate(labels) if n in angle_names]
     rate, t0 = _time_axis(c3d)
-    return AngleSeries(tuple(labels[i] for i in keep), _points(c3d, labels, keep), rate, t0)
+    names = tuple(_unprefixed(labels[i]) for i in keep)  # "A22:LKneeAngles" -> "LKneeAngles"
+    return AngleSeries(names, _points(c3d, labels, keep), rate, t0)

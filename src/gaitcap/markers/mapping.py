@@ -203,15 +203,17 @@ class Rule(Strict):
         body = getattr(self, self.kind)
         return [[n] for n in body.references()]
 
-    def missing(self, have: set[str]) -> list[str]:
+    def missing(self, have: set[str], unresolved: dict[str, list[str]] | None = None) -> list[str]:
         """References not in ``have`` (alternatives as ``a|b``); [] when the rule can be evaluated.
 
-        For ``first``: [] if any alternative can be evaluated, else the gaps of the alternative
-        missing the fewest names.
+        ``unresolved`` (helper point -> the markers it misses) counts a helper's markers in place
+        of the helper. For ``first``: [] if any alternative can be evaluated, else the gaps of
+        the alternative missing the fewest markers (of equal ones the last: the first alternatives are usually a
+        lab's own joint centres, the last the markers a set needs at least).
         """
         if self.first is not None:
-            gaps = [rule.missing(have) for rule in self.first]
-            return [] if any(not g for g in gaps) else min(gaps, key=len)
+            gaps = [_expand(rule.missing(have, unresolved), unresolved or {}) for rule in self.first]
+            return [] if any(not g for g in gaps) else min(reversed(gaps), key=len)
         return ["|".join(alts) for alts in self.alternatives() if not any(a in have for a in alts)]
 
     def chosen(self, have: set[str]) -> Rule:
@@ -286,7 +288,7 @@ class Mapping(Strict):
         have = set(available)
         unresolved: dict[str, list[str]] = {}
         for name, rule in self.definitions():
-            gaps = rule.missing(have)
+            gaps = rule.missing(have, unresolved)
             if gaps:
                 unresolved[name] = _expand(gaps, unresolved)
             else:
@@ -352,7 +354,8 @@ class Resolution:
 
 
 def load_mapping(name_or_path: str | Path) -> Mapping:
-    """A shipped mapping by name (``plugin_gait``) or a mapping YAML file by path."""
+    """A shipped mapping by name (``plugin_gait``) or a mapping YAML file by path (validated:
+    unknown keys, unknown points and rules referring to later names are errors naming the file)."""
     path = Path(name_or_path)
     if path.suffix.lower() not in (".yaml", ".yml"):
         path = MAPPINGS_DIR / f"{name_or_path}.yaml"

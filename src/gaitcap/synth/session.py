@@ -106,14 +106,18 @@ def _events_on_video_time(events: Sequence[GaitEvent], t0: float, duration: floa
 
 
 def synthesize(
-    motion: str | Path, out: str | Path, options: SynthOptions = SynthOptions(), force: bool = False, progress: bool = True
+    motion: str | Path, out: str | Path, options: SynthOptions = SynthOptions(), force: bool = False, progress: bool = True,
+    mapping: str | Path | None = None, subject: str | None = None,
 ) -> SynthResult:
-    """Render a synthetic session from ``motion`` into the folder ``out`` (see the module docstring)."""
+    """Render a synthetic session from ``motion`` into the folder ``out`` (see the module docstring).
+
+    ``mapping`` and ``subject`` go to :func:`gaitcap.markers.motion.read_motion` (None: the
+    shipped mapping that fits, the subject with the most markers)."""
     out = Path(out)
     occupied = out.is_file() or (out.is_dir() and any(out.iterdir()))
     if occupied and not force:
         raise OutputError(f"{out}: already exists (use --force to replace it)")
-    traj = read_motion(motion)
+    traj = read_motion(motion, mapping=mapping, subject=subject)
     source_t0 = traj.t0_s
     traj = traj.resample(options.fps)
     spec = load_body_spec(options.body_config)
