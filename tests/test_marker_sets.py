@@ -153,13 +153,11 @@ def test_event_labels_with_subject_prefix():
     assert _unprefixed("A22:Foot Strike") == "Foot Strike" and _unprefixed("Left") == "Left"
 
 
-def _opensim_style(path: Path, dst: Path, z_up_m: bool = False) -> Path:
-    """The walk's TRC with the header of OpenSim's own examples: empty fields and extra tabs."""
+def _opensim_style(path: Path, dst: Path) -> Path:
+    """The walk's TRC with the header of OpenSim's own examples: the values line has empty fields
+    between values (``60.00<TAB><TAB>60.00<TAB><TAB>151...``), the keys line has not."""
     lines = path.read_text().splitlines()
-    keys = lines[1].split("\t")
-    vals = lines[2].split("\t")
-    lines[1] = "\t".join(k + "\t" for k in keys)
-    lines[2] = "\t".join(v + "\t" for v in vals) + "\t"
+    lines[2] = "\t\t".join(lines[2].split("\t")) + "\t"
     dst.write_text("\n".join(lines) + "\n")
     return dst
 
@@ -211,3 +209,20 @@ def test_report_on_raw_c3d_with_mapping_option(tmp_path):
     res = CliRunner().invoke(cli, ["report", str(RAW), "-o", str(tmp_path / "g"), "--mapping", "plugin_gait"])
     assert res.exit_code == 0, res.output
     assert "complete cycles" in res.output and (tmp_path / "g" / "events.csv").is_file()
+
+
+def test_report_on_trc_with_opensim_style_header(tmp_path):
+    odd = _opensim_style(OPENSIM, tmp_path / "subject01_walk1.trc")
+    (tmp_path / "subject01_static.trc").write_bytes((WALKING / "subject01_static.trc").read_bytes())
+    res = CliRunner().invoke(cli, ["report", str(odd), "-o", str(tmp_path / "g")])
+    assert res.exit_code == 0, res.output
+    assert "2 complete cycles" in res.output
+
+
+def test_synth_on_prefixed_sacr_pig_file(tmp_path):
+    from gaitcap.synth.session import SynthOptions, synthesize
+
+    opts = SynthOptions(cameras=2, size=(96, 72), fps=10.0, codec="ffv1")
+    result = synthesize(PIG, tmp_path / "s", opts, progress=False, mapping="plugin_gait", subject="A22")
+    assert result.n_frames == 29  # 2.84 s at 10 fps
+    assert max(result.fit.residual_m.values()) < 0.05
