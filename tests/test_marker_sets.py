@@ -226,3 +226,13 @@ def test_synth_on_prefixed_sacr_pig_file(tmp_path):
     result = synthesize(PIG, tmp_path / "s", opts, progress=False, mapping="plugin_gait", subject="A22")
     assert result.n_frames == 29  # 2.84 s at 10 fps
     assert max(result.fit.residual_m.values()) < 0.05
+
+
+def test_force_plate_events_of_a_c3d_without_event_group():
+    raw = read_motion(RAW)  # no EVENT group: events from its two force plates
+    assert raw.events and {e.source for e in raw.events} == {"forceplate"}
+    recorded = read_motion(PIG).events  # the same trial, events set by the lab
+    for e in raw.events:
+        same = [r.time_s for r in recorded if (r.side, r.event) == (e.side, e.event)]
+        assert min(abs(t - e.time_s) for t in same) <= 1.0 / raw.rate_hz
+    assert len(raw.events) == 4  # two plates: one strike and one foot off of each foot

@@ -27,10 +27,10 @@ from pathlib import Path
 import numpy as np
 
 from gaitcap.errors import InputError
-from gaitcap.io.c3d import read_c3d_markers
+from gaitcap.io.c3d import read_c3d_markers, read_c3d_plates
 from gaitcap.io.trc import read_trc
 from gaitcap.markers.axes import UP_AXES, to_z_up
-from gaitcap.markers.events import events_from_grf
+from gaitcap.markers.events import events_from_grf, events_from_plates
 from gaitcap.markers.jointcentres import apply_mapping
 from gaitcap.markers.mapping import Mapping, Resolution, load_mapping, shipped_mapping_names
 from gaitcap.trajectory import POINT_NAMES, Trajectory
@@ -227,6 +227,16 @@ def _grf_events(path: Path, mapping: Mapping, up: str) -> list:
     return events_from_grf(grf_path, g.threshold_n, g.right, g.left, up_axis=up)
 
 
+def _plate_events(path: Path, joints: Trajectory, up: str) -> list:
+    """Foot contacts from the C3D file's force plates (a second source when it has no EVENT group)."""
+    if path.suffix.lower() != ".c3d":
+        return []
+    events = events_from_plates(read_c3d_plates(path), joints, up)
+    if events:
+        log.info("%s: no EVENT group; %d events from the force plates", path, len(events))
+    return events
+
+
 def read_motion(
     path: str | Path,
     mapping: Mapping | str | Path | None = None,
@@ -246,8 +256,8 @@ def read_motion(
         subject: the subject prefix to read in a file holding several (default: most markers).
     Returns:
         :class:`Trajectory` of the points the mapping defines (:data:`POINT_NAMES` order),
-        shape (T, P, 3), metres, z up; events from the C3D EVENT group, or from the force-plate
-        table beside the file (mapping ``grf``); ``meta``: ``source``, ``mapping``,
+        shape (T, P, 3), metres, z up; events from the C3D EVENT group, else from the force-plate
+        table beside the file (mapping ``grf``), else from the C3D file's own force plates; ``meta``: ``source``, ``mapping``,
         ``height_m`` (C3D), ``static`` (path, when used).
     Raises:
         InputError: unreadable file, no fitting mapping (missing markers listed), no static trial.
@@ -268,7 +278,7 @@ def read_motion(
         markers = replace(markers, meta={**markers.meta, "static": str(static_path)})
     joints = apply_mapping(chosen, markers, static_traj)
     if not joints.events:
-        joints = joints.with_events(_grf_events(path, chosen, up))
+        joints = joints.with_events(_grf_events(path, chosen, up) or _plate_events(path, joints, up))
     log.info("%s: %d frames at %g Hz, mapping %s, %d points, %d events", path, joints.n_frames,
              joints.rate_hz, chosen.name, len(joints.names), len(joints.events))  # fmt: skip
     return joints
