@@ -251,7 +251,9 @@ class Mapping(Strict):
     grf: GrfSpec | None = None
     virtual: dict[str, Rule] = Field(default_factory=dict)
     points: dict[str, Rule]
-    optional: list[str] = Field(default_factory=list, description="output points left out when their markers are missing")
+    optional: list[str] = Field(
+        default_factory=list, description="output points left out when their markers are missing"
+    )
 
     @model_validator(mode="after")
     def _names_and_order(self) -> Mapping:

@@ -80,7 +80,8 @@ def select_subject(raw: Trajectory, subject: str | None = None) -> Trajectory:
     named = {k: v for k, v in groups.items() if k}
     source = raw.meta.get("source", "motion file")
     if subject is not None and subject not in named:
-        raise InputError(f"{source}: no subject {subject!r} (subjects: {', '.join(named) or 'none, labels have no prefix'})")
+        listed = ", ".join(named) or "none, labels have no prefix"
+        raise InputError(f"{source}: no subject {subject!r} (subjects: {listed})")
     if not named:
         return raw
     chosen = subject if subject is not None else max(named, key=lambda k: len(named[k]))
@@ -143,7 +144,8 @@ def _resolve_up_axis(raw: Trajectory, mapping: Mapping | None, up_axis: str | No
         return "z"
     guess = guess_up_axis(raw.points)
     if guess is None:
-        log.info("%s: up axis not stated nor clear from the markers: %s assumed", raw.meta.get("source"), TRC_DEFAULT_UP)
+        log.info("%s: up axis neither stated nor clear from the markers: %s assumed",
+                 raw.meta.get("source"), TRC_DEFAULT_UP)  # fmt: skip
         return TRC_DEFAULT_UP
     if guess != TRC_DEFAULT_UP:
         log.info("%s: %s up (the body's long axis; TRC files are usually y up)", raw.meta.get("source"), guess)
@@ -185,7 +187,10 @@ def _mapping_of(mapping: Mapping | str | Path | None, raw: Trajectory) -> Mappin
 
 
 def read_markers(
-    path: str | Path, up_axis: str | None = None, mapping: Mapping | str | Path | None = None, subject: str | None = None
+    path: str | Path,
+    up_axis: str | None = None,
+    mapping: Mapping | str | Path | None = None,
+    subject: str | None = None,
 ) -> Trajectory:
     """Raw marker trajectories of a .c3d or .trc file: metres, gaitcap frame (z up).
 
@@ -257,7 +262,8 @@ def read_motion(
     Returns:
         :class:`Trajectory` of the points the mapping defines (:data:`POINT_NAMES` order),
         shape (T, P, 3), metres, z up; events from the C3D EVENT group, else from the force-plate
-        table beside the file (mapping ``grf``), else from the C3D file's own force plates; ``meta``: ``source``, ``mapping``,
+        table beside the file (mapping ``grf``), else from the C3D file's own force plates;
+        ``meta``: ``source``, ``mapping``,
         ``height_m`` (C3D), ``static`` (path, when used).
     Raises:
         InputError: unreadable file, no fitting mapping (missing markers listed), no static trial.
