@@ -226,8 +226,8 @@ def test_missing_markers_are_named(tmp_path):
     with pytest.raises(InputError) as err:
         read_motion(path)
     msg = str(err.value)
-    assert "opensim_gait2354: missing V.Sacral, L.Heel" in msg
-    assert "plugin_gait: missing LASI" in msg
+    assert "closest: opensim_gait2354 (missing V.Sacral, L.Heel)" in msg
+    assert "gaitcap markers" in msg
 
 
 def test_gaitcap_points_file_reads_back_as_joint_centres(tmp_path, pig):

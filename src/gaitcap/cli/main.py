@@ -52,7 +52,7 @@ def _register() -> None:
 
 
 # the command modules, in the order of the pipeline
-COMMAND_MODULES: list[str] = ["calibrate", "synth", "silhouettes", "track", "report", "eval", "demo"]
+COMMAND_MODULES: list[str] = ["calibrate", "markers", "synth", "silhouettes", "track", "report", "eval", "demo"]
 
 
 _register()

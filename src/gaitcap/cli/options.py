@@ -33,5 +33,19 @@ def force_option(func: F) -> F:
     return click.option("--force", is_flag=True, help="Overwrite existing outputs.")(func)
 
 
+def mapping_option(func: F) -> F:
+    """``--mapping``: a shipped marker mapping name or a mapping YAML (for .c3d/.trc inputs)."""
+    return click.option("--mapping", "mapping", default=None, metavar="NAME|FILE.yaml",
+                        help="Marker mapping for a .c3d/.trc input: a shipped name or your own YAML "
+                             "(default: the shipped mapping that fits; see `gaitcap markers FILE`).")(func)  # fmt: skip
+
+
+def subject_option(func: F) -> F:
+    """``--subject``: which subject of a marker file holding several (label prefix)."""
+    return click.option("--subject", default=None, metavar="NAME",
+                        help="Subject of a marker file with several (label prefix, e.g. A22; "
+                             "default: the one with the most markers).")(func)  # fmt: skip
+
+
 def seed_option(func: F) -> F:
     return click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")(func)

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from gaitcap.cli.options import handle_errors
+from gaitcap.cli.options import handle_errors, mapping_option, subject_option
 from gaitcap.config import load_yaml_model
 from gaitcap.gait.options import GaitOptions
 
@@ -20,8 +20,10 @@ EXIT_NOT_ENOUGH_STEPS = 3
               help="Output folder (default: SOURCE/gait, or gait/ beside a file).")
 @click.option("--config", "config", type=click.Path(path_type=Path), default=None,
               help="YAML file of gait options (see gaitcap.gait.options.GaitOptions).")
+@mapping_option
+@subject_option
 @handle_errors
-def command(source: Path, out_dir: Path | None, config: Path | None) -> None:
+def command(source: Path, out_dir: Path | None, config: Path | None, mapping: str | None, subject: str | None) -> None:
     """Gait events, spatio-temporal parameters, joint angles and report.html from trajectories.
 
     SOURCE is a tracking output folder holding trajectories.h5, a trajectories.h5 file, or a
@@ -34,11 +36,12 @@ def command(source: Path, out_dir: Path | None, config: Path | None) -> None:
     Example:
         gaitcap report OUT
         gaitcap report walk.c3d -o walk_report
+        gaitcap report walk.c3d --mapping my_lab.yaml
     """
     from gaitcap.report.pipeline import run_report
 
     options = load_yaml_model(GaitOptions, config) if config is not None else None
-    result = run_report(source, out_dir, options)
+    result = run_report(source, out_dir, options, mapping, subject)
     p = result.analysis.parameters
     click.echo(f"{len(result.analysis.events)} events, {p.overall['n_strides']} complete cycles -> {result.out_dir}")
     if not p.ok:

@@ -8,12 +8,15 @@ What is read:
 - time: ``t0_s = first_frame / rate`` where ``first_frame`` is ezc3d's 0-based header value
   (the C3D header stores it 1-based: a Vicon file with header frame 153 starts at 1.52 s at
   100 Hz), so frame i is at ``t0_s + i / rate``, the axis C3D EVENT:TIMES use;
-- events from the EVENT group: contexts Left/Right, labels Foot Strike/Foot Off;
+- events from the EVENT group: contexts Left/Right, labels Foot Strike/Foot Off (a subject
+  prefix such as ``A22:Foot Strike`` is ignored);
 - subject height from PROCESSING:Height (``meta["height_m"]``);
 - the file's up axis from POINT:Y_SCREEN (``meta["up_axis"]``, e.g. ``"+Z"`` -> ``"z"``);
 - model angles (POINT:ANGLES channels, degrees) through :func:`read_c3d_angles`.
 
-Analog channels (force plates, EMG) are never read.
+Force plates (FORCE_PLATFORM group, through ezc3d's ``extract_forceplat_data``) are read by
+:func:`read_c3d_plates`: vertical force and centre of pressure in the lab frame. Other analog
+channels (EMG) are never read.
 """
 
 from __future__ import annotations
@@ -61,13 +64,32 @@ class AngleSeries:
             raise InputError(f"no angle channel {name!r} (channels: {', '.join(self.names)})") from None
 
 
-def _open(path: Path) -> Any:
+@dataclass(frozen=True)
+class ForcePlate:
+    """One force plate of a C3D file, on the analog time axis.
+
+    Attributes:
+        force: ground reaction force on the subject, N, shape (N, 3), the file's axes.
+        cop: centre of pressure, metres, shape (N, 3), the file's axes (NaN when unloaded).
+        rate_hz: analog rate; t0_s: time of the first sample (the points' first frame).
+    """
+
+    force: np.ndarray
+    cop: np.ndarray
+    rate_hz: float
+    t0_s: float
+
+    def times(self) -> np.ndarray:
+        return self.t0_s + np.arange(self.force.shape[0]) / self.rate_hz
+
+
+def _open(path: Path, plates: bool = False) -> Any:
     import ezc3d
 
     if not path.is_file():
         raise InputError(f"{path}: C3D file not found")
     try:
-        return ezc3d.c3d(str(path))
+        return ezc3d.c3d(str(path), extract_forceplat_data=plates)
     except Exception as e:  # ezc3d raises plain RuntimeError/IOError
         raise InputError(f"{path}: cannot read C3D file ({e})") from e
 
@@ -108,13 +130,18 @@ def _events(c3d: Any, source: Path) -> tuple[GaitEvent, ...]:
     seconds = 60.0 * times[0] + times[1]  # row 0 minutes, row 1 seconds; float32 in the file
     out = []
     for label, context, t in zip(labels, contexts, seconds, strict=False):
-        kind = _EVENT_KINDS.get(label.lower().replace("_", " "))
-        side = _EVENT_SIDES.get(context.lower())
+        kind = _EVENT_KINDS.get(_unprefixed(label).lower().replace("_", " "))
+        side = _EVENT_SIDES.get(_unprefixed(context).lower())
         if kind is None or side is None:
             log.debug("%s: event %s/%s at %.3f s ignored", source, context, label, t)
             continue
         out.append(GaitEvent(round(float(t), 6), side, kind, source="c3d"))  # type: ignore[arg-type]
     return tuple(sorted(out))
+
+
+def _unprefixed(text: str) -> str:
+    """``"A22:Foot Strike"`` -> ``"Foot Strike"`` (some systems prefix event labels with the subject)."""
+    return text.rsplit(":", 1)[-1].strip()
 
 
 def _height_m(c3d: Any) -> float | None:
@@ -181,4 +208,24 @@ def read_c3d_angles(path: str | Path) -> AngleSeries:
     angle_names = set(_strings(_param(c3d, "POINT", "ANGLES")))
     keep = [i for i, n in enumerate(labels) if n in angle_names]
     rate, t0 = _time_axis(c3d)
-    return AngleSeries(tuple(labels[i] for i in keep), _points(c3d, labels, keep), rate, t0)
+    names = tuple(_unprefixed(labels[i]) for i in keep)  # "A22:LKneeAngles" -> "LKneeAngles"
+    return AngleSeries(names, _points(c3d, labels, keep), rate, t0)
+
+
+def read_c3d_plates(path: str | Path) -> list[ForcePlate]:
+    """The force plates of a C3D file ([] when it has none or they cannot be read)."""
+    path = Path(path)
+    try:
+        c3d = _open(path, plates=True)
+    except InputError as e:
+        log.info("%s: force plates not read (%s)", path, e)
+        return []
+    _, t0 = _time_axis(c3d)
+    rate = float(c3d["header"]["analogs"]["frame_rate"])
+    out = []
+    for plate in c3d["data"].get("platform", []):
+        scale = metres_per_unit(str(plate.get("unit_position", "mm")), str(path))
+        force = np.asarray(plate["force"], dtype=np.float64).T
+        cop = np.asarray(plate["center_of_pressure"], dtype=np.float64).T * scale
+        out.append(ForcePlate(force, cop, rate, t0))
+    return out

@@ -42,6 +42,14 @@ def _cell(text: str) -> float:
     return float(text)
 
 
+def _header(keys_line: str, values_line: str) -> dict[str, str]:
+    """The header's key -> value. Empty cells and extra tabs are dropped from both lines first:
+    OpenSim's own example files write ``100.0<TAB><TAB>100.0<TAB><TAB>238...``."""
+    keys = [k.strip() for k in keys_line.split("\t") if k.strip()]
+    values = [v.strip() for v in values_line.split("\t") if v.strip()]
+    return dict(zip(keys, values, strict=False))
+
+
 def read_trc(path: str | Path) -> Trajectory:
     """Read a TRC file into a :class:`Trajectory` of markers, in metres and in the file's axes.
 
@@ -56,13 +64,11 @@ def read_trc(path: str | Path) -> Trajectory:
         raise InputError(f"{path}: cannot read TRC file ({e.strerror})") from e
     if len(lines) < 5 or not lines[0].startswith("PathFileType"):
         raise InputError(f"{path}: not a TRC file (first line must start with PathFileType)")
-    keys = lines[1].split("\t")
-    values = lines[2].split("\t")
-    header = {k.strip(): v.strip() for k, v in zip(keys, values, strict=False)}
+    header = _header(lines[1], lines[2])
     try:
         rate = float(header["DataRate"])
         units = header["Units"]
-        n_markers = int(header["NumMarkers"])
+        n_markers = int(float(header["NumMarkers"]))
     except (KeyError, ValueError) as e:
         raise InputError(f"{path}: bad TRC header line 3 ({e})") from e
     scale = metres_per_unit(units, str(path))

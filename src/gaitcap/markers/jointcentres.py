@@ -13,6 +13,7 @@ from scipy.spatial.transform import Rotation
 
 from gaitcap.errors import InputError
 from gaitcap.markers.mapping import (
+    ChordRule,
     ClusterRule,
     HarringtonRule,
     LerpRule,
@@ -129,6 +130,23 @@ def shift_point(
     return point + np.reshape(distance, (-1, 1)) * _unit(d)
 
 
+def chord_point(proximal: np.ndarray, wand: np.ndarray, marker: np.ndarray, distance: float) -> np.ndarray:
+    """Plug-in-Gait's chord function (see :class:`gaitcap.markers.mapping.ChordRule`).
+
+    With a = unit(proximal - marker), b = the unit vector of the plane orthogonal to a, pointing
+    away from the wand: J = marker + d (cos t a + sin t b), cos t = d / |proximal - marker|.
+    All arrays shape (T, 3), metres; returns shape (T, 3).
+    """
+    axis = proximal - marker
+    length = np.linalg.norm(axis, axis=-1, keepdims=True)
+    a = _unit(axis)
+    w = wand - marker
+    b = -_unit(w - np.sum(w * a, axis=-1, keepdims=True) * a)
+    with np.errstate(invalid="ignore"):
+        cos_t = np.clip(distance / length, -1.0, 1.0)
+    return marker + distance * (cos_t * a + np.sqrt(1.0 - cos_t**2) * b)
+
+
 class _Evaluator:
     """Evaluates a mapping's definitions in order over a marker trajectory."""
 
@@ -165,7 +183,7 @@ class _Evaluator:
         return pts[complete].mean(axis=0)
 
     def evaluate(self, name: str, rule: Rule) -> np.ndarray:
-        kind = rule.kind
+        kind = rule.kind  # a ``first`` rule arrives here already resolved (Rule.chosen)
         if kind == "marker":
             names = [rule.marker] if isinstance(rule.marker, str) else list(rule.marker or [])
             return self.first_present(names)
@@ -179,6 +197,9 @@ class _Evaluator:
             return self._sole(name, rule.sole)  # type: ignore[arg-type]
         if kind == "shift":
             return self._shift(rule.shift)  # type: ignore[arg-type]
+        if kind == "chord":
+            c: ChordRule = rule.chord  # type: ignore[assignment]
+            return chord_point(self.get(c.proximal), self.get(c.wand), self.get(c.marker), c.distance_m)
         if kind == "lerp":
             r: LerpRule = rule.lerp  # type: ignore[assignment]
             a, b = self.get(r.start), self.get(r.end)
@@ -229,20 +250,24 @@ def apply_mapping(
         markers: marker trajectory of the motion trial, (T, M, 3).
         static: marker trajectory of the static trial (needed by cluster rules).
     Returns:
-        a :class:`Trajectory` with the mapping's output points in :data:`POINT_NAMES` order,
-        shape (T, P, 3), same time axis, events and meta as ``markers`` (plus ``mapping``).
+        a :class:`Trajectory` with the mapping's output points in :data:`POINT_NAMES` order
+        (optional points whose markers are missing left out), shape (T, P, 3), same time axis,
+        events and meta as ``markers`` (plus ``mapping``).
     Raises:
         InputError: naming the missing markers.
     """
     source = str(markers.meta.get("source", "motion"))
-    missing = mapping.missing_markers(markers.names)
+    resolution = mapping.resolve(markers.names)
+    missing = resolution.missing_required()
     if missing:
         raise InputError(f"{source}: mapping {mapping.name!r} needs markers missing from the file: {', '.join(missing)}")
     ev = _Evaluator(markers, static, source)
     for name, rule in mapping.definitions():
-        value = np.asarray(ev.evaluate(name, rule), dtype=np.float64)
+        if name in resolution.unresolved:
+            continue
+        value = np.asarray(ev.evaluate(name, rule.chosen(resolution.have)), dtype=np.float64)
         ev.values[name] = np.broadcast_to(value, (markers.n_frames, 3)).copy()
-    names = tuple(n for n in POINT_NAMES if n in mapping.points)
+    names = tuple(resolution.output_points())
     points = np.stack([ev.values[n] for n in names], axis=1)
     meta = {**markers.meta, "mapping": mapping.name}
     return Trajectory(names, points, markers.rate_hz, markers.t0_s, markers.events, meta)

@@ -11,12 +11,24 @@ maths lives in :mod:`gaitcap.markers.jointcentres`. Each definition is one rule:
 
 A rule refers to markers of the file or to helper/output points defined *above* it.
 Rules: ``marker``, ``mean``, ``harrington``, ``cluster``, ``sole``, ``shift``, ``lerp`` (see the
-classes below).
+classes below), and ``first``: a list of rules, the first one whose markers are all present is
+used (so one mapping covers a marker set's variants: SACR or LPSI/RPSI, with or without heels,
+the lab's own joint centres when the file has them)::
+
+    hip_l:
+      first:
+        - marker: LHJC                                     # the lab's own hip centre
+        - harrington: {side: left, lasi: LASI, rasi: RASI, lpsi: LPSI, rpsi: RPSI}
+        - harrington: {side: left, lasi: LASI, rasi: RASI, sacral: SACR}
+
+Output points listed under ``optional`` are left out when their markers are missing (arms of a
+full-body set in a lower-body file); every other output point is required for the mapping to fit.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
@@ -128,14 +140,35 @@ class LerpRule(Strict):
         return [self.start, self.end]
 
 
-RULE_KINDS: tuple[str, ...] = ("marker", "mean", "harrington", "cluster", "sole", "shift", "lerp")
+class ChordRule(Strict):
+    """A joint centre from a lateral marker, a wand marker and the proximal joint centre
+    (Plug-in-Gait's chord function, Davis et al. 1991, Hum Mov Sci 10:575-587).
+
+    The centre J lies ``distance_m`` from ``marker`` (half the joint width plus the marker
+    radius), in the plane of ``proximal``, ``wand`` and ``marker``, on the side away from the
+    wand, with J - marker perpendicular to proximal - J (J on the circle of diameter
+    marker-proximal). Knee: proximal = hip centre, wand = THI, marker = KNE; ankle: proximal =
+    knee centre, wand = TIB, marker = ANK.
+    """
+
+    proximal: str
+    wand: str
+    marker: str
+    distance_m: float = Field(gt=0.0, le=0.2)
+
+    def references(self) -> list[str]:
+        return [self.proximal, self.wand, self.marker]
+
+
+RULE_KINDS: tuple[str, ...] = ("marker", "mean", "harrington", "cluster", "sole", "shift", "lerp", "chord", "first")
 
 
 class Rule(Strict):
     """One definition: exactly one of the rule keys.
 
     ``marker``: an existing (possibly virtual) point of the file; a list means the first one
-    present. ``mean``: the mean of several points (NaN if any is missing).
+    present. ``mean``: the mean of several points (NaN if any is missing). ``first``: the first
+    of several rules whose references are all present.
     """
 
     marker: str | list[str] | None = None
@@ -145,6 +178,8 @@ class Rule(Strict):
     sole: SoleRule | None = None
     shift: ShiftRule | None = None
     lerp: LerpRule | None = None
+    chord: ChordRule | None = None
+    first: list[Rule] | None = Field(default=None, min_length=1)
 
     @model_validator(mode="after")
     def _exactly_one(self) -> Rule:
@@ -163,8 +198,38 @@ class Rule(Strict):
             return [[self.marker] if isinstance(self.marker, str) else list(self.marker)]
         if self.mean is not None:
             return [[n] for n in self.mean]
+        if self.first is not None:
+            return [alts for rule in self.first for alts in rule.alternatives()]
         body = getattr(self, self.kind)
         return [[n] for n in body.references()]
+
+    def missing(self, have: set[str], unresolved: dict[str, list[str]] | None = None) -> list[str]:
+        """References not in ``have`` (alternatives as ``a|b``); [] when the rule can be evaluated.
+
+        ``unresolved`` (helper point -> the markers it misses) counts a helper's markers in place
+        of the helper. For ``first``: [] if any alternative can be evaluated, else the gaps of
+        the alternative missing the fewest markers (of equal ones the last: the first alternatives are usually a
+        lab's own joint centres, the last the markers a set needs at least).
+        """
+        if self.first is not None:
+            gaps = [_expand(rule.missing(have, unresolved), unresolved or {}) for rule in self.first]
+            return [] if any(not g for g in gaps) else min(reversed(gaps), key=len)
+        return ["|".join(alts) for alts in self.alternatives() if not any(a in have for a in alts)]
+
+    def chosen(self, have: set[str]) -> Rule:
+        """The rule evaluated given the names in ``have``: the first usable alternative of ``first``."""
+        if self.first is None:
+            return self
+        for rule in self.first:
+            if not rule.missing(have):
+                return rule.chosen(have)
+        return self.first[0]
+
+    def describe(self, have: set[str]) -> str:
+        """One line: the rule kind used and the names it reads, e.g. ``harrington(LASI, RASI, SACR)``."""
+        rule = self.chosen(have)
+        names = [next((a for a in alts if a in have), alts[0]) for alts in rule.alternatives()]
+        return f"{rule.kind}({', '.join(dict.fromkeys(names))})"
 
 
 class GrfSpec(Strict):
@@ -186,12 +251,18 @@ class Mapping(Strict):
     grf: GrfSpec | None = None
     virtual: dict[str, Rule] = Field(default_factory=dict)
     points: dict[str, Rule]
+    optional: list[str] = Field(
+        default_factory=list, description="output points left out when their markers are missing"
+    )
 
     @model_validator(mode="after")
     def _names_and_order(self) -> Mapping:
         unknown = [n for n in self.points if n not in POINT_NAMES]
         if unknown:
             raise ValueError(f"unknown output point(s) {unknown}; valid: {', '.join(POINT_NAMES)}")
+        stray = [n for n in self.optional if n not in self.points]
+        if stray:
+            raise ValueError(f"optional point(s) {stray} are not defined under points")
         clash = sorted(set(self.virtual) & set(self.points))
         if clash:
             raise ValueError(f"names defined both as virtual and output points: {clash}")
@@ -214,15 +285,17 @@ class Mapping(Strict):
     def needs_static(self) -> bool:
         return any(rule.cluster is not None for _, rule in self.definitions())
 
-    def marker_requirements(self) -> list[list[str]]:
-        """Markers the motion file must hold, each as alternatives (one must be present)."""
-        defined = self.defined_names()
-        out: list[list[str]] = []
-        for _, rule in self.definitions():
-            for alts in rule.alternatives():
-                if not any(a in defined for a in alts) and alts not in out:
-                    out.append(alts)
-        return out
+    def resolve(self, available: Iterable[str]) -> Resolution:
+        """Which definitions can be evaluated from the ``available`` marker names, in order."""
+        have = set(available)
+        unresolved: dict[str, list[str]] = {}
+        for name, rule in self.definitions():
+            gaps = rule.missing(have, unresolved)
+            if gaps:
+                unresolved[name] = _expand(gaps, unresolved)
+            else:
+                have.add(name)
+        return Resolution(self, have, unresolved)
 
     def static_requirements(self) -> list[str]:
         """Markers the static trial must hold (cluster markers and the defined points)."""
@@ -232,14 +305,59 @@ class Mapping(Strict):
                 out += [m for m in rule.cluster.markers + rule.cluster.static_mean if m not in out]
         return out
 
-    def missing_markers(self, available: set[str] | list[str] | tuple[str, ...]) -> list[str]:
-        """Requirements not met by ``available`` marker names (alternatives shown as ``a|b``)."""
-        have = set(available)
-        return ["|".join(alts) for alts in self.marker_requirements() if not any(a in have for a in alts)]
+    def missing_markers(self, available: Iterable[str]) -> list[str]:
+        """Markers missing for the required output points (alternatives shown as ``a|b``)."""
+        return self.resolve(available).missing_required()
+
+
+def _expand(gaps: list[str], unresolved: dict[str, list[str]]) -> list[str]:
+    """Gaps with each unresolved helper point replaced by the markers it misses."""
+    out: list[str] = []
+    for gap in gaps:
+        for g in unresolved.get(gap, [gap]):
+            if g not in out:
+                out.append(g)
+    return out
+
+
+@dataclass(frozen=True)
+class Resolution:
+    """A mapping checked against a marker set (:meth:`Mapping.resolve`).
+
+    Attributes:
+        mapping: the mapping.
+        have: marker names plus the definitions that can be evaluated.
+        unresolved: definition name -> the markers it misses.
+    """
+
+    mapping: Mapping
+    have: set[str]
+    unresolved: dict[str, list[str]] = field(default_factory=dict)
+
+    def missing_required(self) -> list[str]:
+        """Markers missing for required output points, without repeats."""
+        names = [n for n in self.mapping.points if n in self.unresolved and n not in self.mapping.optional]
+        return _expand(names, self.unresolved)
+
+    @property
+    def fits(self) -> bool:
+        return not self.missing_required()
+
+    def output_points(self) -> list[str]:
+        """Output points that can be evaluated, in :data:`POINT_NAMES` order."""
+        return [n for n in POINT_NAMES if n in self.mapping.points and n in self.have]
+
+    def describe(self, name: str) -> str:
+        """How one definition is computed, or what it misses."""
+        if name in self.unresolved:
+            return "missing " + ", ".join(self.unresolved[name])
+        rule = dict(self.mapping.definitions())[name]
+        return rule.describe(self.have)
 
 
 def load_mapping(name_or_path: str | Path) -> Mapping:
-    """A shipped mapping by name (``plugin_gait``) or a mapping YAML file by path."""
+    """A shipped mapping by name (``plugin_gait``) or a mapping YAML file by path (validated:
+    unknown keys, unknown points and rules referring to later names are errors naming the file)."""
     path = Path(name_or_path)
     if path.suffix.lower() not in (".yaml", ".yml"):
         path = MAPPINGS_DIR / f"{name_or_path}.yaml"

@@ -23,6 +23,7 @@ log = logging.getLogger("gaitcap.report")
 TRAJECTORIES_H5 = "trajectories.h5"
 MOTION_SUFFIXES = (".c3d", ".trc")
 PELVIS_MARKERS = ("LASI", "RASI", "LPSI", "RPSI")
+SACRAL_MARKER = "SACR"
 
 
 @dataclass(frozen=True)
@@ -44,35 +45,46 @@ def resolve_input(source: Path) -> Path:
     return source
 
 
-def load_trajectory(path: Path) -> Trajectory:
-    """A trajectories.h5 file, or a .c3d/.trc motion file (joint centres through read_motion)."""
+def load_trajectory(path: Path, mapping: str | Path | None = None, subject: str | None = None) -> Trajectory:
+    """A trajectories.h5 file, or a .c3d/.trc motion file (joint centres through read_motion, with
+    ``mapping`` and ``subject`` when given)."""
     suffix = path.suffix.lower()
     if suffix in (".h5", ".hdf5"):
         return read_trajectory(path)
     if suffix in MOTION_SUFFIXES:
         from gaitcap.markers.motion import read_markers, read_motion
 
-        joints = read_motion(path)
-        return with_pelvis_markers(joints, read_markers(path))
+        joints = read_motion(path, mapping=mapping, subject=subject)
+        return with_pelvis_markers(joints, read_markers(path, mapping=mapping, subject=subject))
     raise InputError(f"{path}: unknown trajectory file type (expected trajectories.h5, .c3d or .trc)")
 
 
 def with_pelvis_markers(joints: Trajectory, markers: Trajectory) -> Trajectory:
     """Add the ASIS/PSIS markers (LASI RASI LPSI RPSI) of a marker file to its joint centres, so
-    the pelvis angles use the anatomical pelvis frame (see gaitcap.gait.angles)."""
+    the pelvis angles use the anatomical pelvis frame (see gaitcap.gait.angles). A sacral marker
+    (SACR) stands for both PSIS markers when they are missing: the frame uses only their mid-point."""
     names = PELVIS_MARKERS
-    if not all(markers.has(n) for n in names) or markers.n_frames != joints.n_frames:
+    sources = list(names)
+    if not (markers.has("LPSI") and markers.has("RPSI")) and markers.has(SACRAL_MARKER):
+        sources[2:] = [SACRAL_MARKER, SACRAL_MARKER]
+    if not all(markers.has(n) for n in sources) or markers.n_frames != joints.n_frames:
         return joints
-    extra = np.stack([markers.point(n) for n in names], axis=1)
+    extra = np.stack([markers.point(n) for n in sources], axis=1)
     return replace(joints, names=joints.names + names, points=np.concatenate([joints.points, extra], axis=1))
 
 
-def run_report(source: Path, out_dir: Path | None = None, options: GaitOptions | None = None) -> ReportResult:
+def run_report(
+    source: Path,
+    out_dir: Path | None = None,
+    options: GaitOptions | None = None,
+    mapping: str | Path | None = None,
+    subject: str | None = None,
+) -> ReportResult:
     """Analyse ``source`` and write ``events.csv``, ``parameters.json``/``.csv``, ``strides.csv``,
     ``angles.csv``, ``cycles.h5``, ``trajectories.c3d`` and ``report.html`` into ``out_dir``
-    (default: ``<source folder>/gait``)."""
+    (default: ``<source folder>/gait``); ``mapping``/``subject`` for a .c3d/.trc source."""
     path = resolve_input(Path(source))
-    traj = load_trajectory(path)
+    traj = load_trajectory(path, mapping, subject)
     out = Path(out_dir) if out_dir is not None else (Path(source) if Path(source).is_dir() else path.parent) / "gait"
     a = analyse(traj, options)
     files = {

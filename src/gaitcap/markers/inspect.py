@@ -1,0 +1,61 @@
+"""What a marker file holds and how a mapping reads it (``gaitcap markers FILE``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from gaitcap.markers.mapping import Mapping, Resolution, load_mapping
+from gaitcap.markers.motion import read_raw_markers, resolve_shipped
+from gaitcap.trajectory import Trajectory
+
+
+def explain_point(resolution: Resolution, name: str) -> str:
+    """How a point is computed, following helper points: ``marker(hjc_l) <- marker(LFEP)``."""
+    text = resolution.describe(name)
+    defined = dict(resolution.mapping.definitions())
+    seen = {name}
+    while name not in resolution.unresolved:
+        rule = defined[name].chosen(resolution.have)
+        if rule.kind != "marker":
+            break
+        alts = [rule.marker] if isinstance(rule.marker, str) else list(rule.marker or [])
+        name = next((a for a in alts if a in resolution.have), alts[0])
+        if name not in defined or name in seen:
+            break
+        seen.add(name)
+        text += " <- " + resolution.describe(name)
+    return text
+
+
+def _used_markers(resolution: Resolution, markers: Trajectory) -> set[str]:
+    used: set[str] = set()
+    for name, rule in resolution.mapping.definitions():
+        if name not in resolution.unresolved:
+            chosen = rule.chosen(resolution.have)
+            used.update(a for alts in chosen.alternatives() for a in alts if markers.has(a))
+    return used
+
+
+def describe_file(path: str | Path, mapping: Mapping | str | Path | None = None, subject: str | None = None) -> str:
+    """A readable account of a .c3d/.trc file: markers, the fitting mapping and each point's
+    source, what is missing, and why the other shipped mappings do not fit."""
+    raw = read_raw_markers(path, subject)
+    lines = [f"{path}: {raw.n_frames} frames at {raw.rate_hz:g} Hz, {len(raw.names)} markers"
+             + (f" (subject {raw.meta['subject']})" if raw.meta.get("subject") else "")
+             + f", {len(raw.events)} events in the file"]  # fmt: skip
+    shipped = resolve_shipped(raw.names)
+    main = load_mapping(mapping).resolve(raw.names) if isinstance(mapping, (str, Path)) else (
+        mapping.resolve(raw.names) if mapping is not None else shipped[0])  # fmt: skip
+    state = "fits" if main.fits else f"does NOT fit: missing {', '.join(main.missing_required())}"
+    lines.append(f"mapping {main.mapping.name}: {state}")
+    for name in main.mapping.points:
+        tag = " (optional)" if name in main.mapping.optional else ""
+        lines.append(f"  {name:<11} {explain_point(main, name)}{tag}")
+    unused = [n for n in raw.names if n not in _used_markers(main, raw)]
+    if unused:
+        lines.append(f"markers not used: {', '.join(unused)}")
+    for other in shipped:
+        if other.mapping.name != main.mapping.name:
+            why = "fits too" if other.fits else f"missing {', '.join(other.missing_required())}"
+            lines.append(f"other mapping {other.mapping.name}: {why}")
+    return "\n".join(lines)

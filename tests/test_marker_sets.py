@@ -1,0 +1,250 @@
+"""Marker sets labs use: Plug-in-Gait variants (SACR, no heels, subject prefix, the file's own
+joint centres), CAST-like sets, user mappings, readers of real files, `gaitcap markers`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from gaitcap.cli.main import cli
+from gaitcap.errors import ConfigError, InputError
+from gaitcap.gait.angles import joint_angles
+from gaitcap.gait.events import detect_events
+from gaitcap.io.c3d import _unprefixed, read_c3d_angles
+from gaitcap.io.trc import read_trc, write_trc
+from gaitcap.markers.jointcentres import apply_mapping, chord_point
+from gaitcap.markers.mapping import load_mapping
+from gaitcap.markers.motion import (
+    choose_mapping,
+    guess_up_axis,
+    read_markers,
+    read_motion,
+    read_raw_markers,
+    select_subject,
+)
+from gaitcap.trajectory import Trajectory
+
+WALKING = Path(__file__).resolve().parent / "fixtures" / "walking"
+PIG = WALKING / "gait-pig.c3d"  # A22: prefix, SACR, no heels, PiG segment points, events
+RAW = WALKING / "gait-raw.c3d"  # same trial, raw markers only
+OPENSIM = WALKING / "subject01_walk1.trc"
+
+
+def test_prefixed_pig_file_uses_its_own_joint_centres():
+    raw = read_raw_markers(PIG)
+    assert raw.meta["subject"] == "A22" and "LFEO" in raw.names and not any(":" in n for n in raw.names)
+    joints = read_motion(PIG)
+    assert joints.meta["mapping"] == "plugin_gait"
+    np.testing.assert_allclose(joints.point("knee_l"), raw.point("LFEO"))
+    np.testing.assert_allclose(joints.point("ankle_r"), raw.point("RTIO"))
+    np.testing.assert_allclose(joints.point("pelvis"), raw.point("PELO"), atol=1e-4)  # INT C3D: 0.05 mm steps
+    heel = np.isfinite(joints.point("heel_l")).all(axis=1)  # estimated without HEE
+    foot = np.isfinite(raw.point("LTIO")).all(axis=1) & np.isfinite(raw.point("LTOE")).all(axis=1)
+    assert heel.mean() > 0.75 and np.array_equal(heel, foot)
+
+
+def test_pig_file_events_found_within_two_samples():
+    joints = read_motion(PIG)
+    assert len(joints.events) == 9
+    found, _ = detect_events(joints)
+    matched = []
+    for ref in joints.events:
+        same = [e.time_s for e in found if (e.side, e.event) == (ref.side, ref.event)]
+        err = min((abs(t - ref.time_s) for t in same), default=np.inf)
+        if err < 0.1:
+            matched.append(err)
+    assert len(matched) >= 7  # the last strike and foot off, 0.24-0.36 s before the end, are not found
+    assert max(matched) <= 2.0 / joints.rate_hz
+
+
+def test_knee_flexion_from_pig_joint_centres_matches_the_files_angles():
+    joints = read_motion(PIG)
+    pig = read_c3d_angles(PIG)
+    assert "LKneeAngles" in pig.names  # prefix removed
+    _, direction = detect_events(joints)
+    ang, _ = joint_angles(joints, direction)
+    for side, label in (("l", "LKneeAngles"), ("r", "RKneeAngles")):
+        a, b = ang[f"knee_flexion_{side}"], pig.get(label)[:, 0]
+        ok = np.isfinite(a) & np.isfinite(b)
+        assert np.sqrt(np.mean((a[ok] - b[ok]) ** 2)) < 1.0
+
+
+def test_raw_sacr_file_joint_centres_from_markers_near_plug_in_gaits():
+    raw_joints = read_motion(RAW)
+    pig = read_raw_markers(PIG)
+    assert "SACR" in read_raw_markers(RAW).names
+    for point, pig_name, limit_mm in (("knee_l", "LFEO", 25), ("knee_r", "RFEO", 25), ("ankle_l", "LTIO", 25)):
+        d = np.linalg.norm(raw_joints.point(point) - pig.point(pig_name), axis=1)
+        assert np.nanmedian(d) * 1000 < limit_mm
+
+
+def test_chord_point_is_at_distance_and_right_angle():
+    hip = np.array([[0.0, 0.1, 0.9]])
+    knee_marker = np.array([[0.0, 0.15, 0.5]])
+    wand = np.array([[0.0, 0.2, 0.7]])
+    j = chord_point(hip, wand, knee_marker, 0.05)
+    assert np.linalg.norm(j - knee_marker) == pytest.approx(0.05)
+    assert np.dot((j - knee_marker)[0], (hip - j)[0]) == pytest.approx(0.0, abs=1e-12)
+    assert j[0, 1] < knee_marker[0, 1]  # away from the (lateral) wand
+
+
+def _pig_joints_as_cast(joints: Trajectory) -> Trajectory:
+    """CAST-like landmarks placed around known joint centres (epicondyles/malleoli +- 5 cm in y)."""
+    side = np.array([0.0, 0.05, 0.0])
+    pts, names = [], []
+    for s, pre in (("l", "L_"), ("r", "R_")):
+        for a, b, centre in (("FLE", "FME", "knee"), ("FAL", "TAM", "ankle")):
+            c = joints.point(f"{centre}_{s}")
+            pts += [c + side, c - side]
+            names += [pre + a, pre + b]
+        pts += [joints.point(f"heel_{s}") + [0, 0, 0.03], joints.point(f"toe_{s}") + [0, 0, 0.03]]
+        names += [pre + "FCC", pre + "FM2"]
+    pelvis = joints.point("pelvis")
+    for n, off in (("L_IAS", [0.05, 0.12, 0.08]), ("R_IAS", [0.05, -0.12, 0.08]),
+                   ("L_IPS", [-0.12, 0.04, 0.1]), ("R_IPS", [-0.12, -0.04, 0.1])):  # fmt: skip
+        pts.append(pelvis + off)
+        names.append(n)
+    return Trajectory(tuple(names), np.stack(pts, axis=1), joints.rate_hz, meta={"source": "cast"})
+
+
+def test_cast_set_is_chosen_and_gives_mid_landmarks():
+    joints = read_motion(PIG)
+    cast = _pig_joints_as_cast(joints)
+    mapping = choose_mapping(cast.names)
+    assert mapping.name == "cast"
+    out = apply_mapping(mapping, cast)
+    np.testing.assert_allclose(out.point("knee_l"), joints.point("knee_l"), atol=1e-9)
+    np.testing.assert_allclose(out.point("ankle_r"), joints.point("ankle_r"), atol=1e-9)
+
+
+def test_optional_points_and_lpsi_rpsi_variant_of_plugin_gait():
+    m = load_mapping("plugin_gait")
+    lower = ["LASI", "RASI", "LPSI", "RPSI", "LTHI", "RTHI", "LKNE", "RKNE", "LTIB", "RTIB", "LANK", "RANK",
+             "LHEE", "RHEE", "LTOE", "RTOE"]  # fmt: skip
+    res = m.resolve(lower)
+    assert res.fits and "shoulder_l" not in res.output_points()
+    assert res.describe("hjc_l") == "harrington(LASI, RASI, LPSI, RPSI)"
+    full = m.resolve(lower + ["LSHO", "RSHO", "LELB", "RELB", "LWRA", "LWRB", "RWRA", "RWRB"])
+    assert {"shoulder_l", "elbow_r", "wrist_l", "thorax"} <= set(full.output_points())
+    assert not m.resolve(lower[2:]).fits  # no ASIS
+
+
+def test_unknown_set_error_names_closest_mapping_and_command():
+    with pytest.raises(InputError) as e:
+        choose_mapping(["LASI", "RASI", "SACR", "LKNE"], "x.c3d")
+    msg = str(e.value)
+    assert "closest: plugin_gait" in msg and "LTHI" in msg and "gaitcap markers" in msg and "--mapping" in msg
+
+
+def test_several_subjects_pick_most_or_named():
+    pts = np.ones((3, 5, 3))
+    traj = Trajectory(("Bob:LASI", "Bob:RASI", "Ann:LASI", "Ann:RASI", "Ann:SACR"), pts, 100.0, meta={"source": "s"})
+    assert select_subject(traj).names == ("LASI", "RASI", "SACR")
+    bob = select_subject(traj, "Bob")
+    assert bob.names == ("LASI", "RASI") and bob.meta["subject"] == "Bob"
+    with pytest.raises(InputError, match="no subject 'Eve'"):
+        select_subject(traj, "Eve")
+
+
+def test_event_labels_with_subject_prefix():
+    assert _unprefixed("A22:Foot Strike") == "Foot Strike" and _unprefixed("Left") == "Left"
+
+
+def _opensim_style(path: Path, dst: Path) -> Path:
+    """The walk's TRC with the header of OpenSim's own examples: the values line has empty fields
+    between values (``60.00<TAB><TAB>60.00<TAB><TAB>151...``), the keys line has not."""
+    lines = path.read_text().splitlines()
+    lines[2] = "\t\t".join(lines[2].split("\t")) + "\t"
+    dst.write_text("\n".join(lines) + "\n")
+    return dst
+
+
+def test_trc_header_with_empty_fields_reads_like_the_original(tmp_path):
+    odd = _opensim_style(OPENSIM, tmp_path / "walk.trc")
+    assert "\t\t" in odd.read_text().splitlines()[2]
+    a, b = read_trc(OPENSIM), read_trc(odd)
+    assert a.names == b.names and a.rate_hz == b.rate_hz
+    np.testing.assert_array_equal(a.points, b.points)
+
+
+def test_trc_z_up_metres_gaps_and_late_start(tmp_path):
+    joints = read_motion(PIG)
+    late = Trajectory(joints.names, joints.points.copy(), joints.rate_hz, t0_s=3.5)
+    late.points[10:14, 2] = 0.0  # a gap written as zeros
+    path = write_trc(tmp_path / "z.trc", late, units="m", up_axis="z")
+    back = read_markers(path)  # no up axis stated: the markers' spread says z
+    assert back.meta["file_up_axis"] == "z" and back.t0_s == pytest.approx(3.5)
+    assert np.isnan(back.points[10:14, 2]).all()
+    np.testing.assert_allclose(back.points[20], joints.points[20], atol=1e-8)
+    assert guess_up_axis(read_trc(OPENSIM).points) == "y"
+
+
+def test_user_mapping_yaml_validated_and_used(tmp_path):
+    good = tmp_path / "my_lab.yaml"
+    good.write_text("name: my_lab\npoints:\n  knee_l: {marker: LFEO}\n  ankle_l: {marker: LTIO}\n")
+    joints = read_motion(PIG, mapping=good)
+    assert joints.names == ("knee_l", "ankle_l") and joints.meta["mapping"] == "my_lab"
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("name: bad\npoints:\n  knee_l: {markr: LFEO}\n")
+    with pytest.raises(ConfigError, match="bad.yaml"):
+        read_motion(PIG, mapping=bad)
+    res = CliRunner().invoke(cli, ["markers", str(PIG), "--mapping", str(good)])
+    assert res.exit_code == 0 and "mapping my_lab: fits" in res.output
+
+
+def test_markers_command_shows_sources_and_missing():
+    res = CliRunner().invoke(cli, ["markers", str(RAW)])
+    assert res.exit_code == 0, res.output
+    assert "mapping plugin_gait: fits" in res.output
+    assert "harrington(LASI, RASI, SACR)" in res.output and "chord(hjc_l, LTHI, LKNE)" in res.output
+    assert "other mapping opensim_gait2354: missing" in res.output
+    res = CliRunner().invoke(cli, ["markers", str(OPENSIM), "--mapping", "plugin_gait"])
+    assert res.exit_code == 1 and "does NOT fit" in res.output
+
+
+def test_report_on_raw_c3d_with_mapping_option(tmp_path):
+    res = CliRunner().invoke(cli, ["report", str(RAW), "-o", str(tmp_path / "g"), "--mapping", "plugin_gait"])
+    assert res.exit_code == 0, res.output
+    assert "complete cycles" in res.output and (tmp_path / "g" / "events.csv").is_file()
+
+
+def test_report_on_trc_with_opensim_style_header(tmp_path):
+    odd = _opensim_style(OPENSIM, tmp_path / "subject01_walk1.trc")
+    (tmp_path / "subject01_static.trc").write_bytes((WALKING / "subject01_static.trc").read_bytes())
+    res = CliRunner().invoke(cli, ["report", str(odd), "-o", str(tmp_path / "g")])
+    assert res.exit_code == 0, res.output
+    assert "2 complete cycles" in res.output
+
+
+def test_synth_on_prefixed_sacr_pig_file(tmp_path):
+    from gaitcap.synth.session import SynthOptions, synthesize
+
+    opts = SynthOptions(cameras=2, size=(96, 72), fps=10.0, codec="ffv1")
+    result = synthesize(PIG, tmp_path / "s", opts, progress=False, mapping="plugin_gait", subject="A22")
+    assert result.n_frames == 29  # 2.84 s at 10 fps
+    assert max(result.fit.residual_m.values()) < 0.05
+
+
+def test_force_plate_events_of_a_c3d_without_event_group():
+    raw = read_motion(RAW)  # no EVENT group: events from its two force plates
+    assert raw.events and {e.source for e in raw.events} == {"forceplate"}
+    recorded = read_motion(PIG).events  # the same trial, events set by the lab
+    for e in raw.events:
+        same = [r.time_s for r in recorded if (r.side, r.event) == (e.side, e.event)]
+        assert min(abs(t - e.time_s) for t in same) <= 1.0 / raw.rate_hz
+    assert len(raw.events) == 4  # two plates: one strike and one foot off of each foot
+
+
+def test_sacral_marker_gives_the_anatomical_pelvis_frame():
+    from gaitcap.report.pipeline import with_pelvis_markers
+
+    joints = with_pelvis_markers(read_motion(PIG), read_markers(PIG))
+    np.testing.assert_allclose(joints.point("LPSI"), read_markers(PIG).point("SACR"))
+    _, direction = detect_events(joints)
+    ang, _ = joint_angles(joints, direction)
+    hip = read_c3d_angles(PIG).get("LHipAngles")[:, 0]
+    ok = np.isfinite(ang["hip_flexion_l"]) & np.isfinite(hip)
+    assert np.sqrt(np.mean((ang["hip_flexion_l"][ok] - hip[ok]) ** 2)) < 1.0  # 5.0 deg with the hip centres only
