@@ -130,7 +130,7 @@ def test_less_than_one_cycle_gives_not_enough_steps(duration: float) -> None:
     assert p.status == STATUS_NOT_ENOUGH_STEPS and not p.ok
     assert "not enough steps" in p.reason
     d = p.to_dict()
-    assert d["left"]["stride_length_m"] is None and d["overall"]["cadence_steps_per_min"] is None
+    assert d["left"]["stride_length_m"] is None and d["overall"]["speed_m_s"] is None
     assert d["right"]["n_strides"] == 0
 
 

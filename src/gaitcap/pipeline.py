@@ -32,8 +32,8 @@ from gaitcap.io.track_h5 import (QUALITY_NOT_INITIALISED, QUALITY_OK, QUALITY_OU
                                  TrackWriter)  # fmt: skip
 from gaitcap.io.trc import write_trc
 from gaitcap.prefetch import Prefetched
-from gaitcap.session import Session
-from gaitcap.session_check import check_session_videos
+from gaitcap.session import CALIBRATION_FILE, Session
+from gaitcap.session_check import check_session_videos, check_silhouettes_meet
 from gaitcap.silhouette.config import SilhouetteConfig
 from gaitcap.io.silhouettes_h5 import SILHOUETTES_FILE, SilhouetteWriter
 from gaitcap.silhouette.run import Source, camera_attrs, file_attrs, prepare_extractor, quality_row
@@ -67,10 +67,15 @@ class FrameTiming:
 
 
 def _check_out(out: Path, force: bool) -> None:
+    """Refuse an output that cannot be written (creates nothing)."""
     if is_finished(out) and not force:
         raise OutputError(f"{out}: already holds a finished run (use --force to redo it)")
     if out.exists() and not out.is_dir():
         raise OutputError(f"{out}: exists and is not a folder")
+
+
+def _prepare_out(out: Path) -> None:
+    """Create the output folder; a previous run in it is no longer finished."""
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as e:
@@ -104,8 +109,8 @@ def run_track(
     if tracker is not None:
         cfg.tracker = tracker  # validated by the schema
     ses = Session.open(session)
-    videos = check_session_videos(ses)
-    _check_out(out, force)  # only once the inputs are known good: bad input creates nothing
+    videos = check_session_videos(ses)  # the calibration's geometry included
+    _check_out(out, force)
     rig = videos.rig
     n_frames = videos.n_frames if max_frames is None else min(videos.n_frames, max_frames)
     sil_cfg = SilhouetteConfig.load()
@@ -115,8 +120,24 @@ def run_track(
     masks = out / SILHOUETTES_FILE if save_masks else None
     stream = Prefetched(_observations(ses, rig.names, views, sil_cfg, n_frames, masks), depth=PREFETCH_FRAMES)
     with stream, kernel_threads(cfg.threads):
-        return _track_session(session, out, ses, videos, cfg, views, likelihood, stream, height_m, n_frames,
+        first = _first_observations(session, stream, cfg)
+        check_silhouettes_meet(views, first, ses.root / CALIBRATION_FILE)
+        _prepare_out(out)  # only once the inputs are known good: bad input creates nothing
+        return _track_session(session, out, ses, videos, cfg, views, likelihood, first, stream, height_m, n_frames,
                               progress, on_frame, t_start)  # fmt: skip
+
+
+def _first_observations(session: Path, stream: Iterator[Observation], cfg: TrackingConfig) -> list[Observation]:
+    """The first frames, kept for the calibration check, the initialisation and the shape calibration."""
+    first: list[Observation] = []
+    buffered = max(cfg.init.frames, cfg.shape.frames if cfg.shape.enabled else 0)
+    for obs in stream:
+        first.append(obs)
+        if len(first) >= buffered:
+            break
+    if not first:
+        raise TrackingError(f"{session}: no frame could be read")
+    return first
 
 
 @contextmanager
@@ -178,20 +199,12 @@ def _save_masks(writer: SilhouetteWriter, t: int, sources: dict[str, Source], pr
 
 
 def _track_session(session: Path, out: Path, ses: Session, videos, cfg: TrackingConfig, views, likelihood,
-                   stream: Iterator[Observation], height_m: float | None, n_frames: int, progress: bool,
-                   on_frame, t_start: float) -> TrackSummary:  # fmt: skip
-    """:func:`run_track` once the output folder is ready, reading the observations from ``stream``."""
+                   first: list[Observation], stream: Iterator[Observation], height_m: float | None, n_frames: int,
+                   progress: bool, on_frame, t_start: float) -> TrackSummary:  # fmt: skip
+    """:func:`run_track` once the output folder is ready: ``first`` the buffered first frames, the
+    others read from ``stream``."""
     warm_up()
     height, height_source = _height(ses, height_m)
-
-    first: list[Observation] = []  # the first frames, kept for initialisation and shape calibration
-    buffered = max(cfg.init.frames, cfg.shape.frames if cfg.shape.enabled else 0)
-    for obs in stream:
-        first.append(obs)
-        if len(first) >= buffered:
-            break
-    if not first:
-        raise TrackingError(f"{session}: no frame could be read")
     if height is None:
         pos = subject_positions(views, first)
         ok = np.where(np.all(np.isfinite(pos), axis=1))[0]

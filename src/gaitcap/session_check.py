@@ -1,6 +1,10 @@
 """Check a session's videos against each other and against the calibration, before tracking.
 
-For each camera: the decoded frame size, the declared frame rate and frame count (the count is
+First the calibration's geometry (:func:`gaitcap.calibration.quality.check_rig_geometry`: cameras
+kilometres away because the translations are in millimetres, cameras under the floor or looking
+away from it): a :class:`CalibrationError` naming calibration.toml and the likely cause. Once the
+first frames' silhouettes are known, :func:`check_silhouettes_meet` checks that they meet in 3D
+where the calibration puts them. For each camera: the decoded frame size, the declared frame rate and frame count (the count is
 verified by decoding the last declared frame; when that fails the frames are counted by decoding,
 and a warning says the file looks truncated). Then, across cameras:
 
@@ -21,16 +25,34 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from gaitcap.calibration.formats import fit_to_frame_size
+from gaitcap.calibration.quality import check_rig_geometry
 from gaitcap.camera import CameraRig
 from gaitcap.errors import CalibrationError, InputError
-from gaitcap.session import Session
+from gaitcap.session import CALIBRATION_FILE, Session
+from gaitcap.tracking.init import height_on_vertical, silhouette_centroid, silhouette_row_centre, triangulate
+from gaitcap.tracking.observation import Observation, TrackingView
 from gaitcap.video import VideoInfo, VideoReader, probe_video
 
 log = logging.getLogger(__name__)
 
 #: relative tolerance between two cameras' frame rates
 FPS_RTOL = 1e-3
+#: frames whose silhouettes are checked against the calibration (the first ones seen by 2+ cameras)
+SILHOUETTE_CHECK_FRAMES = 5
+#: the heights (m) between which the centre of a person's silhouettes lies (about 1 m when
+#: standing; a child, a crouch or a silhouette cut by the image border move it by tens of cm)
+SUBJECT_CENTRE_Z_M = (-0.25, 2.5)
+#: the heights (m) between which every silhouette lies on the vertical through the subject's
+#: centre: from a little under the floor to above a tall adult's head. A silhouette may miss
+#: parts (feet lost on a floor of their colour, a torso of the background's colour), so only how
+#: far it reaches is bounded, never how little: its top may be a metre below the others'
+SUBJECT_Z_M = (-0.5, 2.6)
+#: how far (a fraction of the silhouette's bounding box, each way) the centre found in 3D may
+#: reproject outside a camera's silhouette box
+BOX_MARGIN = 0.5
 
 
 @dataclass(frozen=True)
@@ -144,9 +166,12 @@ def check_session_videos(session: Session, allow_fps_mismatch: bool = False) -> 
     """Check the videos of ``session`` (see the module docstring).
 
     Raises:
+        CalibrationError: a calibration that cannot be right (its cause named, see the module
+            docstring).
         InputError: a video that does not open or has no decodable frame (named), frame rates that
             differ (unless allowed) or are unknown, a frame size the calibration cannot be fitted to.
     """
+    check_rig_geometry(session.rig, session.root / CALIBRATION_FILE)
     videos: dict[str, CameraVideo] = {}
     for cam in session.rig:
         info = probe_video(session.videos[cam.name])
@@ -157,3 +182,128 @@ def check_session_videos(session: Session, allow_fps_mismatch: bool = False) -> 
     rig = _check_sizes(session.rig, videos, notes)
     log.info("%d cameras, %d common frames at %g fps", len(videos), n_frames, fps)
     return SessionVideos(videos=videos, n_frames=n_frames, fps=fps, rig=rig, notes=tuple(notes))
+
+
+def _rows(sil: np.ndarray) -> np.ndarray:
+    """Rows (ascending) of a soft silhouette (h, w) holding pixels above one half (else any)."""
+    rows = np.where(sil.max(axis=1) > 0.5)[0]
+    return rows if len(rows) else np.where(sil.max(axis=1) > 0)[0]
+
+
+def _box(sil: np.ndarray) -> tuple[float, float, float, float]:
+    """Bounding box (u0, v0, u1, v1) of a soft silhouette (h, w): its pixels above one half."""
+    rows, cols = np.where(sil > 0.5)
+    if len(rows) == 0:
+        rows, cols = np.where(sil > 0)
+    return float(cols.min()), float(rows.min()), float(cols.max() + 1), float(rows.max() + 1)
+
+
+def _extent(view: TrackingView, sil: np.ndarray, X: np.ndarray) -> tuple[float, float]:
+    """Heights (m) of the bottom and top of a silhouette on the vertical through ``X``: where the
+    rays through its lowest and highest rows pass; NaN where the silhouette touches that image
+    border (the subject cut off)."""
+    rows = _rows(sil)
+    top, bottom = int(rows[0]), int(rows[-1])
+    z_top = height_on_vertical(view, silhouette_row_centre(sil, top), top, X) if top > 0 else None
+    z_bottom = (height_on_vertical(view, silhouette_row_centre(sil, bottom), bottom + 1, X)
+                if bottom < sil.shape[0] - 1 else None)  # fmt: skip
+    return (np.nan if z_bottom is None else z_bottom), (np.nan if z_top is None else z_top)
+
+
+def _misses(views: list[TrackingView], obs: Observation) -> list[str] | None:
+    """The cameras whose silhouette is not where the calibration puts the subject of ``obs`` (see
+    :func:`check_silhouettes_meet`); None when fewer than two cameras see a silhouette."""
+    centres = [silhouette_centroid(s) for s in obs.silhouettes]
+    seen = [c for c, px in enumerate(centres) if px is not None]
+    if len(seen) < 2:
+        return None
+    names = [views[c].camera.name for c in seen]
+    X = triangulate(views, centres)
+    if X is None or not SUBJECT_CENTRE_Z_M[0] <= X[2] <= SUBJECT_CENTRE_Z_M[1]:
+        return names
+    out = []
+    for c in seen:
+        (u, v), _ = views[c].project(X)
+        u0, v0, u1, v1 = _box(obs.silhouettes[c])
+        mu, mv = BOX_MARGIN * (u1 - u0) + 1.0, BOX_MARGIN * (v1 - v0) + 1.0
+        in_front = float(views[c].camera.to_camera(X)[2]) > 0
+        if not (in_front and u0 - mu <= u <= u1 + mu and v0 - mv <= v <= v1 + mv):
+            out.append(views[c].camera.name)
+    if out:
+        return out
+    ext = np.array([_extent(views[c], obs.silhouettes[c], X) for c in seen])  # (n, 2) bottom, top
+    bottom, top = ext[:, 0], ext[:, 1]
+    with np.errstate(invalid="ignore"):
+        wrong = (bottom > top) | (bottom < SUBJECT_Z_M[0]) | (top > SUBJECT_Z_M[1])
+    return [n for n, w in zip(names, wrong, strict=True) if w]
+
+
+def _judge(views: list[TrackingView], observations: list[Observation]) -> list[tuple[Observation, list[str]]]:
+    """The first ``SILHOUETTE_CHECK_FRAMES`` frames seen by two cameras or more, each with the
+    cameras it finds wrong (see :func:`_misses`)."""
+    judged = []
+    for obs in observations:
+        missed = _misses(views, obs)
+        if missed is not None:
+            judged.append((obs, missed))
+            if len(judged) >= SILHOUETTE_CHECK_FRAMES:
+                break
+    return judged
+
+
+def _n_wrong(judged: list[tuple[Observation, list[str]]]) -> int:
+    """Frames judged where the silhouettes do not meet."""
+    return sum(bool(m) for _, m in judged)
+
+
+def _culprit(views: list[TrackingView], observations: list[Observation]) -> str | None:
+    """The one camera without which the others' silhouettes meet (three cameras or more), if any."""
+    found = []
+    for c in range(len(views)):
+        without = [Observation(o.silhouettes[:c] + o.silhouettes[c + 1 :]) for o in observations]
+        judged = _judge(views[:c] + views[c + 1 :], without)
+        if judged and 2 * _n_wrong(judged) <= len(judged):
+            found.append(views[c].camera.name)
+    return found[0] if len(found) == 1 else None
+
+
+def check_silhouettes_meet(views: list[TrackingView], observations: list[Observation], source: str | Path) -> None:
+    """Refuse a calibration under which the first frames' silhouettes cannot be one subject.
+
+    Cheap: in each of the first ``SILHOUETTE_CHECK_FRAMES`` frames where two cameras or more see
+    a silhouette, the rays through the silhouettes' centroids are triangulated (DLT): the
+    subject's centre. The silhouette cones meet in a plausible volume above the floor when
+
+    - that centre lies at the height of a person's centre (``SUBJECT_CENTRE_Z_M``), in front of
+      every camera, and projects into (or near, ``BOX_MARGIN``) every camera's silhouette box;
+    - on the vertical through it, the rays through each silhouette's top and bottom rows give a
+      top above the bottom, both between a little under the floor and above a tall adult's head
+      (``SUBJECT_Z_M``); a silhouette cut by the image border is not measured there. Silhouettes
+      miss parts, so a silhouette smaller than the others is no evidence against the calibration.
+
+    With a wrong calibration (a rotation transposed or tilted, an extrinsic of another session)
+    the rays cross under the floor, behind a camera, or where one camera sees a floating or
+    giant subject. A near-symmetric mistake (two cameras' extrinsics swapped in a symmetric
+    rig) can pass: this check refuses what cannot be right, it does not prove a calibration.
+
+    Args:
+        views: the tracking views (rig order).
+        observations: the first frames' observations.
+        source: the calibration file, named in the error.
+
+    Raises:
+        CalibrationError: one line, when the silhouettes do not meet in more than half of the frames
+            checked (with three cameras or more, the one camera without which the others agree is
+            named). Frames without two silhouettes are not judged.
+    """
+    judged = _judge(views, observations)
+    n_bad = _n_wrong(judged)
+    if 2 * n_bad <= len(judged):
+        return
+    culprit = _culprit(views, [obs for obs, _ in judged]) if len(views) >= 3 else None
+    blame = f"; the others agree without camera {culprit!r}" if culprit else ""
+    raise CalibrationError(
+        f"{source}: the cameras' silhouettes do not meet in 3D where the calibration puts them ({n_bad} of the "
+        f"first {len(judged)} frames seen by two cameras or more{blame}): check the extrinsics "
+        "(the cameras' names and order, rotations, a calibration of another session)"
+    )

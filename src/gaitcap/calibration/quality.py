@@ -1,17 +1,95 @@
-"""Summaries and sanity checks of a calibrated rig (``gaitcap calibrate check``)."""
+"""Summaries and sanity checks of a calibrated rig (``gaitcap calibrate check``), and the
+geometric checks that refuse a calibration that cannot be right before tracking
+(:func:`geometry_problems`, :func:`check_rig_geometry`)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from itertools import combinations
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from gaitcap.camera import CameraRig
+from gaitcap.camera import Camera, CameraRig
+from gaitcap.errors import CalibrationError
 
 MAX_ERROR_PX = 1.0
 MAX_ASPECT_DEVIATION = 0.05
+#: the farthest a camera of a gait lab stands from the calibration's origin (on the walkway), and
+#: the farthest it sees the floor: a walkway and its cameras fit in a few tens of metres
+MAX_CAMERA_DISTANCE_M = 30.0
+#: the nearest a camera stands from the origin once its translation is read in millimetres
+MIN_CAMERA_DISTANCE_M = 0.3
+#: samples per image edge where the rays that reach the floor are looked for
+_EDGE_SAMPLES = 9
+
+
+def floor_distance(cam: Camera) -> float:
+    """Distance (m) from the camera to the nearest point of the floor plane z = 0 that its image
+    sees (in front of it), inf when no ray of its image meets the floor.
+
+    The ray through pixel (u, v) has the world direction ``d = R^T K^-1 (u, v, 1)``; from the
+    centre ``C`` (``C_z > 0``) it meets the floor at ``s = C_z / -d_z`` along the unit ray when
+    it points down. The nearest such point lies on the image border (the lowest ray), sampled
+    ``_EDGE_SAMPLES`` times per edge.
+    """
+    w, h = cam.size
+    t = np.linspace(0.0, 1.0, _EDGE_SAMPLES)
+    u = np.concatenate([t * (w - 1), t * (w - 1), np.zeros_like(t), np.full_like(t, w - 1)])
+    v = np.concatenate([np.zeros_like(t), np.full_like(t, h - 1), t * (h - 1), t * (h - 1)])
+    rays = np.linalg.solve(cam.matrix, np.stack([u, v, np.ones_like(u)])).T @ cam.R  # (N, 3) world
+    rays /= np.linalg.norm(rays, axis=1, keepdims=True)
+    cz = float(cam.center[2])
+    down = rays[:, 2] < 0
+    if cz <= 0 or not down.any():
+        return float("inf")
+    return float(np.min(cz / -rays[down, 2]))
+
+
+def geometry_problems(rig: CameraRig) -> list[str]:
+    """What makes ``rig`` impossible for a gait lab, with the likely cause; [] when plausible.
+
+    In order (the first cause found explains the others, so only its sentences are returned):
+
+    1. a camera farther than ``MAX_CAMERA_DISTANCE_M`` from the origin: when every far camera
+       would stand 0.3-30 m away with its translation divided by 1000, the translations are in
+       millimetres (a common slip: the cameras then stand kilometres away);
+    2. a camera below the floor (``C_z < 0``): the world's z axis points down, or the floor is not
+       z = 0 (gaitcap needs z up, the floor at z = 0);
+    3. a camera that looks away from the floor: no ray of its image meets z = 0 within
+       ``MAX_CAMERA_DISTANCE_M`` (looking up, or a y-up world), so it cannot see the feet.
+    """
+    dist = {cam.name: float(np.linalg.norm(cam.center)) for cam in rig}
+    far = {name: d for name, d in dist.items() if d > MAX_CAMERA_DISTANCE_M}
+    if far:
+        listing = ", ".join(f"{name!r} {d:,.0f} m" for name, d in far.items())
+        if all(MIN_CAMERA_DISTANCE_M <= d / 1000.0 <= MAX_CAMERA_DISTANCE_M for d in far.values()):
+            return [f"camera(s) {listing} from the origin: the translations look like millimetres given as metres "
+                    "(divide them by 1000; gaitcap reads metres)"]  # fmt: skip
+        return [f"camera(s) {listing} from the origin, farther than {MAX_CAMERA_DISTANCE_M:g} m: the origin is not on the "
+                "walkway or the translations are not in metres"]  # fmt: skip
+    below = ", ".join(f"{cam.name!r} (z = {cam.center[2]:.2f} m)" for cam in rig if cam.center[2] < 0)
+    if below:
+        return [f"camera(s) {below} below the floor: the world's z axis must point up with the floor at z = 0 "
+                "(is it pointing down?)"]  # fmt: skip
+    away = ", ".join(repr(cam.name) for cam in rig if not floor_distance(cam) <= MAX_CAMERA_DISTANCE_M)
+    if away:
+        return [f"camera(s) {away} look away from the floor: no ray of the image meets the floor plane z = 0 within "
+                f"{MAX_CAMERA_DISTANCE_M:g} m (a camera looking up, or a world whose z axis is not up), so the feet "
+                "cannot be seen"]  # fmt: skip
+    return []
+
+
+def check_rig_geometry(rig: CameraRig, source: str | Path) -> None:
+    """Refuse a calibration that cannot be right (see :func:`geometry_problems`).
+
+    Raises:
+        CalibrationError: one line, ``"<source>: <the problems and their likely cause>"``.
+    """
+    problems = geometry_problems(rig)
+    if problems:
+        raise CalibrationError(f"{source}: " + "; ".join(problems))
 
 
 @dataclass
@@ -36,8 +114,10 @@ def check_rig(
     """Describe every camera, the distances between cameras and the reprojection summary.
 
     Problems: a recorded reprojection error above ``max_error_px``, fx/fy differing by more than
-    5 %, a principal point outside the middle half of the image, a camera under the floor, two
-    cameras at the same place, or video frames whose size cannot be a crop of the calibration.
+    5 %, a principal point outside the middle half of the image, the geometry that cannot be
+    right (:func:`geometry_problems`: cameras kilometres away, under the floor or looking away
+    from it), two cameras at the same place, or video frames whose size cannot be a crop of the
+    calibration.
     """
     meta = metadata or {}
     rep = CheckReport()
@@ -55,8 +135,6 @@ def check_rig(
             rep.problems.append(f"camera {cam.name!r}: fx/fy = {K[0, 0] / K[1, 1]:.3f} (square pixels expected)")
         if not (0.25 * cam.width < K[0, 2] < 0.75 * cam.width and 0.25 * cam.height < K[1, 2] < 0.75 * cam.height):
             rep.problems.append(f"camera {cam.name!r}: principal point ({K[0, 2]:.0f}, {K[1, 2]:.0f}) far from the image centre")
-        if c[2] < 0:
-            rep.problems.append(f"camera {cam.name!r}: below the floor (z = {c[2]:.2f} m)")
         if err is not None and err > max_error_px:
             rep.problems.append(f"camera {cam.name!r}: reprojection error {err:.2f} px > {max_error_px:g} px")
         if frame_sizes and cam.name in frame_sizes and tuple(frame_sizes[cam.name]) != cam.size:
@@ -67,6 +145,7 @@ def check_rig(
                 rep.notes.append(msg + f" (treated as a centred crop: principal point shifted by ({-dw / 2:g}, {-dh / 2:g}) px)")
             else:
                 rep.problems.append(msg + " (not a small crop: recalibrate)")
+    rep.problems.extend(geometry_problems(rig))
     if len(rig) > 1:
         rep.lines.append("distances between cameras (m):")
         for a, b in combinations(rig, 2):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import click
@@ -12,6 +13,8 @@ from gaitcap.gait.options import GaitOptions
 
 #: exit code when the analysis ran but found less than one complete gait cycle
 EXIT_NOT_ENOUGH_STEPS = 3
+#: exit code when the analysis ran but withheld implausible values
+EXIT_IMPLAUSIBLE = 4
 
 
 @click.command("report")
@@ -30,7 +33,9 @@ def command(source: Path, out_dir: Path | None, config: Path | None, mapping: st
     marker-based .c3d/.trc file (its joint centres are computed from the markers).
 
     Exit codes: 0 done; 1 error; 2 usage; 3 the analysis ran but found less than one complete gait
-    cycle ("not enough steps": parameters.json has status not_enough_steps and the reason).
+    cycle ("not enough steps": parameters.json has status not_enough_steps, the reason, and the
+    step-level values it could measure); 4 the analysis ran but values outside their plausible
+    range were withheld (status implausible; parameters.json names them under "implausible").
 
     \b
     Example:
@@ -38,15 +43,24 @@ def command(source: Path, out_dir: Path | None, config: Path | None, mapping: st
         gaitcap report walk.c3d -o walk_report
         gaitcap report walk.c3d --mapping my_lab.yaml
     """
+    from gaitcap.gait.parameters import STATUS_IMPLAUSIBLE, STATUS_NOT_ENOUGH_STEPS
     from gaitcap.report.pipeline import run_report
 
     options = load_yaml_model(GaitOptions, config) if config is not None else None
     result = run_report(source, out_dir, options, mapping, subject)
     p = result.analysis.parameters
     click.echo(f"{len(result.analysis.events)} events, {p.overall['n_strides']} complete cycles -> {result.out_dir}")
-    if not p.ok:
-        click.echo(p.reason, err=True)
-        raise SystemExit(EXIT_NOT_ENOUGH_STEPS)
     o = p.overall
-    click.echo(f"cadence {o['cadence_steps_per_min']:.1f} steps/min, speed {o['speed_m_s']:.2f} m/s, "
-               f"stride {o['stride_length_m']:.3f} m")  # fmt: skip
+    click.echo(f"cadence {_value(o['cadence_steps_per_min'], '.1f')} steps/min, speed {_value(o['speed_m_s'], '.2f')} m/s, "
+               f"stride {_value(o['stride_length_m'], '.3f')} m, step {_value(o['step_length_m'], '.3f')} m")  # fmt: skip
+    if p.reason:
+        click.echo(p.reason, err=True)
+    if p.status == STATUS_NOT_ENOUGH_STEPS:
+        raise SystemExit(EXIT_NOT_ENOUGH_STEPS)
+    if p.status == STATUS_IMPLAUSIBLE:
+        raise SystemExit(EXIT_IMPLAUSIBLE)
+
+
+def _value(v: float, fmt: str) -> str:
+    """A summary value, or ``-`` where it was not measured or was withheld."""
+    return format(v, fmt) if math.isfinite(v) else "-"

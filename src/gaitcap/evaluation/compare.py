@@ -335,7 +335,7 @@ def evaluate(
         if recorded:
             reference_events, label = recorded, "recorded in the reference"
             baseline = _event_section(ref_analysis.events, recorded, a.rate_hz, label)
-            ref_params = compute_parameters(ref_traj, recorded, ref_analysis.direction)
+            ref_params = compute_parameters(ref_traj, recorded, ref_analysis.direction, (options or GaitOptions()).plausible)
         else:
             reference_events, label = ref_analysis.events, "detected on the reference"
             ref_params = ref_analysis.parameters

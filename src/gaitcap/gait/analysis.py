@@ -69,7 +69,7 @@ def analyse(traj: Trajectory, options: GaitOptions | None = None) -> GaitAnalysi
     """
     opt = options or GaitOptions()
     events, direction = detect_events(traj, opt)
-    params = compute_parameters(traj, events, direction)
+    params = compute_parameters(traj, events, direction, opt.plausible)
     angles, notes = joint_angles(traj, direction)
     cycles = {s: find_cycles(events, s) for s in SIDES}
     times = traj.times()

@@ -7,6 +7,11 @@ foot strike inside it (if both were detected) give the double and single support
     FS_i ---- FO_c ---------- FS_c ---- FO_i ------------ FS_i'
     |  double  |   single support  | double |     swing      |
     |  support |   (ipsilateral)   | support|  (ipsilateral) |
+
+The feet alternate: a cycle holds exactly one strike of the other foot (while one foot swings,
+the other one carries the body, and it must land in turn before the first one lifts off again).
+A span with two (a strike of this foot missed) or none (a strike of the other foot missed, or a
+spurious one of this foot) is not a complete cycle: its timing is not that of one stride.
 """
 
 from __future__ import annotations
@@ -59,7 +64,8 @@ def _times(events: Sequence[GaitEvent], side: Side, kind: str) -> np.ndarray:
 
 
 def find_cycles(events: Sequence[GaitEvent], side: Side) -> list[GaitCycle]:
-    """The complete gait cycles of ``side``, in time order (see the module docstring)."""
+    """The complete gait cycles of ``side``, in time order: exactly one foot off of ``side`` and
+    one strike of the other foot inside (see the module docstring)."""
     strikes = _times(events, side, "foot_strike")
     offs = _times(events, side, "foot_off")
     c_offs = _times(events, other_side(side), "foot_off")
@@ -67,7 +73,7 @@ def find_cycles(events: Sequence[GaitEvent], side: Side) -> list[GaitCycle]:
     cycles = []
     for a, b in zip(strikes[:-1], strikes[1:], strict=True):
         inside = offs[(offs > a) & (offs < b)]
-        if len(inside) != 1:
+        if len(inside) != 1 or np.count_nonzero((c_strikes > a) & (c_strikes < b)) != 1:
             continue
         co = c_offs[(c_offs > a) & (c_offs < inside[0])]
         cs = c_strikes[(c_strikes > a) & (c_strikes < inside[0])]

@@ -53,7 +53,10 @@ Robustness:
 - an extremum must stand out by a fraction of the signal's robust range (prominence), and events
   of one kind on one side are at least ``min_event_interval_s`` apart;
 - per side, strikes and offs must alternate; of two consecutive events of the same kind the less
-  prominent one is dropped.
+  prominent one is dropped;
+- across the feet, two strikes closer than the shortest plausible step are not both kept (see
+  :func:`_exclusive_strikes`), and a cycle needs one strike of the other foot inside it (see
+  :func:`gaitcap.gait.cycles.find_cycles`).
 """
 
 from __future__ import annotations
@@ -253,6 +256,36 @@ def _alternate(extrema: list[_Extremum]) -> list[_Extremum]:
     return out
 
 
+def _exclusive_strikes(alternating: dict[Side, list[_Extremum]], min_frames: float) -> dict[Side, list[_Extremum]]:
+    """Never two foot strikes of different feet closer than ``min_frames``; per side re-alternated.
+
+    The minimum is the shortest plausible step, ``60 / the highest plausible cadence`` (0.24 s at
+    250 steps/min, :attr:`gaitcap.gait.options.PlausibleRanges.min_step_s`): after one foot lands,
+    the other must lift off, swing and land, which no walker does faster. Two strikes closer than
+    that (e.g. both feet "landing" in the same frame when the tracker collapses the legs onto
+    each other) are one landing seen twice; the one with the stronger evidence is kept: a turn
+    seen on both sides before one seen on one sample only (``edge``), then the larger prominence
+    of the Zeni extremum (the earlier on a tie). The foot that loses a strike then has two
+    consecutive foot offs, of which :func:`_alternate` keeps the more prominent.
+    """
+    strikes = sorted((e for side in SIDES for e in alternating[side] if e.event == "foot_strike"), key=lambda e: e.frame)
+    kept: list[_Extremum] = []
+    dropped: list[_Extremum] = []
+    for e in strikes:
+        last = next((k for k in reversed(kept) if k.side != e.side), None)
+        if last is not None and e.frame - last.frame < min_frames:
+            if (not e.edge, e.prominence) > (not last.edge, last.prominence):
+                kept.remove(last)
+                dropped.append(last)
+            else:
+                dropped.append(e)
+                continue
+        kept.append(e)
+    for e in dropped:
+        log.info("dropped a %s foot strike at frame %.1f: within %.1f frames of the other foot's", e.side, e.frame, min_frames)
+    return {side: _alternate([e for e in alternating[side] if e not in dropped]) for side in SIDES}
+
+
 def _phase_durations(events: list[_Extremum]) -> dict[str, list[float]]:
     """Stance and swing durations (frames) between consecutive events of one side, edge events
     left out (``events``: one side's alternating events in time order)."""
@@ -369,6 +402,7 @@ def detect_events(
         ext = [_Extremum(f, p, side, "foot_strike", x) for f, p, x in _extrema(sig[f"heel{s}"], traj.rate_hz, opt, True)]
         ext += [_Extremum(f, p, side, "foot_off", x) for f, p, x in _extrema(sig[f"toe{s}"], traj.rate_hz, opt, False)]
         alternating[side] = _alternate(ext)
+    alternating = _exclusive_strikes(alternating, opt.plausible.min_step_s * traj.rate_hz)
     events: list[GaitEvent] = []
     for side, other in zip(SIDES, SIDES[::-1], strict=True):
         refined = _refiners(traj, side, direction, opt) if opt.refine and traj.rate_hz >= opt.refine_min_rate_hz else None

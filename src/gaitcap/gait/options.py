@@ -2,9 +2,72 @@
 
 from __future__ import annotations
 
-from pydantic import Field
+from pydantic import Field, field_validator
 
 from gaitcap.config import Strict
+
+Bounds = tuple[float, float]
+
+
+class PlausibleRanges(Strict):
+    """The plausible range (low, high) of each spatio-temporal parameter of walking, pathological
+    gait included; a value outside is withheld and reported as implausible, never written.
+
+    Only the independent ranges are set; the others follow from them (:meth:`bounds`):
+    step time = 60 / cadence, stride time = two steps, swing = 100 - stance, ipsilateral single
+    support = contralateral swing.
+
+    Attributes:
+        cadence_steps_per_min: 30-250: below 30 (a step every 2 s) is standing, not walking;
+            above 250 is beyond sprinting cadence.
+        stride_length_m: 0-2.5 m: strides of fast walking reach about 1.8 m.
+        step_length_m: -0.2-1.5 m: in a step-to gait the landing foot may stay a little behind
+            the other one; a step is at most about 60 % of the longest stride.
+        step_width_m: 0-0.6 m: about 0.1 m in healthy walking, 0.3-0.4 m in wide-based gait.
+        speed_m_s: 0-3 m/s: faster is running.
+        stance_pct: 45-90 % of the cycle: walking keeps a foot on the ground (stance above 50 %,
+            less within event timing), very slow pathological gait reaches 80-85 %.
+        double_support_pct: 0-80 %: both stances minus the cycle (2 x stance - 100 at most).
+    """
+
+    cadence_steps_per_min: Bounds = (30.0, 250.0)
+    stride_length_m: Bounds = (0.0, 2.5)
+    step_length_m: Bounds = (-0.2, 1.5)
+    step_width_m: Bounds = (0.0, 0.6)
+    speed_m_s: Bounds = (0.0, 3.0)
+    stance_pct: Bounds = (45.0, 90.0)
+    double_support_pct: Bounds = (0.0, 80.0)
+
+    @field_validator("*")
+    @classmethod
+    def _ordered(cls, v: Bounds) -> Bounds:
+        if not v[0] < v[1]:
+            raise ValueError(f"the low end must be below the high end, got {list(v)}")
+        return v
+
+    @property
+    def min_step_s(self) -> float:
+        """The shortest plausible step (s): one step at the highest plausible cadence."""
+        return 60.0 / self.cadence_steps_per_min[1]
+
+    def bounds(self) -> dict[str, Bounds]:
+        """Every parameter's range, the derived ones included (keys of ``SIDE_KEYS``)."""
+        c_lo, c_hi = self.cadence_steps_per_min
+        st_lo, st_hi = self.stance_pct
+        swing = (100.0 - st_hi, 100.0 - st_lo)
+        return {
+            "cadence_steps_per_min": self.cadence_steps_per_min,
+            "step_time_s": (60.0 / c_hi, 60.0 / c_lo),
+            "stride_time_s": (120.0 / c_hi, 120.0 / c_lo),
+            "stride_length_m": self.stride_length_m,
+            "step_length_m": self.step_length_m,
+            "step_width_m": self.step_width_m,
+            "speed_m_s": self.speed_m_s,
+            "stance_pct": self.stance_pct,
+            "swing_pct": swing,
+            "single_support_pct": swing,
+            "double_support_pct": self.double_support_pct,
+        }
 
 
 class GaitOptions(Strict):
@@ -30,6 +93,8 @@ class GaitOptions(Strict):
             fast (at 25 fps it makes events worse, see :mod:`gaitcap.gait.events`).
         strike_window_s: the foot-strike refinement looks this far after the anchor.
         off_window_s: the foot-off refinement looks this far after (and half as far before) it.
+        plausible: the plausible range of each parameter (:class:`PlausibleRanges`); its highest
+            cadence also sets the shortest interval between the strikes of the two feet.
     """
 
     lowpass_hz: float = Field(6.0, ge=0.0)
@@ -42,3 +107,4 @@ class GaitOptions(Strict):
     refine_min_rate_hz: float = Field(50.0, ge=0.0)
     strike_window_s: float = Field(0.12, gt=0.0)
     off_window_s: float = Field(0.1, gt=0.0)
+    plausible: PlausibleRanges = Field(default_factory=PlausibleRanges)

@@ -18,25 +18,35 @@ Definitions (``d`` the walking direction, ``n`` the horizontal left axis, times 
 - symmetry index (Robinson et al. 1987): ``SI = 100 (L - R) / (0.5 (L + R))``, 0 = symmetric.
 
 Each summary value ``k`` comes with ``k_sd`` (sample SD, ddof = 1; NaN for one value) and ``k_n``.
-A trajectory without one complete cycle on either side gives ``status = "not_enough_steps"`` with
-the reason, never zeros.
+
+Never absurd: a per-step or per-stride value outside its plausible range
+(:class:`gaitcap.gait.options.PlausibleRanges`) is withheld (NaN, ``null`` in parameters.json, left
+out of the summaries) and named in ``implausible`` with the reason; the status is then
+``"implausible"``, never ``"ok"``. A trajectory without one complete cycle on either side gives
+``status = "not_enough_steps"`` with the reason, never zeros; the step-level parameters (step
+length, time and width, cadence) of the steps it has are still reported.
 """
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
 from gaitcap.gait.cycles import GaitCycle, find_cycles, other_side
 from gaitcap.gait.events import WalkingDirection, heel_track, toe_track
+from gaitcap.gait.options import PlausibleRanges
 from gaitcap.trajectory import SIDES, GaitEvent, Side, Trajectory
+
+log = logging.getLogger("gaitcap.gait.parameters")
 
 STATUS_OK = "ok"
 STATUS_NOT_ENOUGH_STEPS = "not_enough_steps"
+STATUS_IMPLAUSIBLE = "implausible"
 
 #: per-side summary keys and their units
 SIDE_KEYS: dict[str, str] = {
@@ -66,6 +76,8 @@ OVERALL_KEYS: dict[str, str] = {
     "single_support_pct": "%",
     "double_support_pct": "%",
 }
+#: the keys measured per step (the others per stride, i.e. per complete cycle)
+STEP_KEYS = ("step_length_m", "step_time_s", "step_width_m", "cadence_steps_per_min")
 SYMMETRY_KEYS = ("step_length_m", "step_time_s", "stride_time_s", "stance_pct", "swing_pct", "single_support_pct")
 
 
@@ -111,6 +123,7 @@ class GaitParameters:
     strides: list[Stride] = field(default_factory=list)
     steps: list[Step] = field(default_factory=list)
     info: dict[str, Any] = field(default_factory=dict)
+    implausible: dict[str, str] = field(default_factory=dict)
 
     @property
     def ok(self) -> bool:
@@ -127,6 +140,7 @@ class GaitParameters:
             "left": clean(self.sides["left"]),
             "right": clean(self.sides["right"]),
             "symmetry_index_pct": clean(self.symmetry),
+            "implausible": dict(self.implausible),
             "info": self.info,
         }
 
@@ -230,18 +244,56 @@ def _steps(traj: Trajectory, direction: WalkingDirection, events: Sequence[GaitE
     return out
 
 
+def _withhold(items: Sequence[Stride] | Sequence[Step], ranges: dict[str, tuple[float, float]],
+              keys: Sequence[str], what: str) -> tuple[list[Any], dict[str, str]]:
+    """``items`` with every value outside its range set to NaN, and per parameter the reason.
+
+    A step's cadence is ``60 / step time``: withholding one withholds the other.
+    """
+    out: list[Any] = []
+    bad: dict[str, list[tuple[Side, float, float]]] = {}
+    for it in items:
+        nan_fields: dict[str, float] = {}
+        for key in keys:
+            v = float(getattr(it, key))
+            lo, hi = ranges[key]
+            if math.isfinite(v) and not lo <= v <= hi:
+                bad.setdefault(key, []).append((it.side, _item_time(it), v))
+                nan_fields["step_time_s" if key == "cadence_steps_per_min" else key] = math.nan
+        out.append(replace(it, **nan_fields) if nan_fields else it)
+    reasons = {}
+    for key, vals in bad.items():
+        lo, hi = ranges[key]
+        unit = SIDE_KEYS[key]
+        reasons[key] = f"{len(vals)} of {len(items)} {what} outside the plausible {lo:g} to {hi:g} {unit}, withheld"
+        log.warning("implausible %s withheld: %s", key,
+                    ", ".join(f"{v:.4g} {unit} ({side} at {t:.3f} s)" for side, t, v in vals))  # fmt: skip
+    return out, reasons
+
+
+def _item_time(it: Stride | Step) -> float:
+    return it.time_s if isinstance(it, Step) else it.cycle.start_s
+
+
 def _symmetry(left: float, right: float) -> float:
     den = 0.5 * (left + right)
     return 100.0 * (left - right) / den if math.isfinite(den) and den != 0 else math.nan
 
 
-def compute_parameters(traj: Trajectory, events: Sequence[GaitEvent], direction: WalkingDirection) -> GaitParameters:
+def compute_parameters(
+    traj: Trajectory, events: Sequence[GaitEvent], direction: WalkingDirection, ranges: PlausibleRanges | None = None
+) -> GaitParameters:
     """Spatio-temporal parameters from a trajectory and its events (see the module docstring).
 
+    Args:
+        ranges: the plausible range of each parameter (default :class:`PlausibleRanges`).
+
     Returns:
-        :class:`GaitParameters`; ``status == "not_enough_steps"`` (with the reason and NaN values)
-        when neither side has one complete gait cycle.
+        :class:`GaitParameters`; ``status == "not_enough_steps"`` (with the reason, the step-level
+        values and NaN for the stride-level ones) when neither side has one complete gait cycle;
+        ``"implausible"`` when values were withheld (``implausible`` names them and why).
     """
+    bounds = (ranges or PlausibleRanges()).bounds()
     cycles = {s: find_cycles(events, s) for s in SIDES}
     all_cycles = cycles["left"] + cycles["right"]
     info: dict[str, Any] = {
@@ -256,16 +308,19 @@ def compute_parameters(traj: Trajectory, events: Sequence[GaitEvent], direction:
     v_belt = belt_velocity(traj, direction, all_cycles)
     info["belt_velocity_m_s"] = v_belt
     strides = _strides(traj, direction, all_cycles, v_belt)
-    median_stride = float(np.median([s.stride_time_s for s in strides])) if strides else 2.0
-    # without one complete cycle nothing is reported (a lone step is not a gait pattern)
-    steps = _steps(traj, direction, events, max_step_s=0.75 * median_stride) if strides else []
+    median_stride = float(np.median([s.stride_time_s for s in strides])) if strides else math.nan
+    max_step_s = 0.75 * median_stride if math.isfinite(median_stride) else bounds["step_time_s"][1]
+    steps = _steps(traj, direction, events, max_step_s=max_step_s)
+    strides, implausible = _withhold(strides, bounds, [k for k in SIDE_KEYS if k not in STEP_KEYS], "strides")
+    steps, bad_steps = _withhold(steps, bounds, STEP_KEYS, "steps")
+    implausible.update(bad_steps)
     sides: dict[str, dict[str, float]] = {}
     for side in SIDES:
         st = [s for s in strides if s.side == side]
         sp = [s for s in steps if s.side == side]
         d: dict[str, float] = {}
         for key in SIDE_KEYS:
-            if key in ("step_length_m", "step_time_s", "step_width_m", "cadence_steps_per_min"):
+            if key in STEP_KEYS:
                 _put(d, key, [getattr(s, key) for s in sp])
             else:
                 _put(d, key, [getattr(s, key) for s in st])
@@ -274,20 +329,35 @@ def compute_parameters(traj: Trajectory, events: Sequence[GaitEvent], direction:
         sides[side] = d
     overall: dict[str, float] = {}
     for key in OVERALL_KEYS:
-        src = steps if key in ("step_length_m", "step_time_s", "step_width_m", "cadence_steps_per_min") else strides
+        src = steps if key in STEP_KEYS else strides
         _put(overall, key, [getattr(s, key) for s in src])
     overall["n_strides"] = len(strides)
     overall["n_steps"] = len(steps)
     symmetry = {k: _symmetry(sides["left"][k], sides["right"][k]) for k in SYMMETRY_KEYS}
+    status, reasons = STATUS_OK, []
     if not strides:
-        n_fs = sum(e.event == "foot_strike" for e in events)
-        n_fo = len(events) - n_fs
-        reason = (
-            f"not enough steps: no complete gait cycle (found {n_fs} foot strikes and {n_fo} foot offs in "
-            f"{traj.n_frames / traj.rate_hz:.2f} s; a cycle needs two foot strikes of one foot with its foot off between)"
-        )
-        return GaitParameters(STATUS_NOT_ENOUGH_STEPS, reason, overall, sides, symmetry, [], steps, info)
-    reason = "" if all(cycles[s] for s in SIDES) else (
-        "only the " + next(s for s in SIDES if cycles[s]) + " side has a complete gait cycle"
+        status = STATUS_NOT_ENOUGH_STEPS
+        reasons.append(_no_cycle_reason(traj, events, len(steps)))
+    elif not all(cycles[s] for s in SIDES):
+        reasons.append("only the " + next(s for s in SIDES if cycles[s]) + " side has a complete gait cycle")
+    if implausible:
+        status = STATUS_IMPLAUSIBLE if status == STATUS_OK else status
+        reasons.append("implausible values withheld: " + "; ".join(f"{k}: {r}" for k, r in implausible.items()))
+    params = GaitParameters(status, "; ".join(reasons), overall, sides, symmetry, strides, steps, info, implausible)
+    return params
+
+
+def _no_cycle_reason(traj: Trajectory, events: Sequence[GaitEvent], n_steps: int) -> str:
+    n_fs = sum(e.event == "foot_strike" for e in events)
+    n_fo = len(events) - n_fs
+    reason = (
+        f"not enough steps: no complete gait cycle (found {n_fs} foot strikes and {n_fo} foot offs in "
+        f"{traj.n_frames / traj.rate_hz:.2f} s; a cycle needs two foot strikes of one foot with its foot off and "
+        "one strike of the other foot between)"
     )
-    return GaitParameters(STATUS_OK, reason, overall, sides, symmetry, strides, steps, info)
+    if n_steps:
+        reason += (
+            f"; step length, step time, step width and cadence are from {n_steps} step{'s' if n_steps > 1 else ''}; "
+            "stride length, stride time, speed, stance, swing and support phases need a complete cycle"
+        )
+    return reason

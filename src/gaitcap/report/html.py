@@ -10,7 +10,7 @@ from typing import Any
 
 from gaitcap import __version__
 from gaitcap.gait.analysis import GaitAnalysis
-from gaitcap.gait.parameters import OVERALL_KEYS, SIDE_KEYS
+from gaitcap.gait.parameters import OVERALL_KEYS, SIDE_KEYS, STATUS_IMPLAUSIBLE, STATUS_NOT_ENOUGH_STEPS
 from gaitcap.report import plots
 
 _CSS = """
@@ -84,8 +84,10 @@ def render_report(analysis: GaitAnalysis, title: str = "Gait report") -> str:
         f"Events: {len(analysis.events)} detected ({html.escape(str(info.get('event_method')))}), "
         f"{len(analysis.reference_events)} recorded in the file. gaitcap {__version__}.</p>"
     )
-    if not p.ok:
+    if p.status == STATUS_NOT_ENOUGH_STEPS:
         parts.append(f"<div class='warn'><b>Not enough steps.</b> {html.escape(p.reason)}</div>")
+    elif p.status == STATUS_IMPLAUSIBLE:
+        parts.append(f"<div class='warn'><b>Implausible values withheld.</b> {html.escape(p.reason)}</div>")
     elif p.reason:
         parts.append(f"<div class='warn'>{html.escape(p.reason)}</div>")
     parts.append("<h2>Spatio-temporal parameters</h2>" + parameter_table(analysis))

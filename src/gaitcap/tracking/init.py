@@ -43,7 +43,8 @@ class InitResult:
     legs_settled: bool = False
 
 
-def _centroid(sil: np.ndarray) -> np.ndarray | None:
+def silhouette_centroid(sil: np.ndarray) -> np.ndarray | None:
+    """Centroid (u, v) of a soft silhouette (h, w); None when it holds less than 4 pixels."""
     total = float(sil.sum())
     if total < 4:
         return None
@@ -71,10 +72,31 @@ def subject_positions(views: list[TrackingView], observations: list[Observation]
     """Triangulated silhouette centroids (T, 3), NaN where fewer than two cameras see the subject."""
     out = np.full((len(observations), 3), np.nan)
     for t, obs in enumerate(observations):
-        X = triangulate(views, [_centroid(s) for s in obs.silhouettes])
+        X = triangulate(views, [silhouette_centroid(s) for s in obs.silhouettes])
         if X is not None:
             out[t] = X
     return out
+
+
+def height_on_vertical(view: TrackingView, u: float, v: float, position: np.ndarray) -> float | None:
+    """Height z (m) at which the ray through pixel (u, v) of ``view`` passes closest to the vertical
+    line through ``position`` (3,); None when the ray is vertical."""
+    ray = view.camera.R.T @ np.linalg.solve(view.K, [u, v, 1.0])
+    C = view.camera.center
+    # closest point between the ray C + s ray and the vertical line (x, y) = position[:2]
+    d = np.array([0.0, 0.0, 1.0])
+    w0 = C - np.array([position[0], position[1], 0.0])
+    a, b, c = ray @ ray, ray @ d, d @ d
+    dd, e = ray @ w0, d @ w0
+    den = a * c - b * b
+    if abs(den) < 1e-9:
+        return None
+    return float((a * e - b * dd) / den)
+
+
+def silhouette_row_centre(sil: np.ndarray, row: int) -> float:
+    """The silhouette-weighted column (u) of one row of a soft silhouette (h, w)."""
+    return float(np.average(np.arange(sil.shape[1]), weights=sil[row] + 1e-9))
 
 
 def estimate_height(views: list[TrackingView], obs: Observation, position: np.ndarray) -> float | None:
@@ -86,20 +108,9 @@ def estimate_height(views: list[TrackingView], obs: Observation, position: np.nd
         rows = np.where(sil.max(axis=1) > 0.5)[0]
         if len(rows) == 0:
             continue
-        v = rows[0]
-        u = float(np.average(np.arange(sil.shape[1]), weights=sil[v] + 1e-9))
-        ray = view.camera.R.T @ np.linalg.solve(view.K, [u, v, 1.0])
-        C = view.camera.center
-        # closest point between the ray C + s ray and the vertical line (x, y) = position[:2]
-        d = np.array([0.0, 0.0, 1.0])
-        w0 = C - np.array([position[0], position[1], 0.0])
-        a, b, c = ray @ ray, ray @ d, d @ d
-        dd, e = ray @ w0, d @ w0
-        den = a * c - b * b
-        if abs(den) < 1e-9:
-            continue
-        t_line = (a * e - b * dd) / den
-        tops.append(t_line)
+        top = height_on_vertical(view, silhouette_row_centre(sil, rows[0]), rows[0], position)
+        if top is not None:
+            tops.append(top)
     if not tops:
         return None
     return float(np.median(tops) / 0.99)
