@@ -18,12 +18,14 @@ both against the numpy path to 1e-9.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit, prange
 
-from gaitcap.body.model import BodyModel
-from gaitcap.tracking.observation import TrackingView
+if TYPE_CHECKING:  # annotations only: this module needs numpy and numba alone (see gaitcap.tracking.precompile)
+    from gaitcap.body.model import BodyModel
+    from gaitcap.tracking.observation import TrackingView
 
 
 @dataclass(frozen=True)
@@ -128,6 +130,16 @@ def _points(Q, need, parent, origin, dof_start, dof_stop, axis, sign, trans, pt_
             for i in range(3):
                 out[n, p, i] = _world(R, o, n, pt_seg[p], pt_local, p, i)
     return out
+
+
+def warm_up() -> None:
+    """Compile the kernels with the argument types :class:`PoseProjector` passes, on a one-segment
+    chain (a no-op when numba's on-disk cache already holds them)."""
+    i1, f1, f2 = np.zeros(1, np.int64), np.zeros(1), np.zeros((1, 3))
+    chain = (np.full(1, -1, np.int64), f2, i1, i1 + 1, i1, f1 + 1, np.zeros(1, np.bool_))
+    Q, need = np.zeros((1, 1)), np.ones(1, np.bool_)
+    _project(Q, need, *chain, i1, f2, f2, np.ones((1, 2)), np.eye(3)[None], f2 + 1, np.ones((1, 4)))
+    _points(Q, need, *chain, i1, f2)
 
 
 class PoseProjector:

@@ -264,14 +264,15 @@ def fill_capsules(mask: np.ndarray, a: np.ndarray, b: np.ndarray, ra: np.ndarray
     return ymin, ymax
 
 
-def warm_up() -> None:
-    """Compile the kernel (cached on disk after the first run)."""
-    z = np.zeros((1, 1, 2))
-    r = np.ones((1, 1))
+def warm_up(n_views: int = 2) -> None:
+    """Compile the kernels for ``n_views`` views, with the argument types the tracker passes (a
+    no-op when numba's on-disk cache already holds them: see :mod:`gaitcap.tracking.precompile`)."""
+    z = np.zeros((n_views, 1, 1, 2))
+    r = np.ones((n_views, 1, 1))
     c = row_prefix(np.ones((4, 4), np.float32))
-    capsule_sums_views(z[None], z[None] + 1, r[None], r[None], (c,), (c,))
-    free_prefixes(np.ones((4, 4), np.float32), np.zeros((4, 4), np.float32))
-    free_prefixes_views((np.ones((4, 4), np.float32),) * 2, (np.zeros((4, 4), np.float32),) * 2)
-    fill_capsules(np.zeros((4, 4), np.float32), z[0], z[0] + 1, r[0], r[0], 1.0)
-    m = np.zeros((4, 4), np.float32)
+    m = np.ones((4, 4), np.float32)
+    capsule_sums_views(z, z + 1, r, r, (c,) * n_views, (c,) * n_views)
+    free_prefixes(m, m)
+    free_prefixes_views((m,) * n_views, (m,) * n_views)
+    fill_capsules(np.zeros((4, 4), np.float32), z[0, 0], z[0, 0] + 1, r[0, 0], r[0, 0], 1.0)
     free_prefix_rows(m, m, c, c, 1, 2)
