@@ -11,6 +11,7 @@ from __future__ import annotations
 import csv
 import io
 import logging
+import threading
 import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
@@ -65,6 +66,30 @@ class FrameTiming:
     total_s: float = 0.0
 
 
+class Stages(dict[str, float]):
+    """Wall seconds of a run's stages, in the order they were first timed (track.json's
+    ``stages_s``; scripts/bench_speed.py). A stage timed inside another is left out of the outer
+    one's time. ``background`` is timed in the prefetch thread, side by side with ``setup``,
+    ``kernels`` and ``first_frames`` (the wait for the frames buffered for initialisation)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._open = threading.local()  # per thread: the inner stages' seconds of each open stage
+
+    @contextmanager
+    def timed(self, name: str) -> Iterator[None]:
+        stack = self._open.__dict__.setdefault("stack", [])
+        stack.append(0.0)
+        t0 = time.perf_counter()
+        try:
+            yield
+        finally:
+            elapsed = time.perf_counter() - t0
+            self[name] = self.get(name, 0.0) + elapsed - stack.pop()
+            if stack:
+                stack[-1] += elapsed
+
+
 def _check_out(out: Path, force: bool) -> None:
     if is_finished(out) and not force:
         raise OutputError(f"{out}: already holds a finished run (use --force to redo it)")
@@ -94,6 +119,7 @@ def run_track(
 ) -> TrackSummary:  # fmt: skip
     """Track one session into ``out`` (see the module docstring). Returns the run's summary."""
     t_start = time.perf_counter()
+    stages = Stages()
     session, out = Path(session), Path(out)
     cfg = load_tracking_config(config, model=load_body_model())  # names only: the height comes later
     if tracker is not None:
@@ -107,10 +133,11 @@ def run_track(
     views = tracking_views(rig, cfg.scale)
     likelihood = SilhouetteLikelihood(views, cfg.beta)
     # the videos are read and the silhouettes extracted in a worker thread, a few frames ahead
-    stream = Prefetched(_observations(ses, rig.names, views, sil_cfg, n_frames), depth=PREFETCH_FRAMES)
+    stream = Prefetched(_observations(ses, rig.names, views, sil_cfg, n_frames, stages), depth=PREFETCH_FRAMES)
+    stages["setup"] = time.perf_counter() - t_start
     with stream, kernel_threads(cfg.threads):
         return _track_session(session, out, ses, videos, cfg, views, likelihood, stream, height_m, n_frames,
-                              progress, on_frame, t_start)  # fmt: skip
+                              progress, on_frame, t_start, stages)  # fmt: skip
 
 
 @contextmanager
@@ -131,7 +158,7 @@ def _thread_count(n: int | None) -> int:
 
 
 def _observations(ses: Session, cams: tuple[str, ...], views, sil_cfg: SilhouetteConfig,
-                  n_frames: int) -> Iterator[Observation]:  # fmt: skip
+                  n_frames: int, stages: Stages) -> Iterator[Observation]:  # fmt: skip
     """The session's observations, frame by frame (run by the prefetch thread): each camera's
     background is fitted first, then each frame's silhouettes are extracted and prepared, with
     the row prefix sums and areas the likelihood reads. The frames' cameras are processed side by
@@ -139,8 +166,9 @@ def _observations(ses: Session, cams: tuple[str, ...], views, sil_cfg: Silhouett
     and an error is raised for the first camera (rig order) that has one, as one after the other.
     The backgrounds are fitted one after the other: side by side, the peak memory of the 5 s
     bench_memory.py session rose from 429 to 497 MB for no measurable time."""
-    extractors = {cam: prepare_extractor(Source(cam, ses.videos[cam], ses.backgrounds.get(cam)), sil_cfg)[0]
-                  for cam in cams}  # fmt: skip
+    with stages.timed("background"):
+        extractors = {cam: prepare_extractor(Source(cam, ses.videos[cam], ses.backgrounds.get(cam)), sil_cfg)[0]
+                      for cam in cams}  # fmt: skip
     with ThreadPoolExecutor(max_workers=len(cams), thread_name_prefix="gaitcap-camera") as pool:
         def silhouette(c: int, image: np.ndarray) -> np.ndarray:
             return views[c].prepare(extractors[cams[c]].process(image)[0])
@@ -155,17 +183,19 @@ def _observations(ses: Session, cams: tuple[str, ...], views, sil_cfg: Silhouett
 
 def _track_session(session: Path, out: Path, ses: Session, videos, cfg: TrackingConfig, views, likelihood,
                    stream: Iterator[Observation], height_m: float | None, n_frames: int, progress: bool,
-                   on_frame, t_start: float) -> TrackSummary:  # fmt: skip
+                   on_frame, t_start: float, stages: Stages) -> TrackSummary:  # fmt: skip
     """:func:`run_track` once the output folder is ready, reading the observations from ``stream``."""
-    warm_up()
+    with stages.timed("kernels"):
+        warm_up(len(views))
     height, height_source = _height(ses, height_m)
 
     first: list[Observation] = []  # the first frames, kept for initialisation and shape calibration
     buffered = max(cfg.init.frames, cfg.shape.frames if cfg.shape.enabled else 0)
-    for obs in stream:
-        first.append(obs)
-        if len(first) >= buffered:
-            break
+    with stages.timed("first_frames"):
+        for obs in stream:
+            first.append(obs)
+            if len(first) >= buffered:
+                break
     if not first:
         raise TrackingError(f"{session}: no frame could be read")
     if height is None:
@@ -180,15 +210,18 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
     filt = _new_tracker(cfg, model, likelihood)
     start, settled, shape_note = None, False, "off"
     if cfg.shape.enabled:
-        filt, start, settled, shape_note = _calibrate_shape(filt, likelihood, views, cfg, first)
+        with stages.timed("shape"):
+            filt, start, settled, shape_note = _calibrate_shape(filt, likelihood, views, cfg, first, stages)
     attrs = {"config": yaml.safe_dump(cfg.model_dump(), sort_keys=False), "tracker": cfg.tracker,
              "height_m": float(height), "height_source": height_source, "session": str(session),
              "shape": shape_note}  # fmt: skip
     writer = TrackWriter(out / "trajectories.h5", model.point_names, model.dof_names, videos.fps, attrs)
     timing = FrameTiming()
     try:
-        tracked = _track_frames(filt, likelihood, views, cfg, first, stream, writer, n_frames, progress, timing,
-                                on_frame, start, settled)  # fmt: skip
+        with stages.timed("tracking"):
+            tracked = _track_frames(filt, likelihood, views, cfg, first, stream, writer, n_frames, progress, timing,
+                                    on_frame, start, settled)  # fmt: skip
+        t_writing = time.perf_counter()
         raw, quality = writer.read_back()
         if not np.any((quality == QUALITY_OK) | (quality == QUALITY_POOR_FIT)):
             raise TrackingError(
@@ -204,12 +237,13 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
     write_joints_csv(out / "joints.csv", traj)
     write_trc(out / "joints.trc", traj, units="mm")
     n_flagged = int(np.sum(quality != QUALITY_OK))
+    stages["writing"] = time.perf_counter() - t_writing
     seconds = time.perf_counter() - t_start
     summary = TrackSummary(session=session, out=out, status="ok", n_frames=tracked, n_flagged=n_flagged,
                            seconds=seconds,
                            message=f"{cfg.tracker}: {tracked} frames, {n_flagged} flagged, "
                                    f"{1000 * timing.tracking_s / max(tracked, 1):.0f} ms/frame tracking, "
-                                   f"{tracked / seconds:.1f} frames/s end to end")  # fmt: skip
+                                   f"{tracked / seconds:.1f} frames/s end to end", stages=stages)  # fmt: skip
     write_track_json(summary)
     return summary
 
@@ -223,7 +257,8 @@ def _new_tracker(cfg: TrackingConfig, model, likelihood):
 _REPEAT_SEED_STEP = 7919
 
 
-def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[Observation]):
+def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[Observation],
+                     stages: Stages | None = None):  # fmt: skip
     """Fit the subject's proportions on the buffered first frames (gaitcap.tracking.shape).
 
     Returns the tracker to use (with the calibrated model), the pose of the first frame under it
@@ -240,8 +275,9 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
                     "tracking with the proportions of body.yaml", len(first))  # fmt: skip
         return filt, None, False, "skipped: subject not in view in the first frames"
     try:
-        init = initialise(filt, likelihood, views, first[: cfg.init.frames], cfg.init.heading_step_deg,
-                          cfg.init.refine_passes, cfg.init.widen, leg_frames=cfg.init.leg_frames)  # fmt: skip
+        with (stages or Stages()).timed("initialisation"):
+            init = initialise(filt, likelihood, views, first[: cfg.init.frames], cfg.init.heading_step_deg,
+                              cfg.init.refine_passes, cfg.init.widen, leg_frames=cfg.init.leg_frames)  # fmt: skip
     except TrackingError as e:
         log.warning("shape calibration skipped: %s", e)
         return filt, None, False, f"skipped: {e}"
