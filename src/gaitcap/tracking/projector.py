@@ -21,7 +21,9 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
+
+from gaitcap.tracking.jit import cached_njit
 
 if TYPE_CHECKING:  # annotations only: this module needs numpy and numba alone (see gaitcap.tracking.precompile)
     from gaitcap.body.model import BodyModel
@@ -41,7 +43,7 @@ class Projected:
         return self.a[c], self.b[c], self.ra[c], self.rb[c]
 
 
-@njit(cache=True, inline="always")
+@cached_njit(inline="always")
 def _rotate(R: np.ndarray, n: int, s: int, axis: int, angle: float) -> None:
     """R[n, s] <- R[n, s] · R_axis(angle), in place (R: (N, S, 3, 3))."""
     c, sn = np.cos(angle), np.sin(angle)
@@ -52,7 +54,7 @@ def _rotate(R: np.ndarray, n: int, s: int, axis: int, angle: float) -> None:
         R[n, s, r, j] = -ri * sn + rj * c
 
 
-@njit(cache=True, inline="always")
+@cached_njit(inline="always")
 def _frames(Q, n, need, parent, origin, dof_start, dof_stop, axis, sign, trans, R, o) -> None:
     """World frames of the segments ``need`` (S,) bool (closed under parents) for pose Q[n]:
     R[n] (S, 3, 3), o[n] (S, 3), in place. The other segments are left unset.
@@ -82,13 +84,13 @@ def _frames(Q, n, need, parent, origin, dof_start, dof_stop, axis, sign, trans, 
                 _rotate(R, n, s, axis[d], sign[d] * Q[n, d])
 
 
-@njit(cache=True, inline="always")
+@cached_njit(inline="always")
 def _world(R: np.ndarray, o: np.ndarray, n: int, s: int, loc: np.ndarray, k: int, i: int) -> float:
     """Coordinate i of the point with coordinates loc[k] (3,) in segment s's frame of pose n."""
     return o[n, s, i] + R[n, s, i, 0] * loc[k, 0] + R[n, s, i, 1] * loc[k, 1] + R[n, s, i, 2] * loc[k, 2]
 
 
-@njit(parallel=True, cache=True, nogil=True)
+@cached_njit(parallel=True, nogil=True)
 def _project(Q, need, parent, origin, dof_start, dof_stop, axis, sign, trans, cap_seg, cap_a, cap_b, cap_r,
              cam_R, cam_t, cam_k):  # fmt: skip
     N, K, C, S = Q.shape[0], cap_seg.shape[0], cam_R.shape[0], parent.shape[0]
@@ -118,7 +120,7 @@ def _project(Q, need, parent, origin, dof_start, dof_stop, axis, sign, trans, ca
     return a, b, ra, rb
 
 
-@njit(parallel=True, cache=True, nogil=True)
+@cached_njit(parallel=True, nogil=True)
 def _points(Q, need, parent, origin, dof_start, dof_stop, axis, sign, trans, pt_seg, pt_local):  # fmt: skip
     N, P, S = Q.shape[0], pt_seg.shape[0], parent.shape[0]
     out = np.empty((N, P, 3))
