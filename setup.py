@@ -12,6 +12,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 from setuptools import setup
 from setuptools.command.build_py import build_py
@@ -22,6 +23,9 @@ class BuildWithKernels(build_py):
         super().run()
         if getattr(self, "editable_mode", False) or os.environ.get("GAITCAP_NO_PRECOMPILE"):
             return
+        # a build folder reused by pip keeps the cache of earlier sources: ship only this build's
+        for stale in Path(self.build_lib, "gaitcap").rglob("__pycache__/*.nb[ic]"):
+            stale.unlink()
         # numba's in-tree cache (the package's __pycache__), not a user's NUMBA_CACHE_DIR
         env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
         # the built package first; pip's isolated build environment is found through PYTHONPATH too
