@@ -3,6 +3,7 @@ from __future__ import annotations
 import json
 import re
 
+import click
 import pytest
 from click.testing import CliRunner
 
@@ -22,13 +23,14 @@ def test_version(runner):
 
 
 def test_every_command_help_has_an_example(runner):
-    names = sorted(cli.commands)
+    ctx = click.Context(cli)
+    names = cli.list_commands(ctx)
     assert set(names) == set(COMMAND_MODULES)
     for name in names:
         result = runner.invoke(cli, [name, "--help"])
         assert result.exit_code == 0, name
         assert "Example" in result.output, name
-        sub = getattr(cli.commands[name], "commands", {})
+        sub = getattr(cli.get_command(ctx, name), "commands", {})
         for subname in sub:
             r = runner.invoke(cli, [name, subname, "--help"])
             assert r.exit_code == 0 and "Example" in r.output, f"{name} {subname}"

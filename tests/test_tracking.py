@@ -1,7 +1,9 @@
 from __future__ import annotations
 
 import csv
+import json
 import re
+import time
 
 import h5py
 import numpy as np
@@ -13,7 +15,7 @@ from gaitcap.errors import ConfigError, OutputError
 from gaitcap.io.calibration_toml import read_calibration
 from gaitcap.io.trajectories_h5 import read_trajectory
 from gaitcap.markers.motion import read_markers
-from gaitcap.pipeline import run_track
+from gaitcap.pipeline import Stages, run_track
 from gaitcap.synth.truth import read_truth
 from gaitcap.tracking.chain import subtrees
 from gaitcap.tracking.config import load_tracking_config
@@ -1016,3 +1018,26 @@ def test_recovery_searches_the_mirror_only_with_the_swap_hypothesis(embedded_ses
     est = tracker.step(observe(views, [truth.mask(c, 10) for c in rig.names]))
     assert len(widens) == searches and est.evaluations == searches
     assert widens[-1] == cfg.factored_ipf.recover_widen and widens[0] == 1.0
+
+
+def test_stages_leave_an_inner_stage_out_of_the_outer_one():
+    stages = Stages()
+    with stages.timed("outer"):
+        with stages.timed("inner"):
+            time.sleep(0.05)
+        time.sleep(0.02)
+    with stages.timed("inner"):  # a stage timed twice adds up
+        time.sleep(0.01)
+    assert list(stages) == ["inner", "outer"]
+    assert 0.06 <= stages["inner"] < 0.5
+    assert 0.02 <= stages["outer"] < 0.05 + 0.02  # not the 0.07 s it was open
+
+
+def test_track_json_records_the_stage_times(tracked_session):
+    _, out, summary = tracked_session
+    stages = json.loads((out / "track.json").read_text())["stages_s"]
+    main_thread = ["setup", "kernels", "first_frames", "initialisation", "shape", "tracking", "writing"]
+    assert set(stages) == set(main_thread) | {"background"}
+    assert all(v >= 0 for v in stages.values())
+    # the main thread's stages follow one another: together they take (nearly) the whole run
+    assert 0.8 * summary.seconds <= sum(stages[k] for k in main_thread) <= summary.seconds + 0.01

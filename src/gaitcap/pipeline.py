@@ -11,6 +11,7 @@ from __future__ import annotations
 import csv
 import io
 import logging
+import threading
 import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
@@ -66,6 +67,30 @@ class FrameTiming:
     total_s: float = 0.0
 
 
+class Stages(dict[str, float]):
+    """Wall seconds of a run's stages, in the order they were first timed (track.json's
+    ``stages_s``; scripts/bench_speed.py). A stage timed inside another is left out of the outer
+    one's time. ``background`` is timed in the prefetch thread, side by side with ``setup``,
+    ``kernels`` and ``first_frames`` (the wait for the frames buffered for initialisation)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._open = threading.local()  # per thread: the inner stages' seconds of each open stage
+
+    @contextmanager
+    def timed(self, name: str) -> Iterator[None]:
+        stack = self._open.__dict__.setdefault("stack", [])
+        stack.append(0.0)
+        t0 = time.perf_counter()
+        try:
+            yield
+        finally:
+            elapsed = time.perf_counter() - t0
+            self[name] = self.get(name, 0.0) + elapsed - stack.pop()
+            if stack:
+                stack[-1] += elapsed
+
+
 def _check_out(out: Path, force: bool) -> None:
     """Refuse an output that cannot be written (creates nothing)."""
     if is_finished(out) and not force:
@@ -104,6 +129,7 @@ def run_track(
     ``out/silhouettes.h5`` (the layout of ``gaitcap silhouettes``; ``gaitcap eval`` scores them).
     """
     t_start = time.perf_counter()
+    stages = Stages()
     session, out = Path(session), Path(out)
     cfg = load_tracking_config(config, model=load_body_model())  # names only: the height comes later
     if tracker is not None:
@@ -118,13 +144,15 @@ def run_track(
     likelihood = SilhouetteLikelihood(views, cfg.beta)
     # the videos are read and the silhouettes extracted in a worker thread, a few frames ahead
     masks = out / SILHOUETTES_FILE if save_masks else None
-    stream = Prefetched(_observations(ses, rig.names, views, sil_cfg, n_frames, masks), depth=PREFETCH_FRAMES)
+    stream = Prefetched(_observations(ses, rig.names, views, sil_cfg, n_frames, stages, masks), depth=PREFETCH_FRAMES)
+    stages["setup"] = time.perf_counter() - t_start
     with stream, kernel_threads(cfg.threads):
-        first = _first_observations(session, stream, cfg)
+        with stages.timed("first_frames"):
+            first = _first_observations(session, stream, cfg)
         check_silhouettes_meet(views, first, ses.root / CALIBRATION_FILE)
         _prepare_out(out)  # only once the inputs are known good: bad input creates nothing
         return _track_session(session, out, ses, videos, cfg, views, likelihood, first, stream, height_m, n_frames,
-                              progress, on_frame, t_start)  # fmt: skip
+                              progress, on_frame, t_start, stages)  # fmt: skip
 
 
 def _first_observations(session: Path, stream: Iterator[Observation], cfg: TrackingConfig) -> list[Observation]:
@@ -158,7 +186,7 @@ def _thread_count(n: int | None) -> int:
 
 
 def _observations(ses: Session, cams: tuple[str, ...], views, sil_cfg: SilhouetteConfig,
-                  n_frames: int, masks_path: Path | None = None) -> Iterator[Observation]:  # fmt: skip
+                  n_frames: int, stages: Stages, masks_path: Path | None = None) -> Iterator[Observation]:  # fmt: skip
     """The session's observations, frame by frame (run by the prefetch thread): each camera's
     background is fitted first, then each frame's silhouettes are extracted and prepared, with
     the row prefix sums and areas the likelihood reads. The frames' cameras are processed side by
@@ -168,7 +196,8 @@ def _observations(ses: Session, cams: tuple[str, ...], views, sil_cfg: Silhouett
     no measurable time. With ``masks_path`` the full-resolution masks are appended to that
     silhouettes HDF5 file as they come (renamed into place once the last frame is written)."""
     sources = {cam: Source(cam, ses.videos[cam], ses.backgrounds.get(cam)) for cam in cams}
-    prepared = {cam: prepare_extractor(sources[cam], sil_cfg) for cam in cams}
+    with stages.timed("background"):
+        prepared = {cam: prepare_extractor(sources[cam], sil_cfg) for cam in cams}
     extractors = {cam: p[0] for cam, p in prepared.items()}
     saving = SilhouetteWriter(masks_path, file_attrs(sil_cfg)) if masks_path is not None else nullcontext()
     with saving as writer, ThreadPoolExecutor(max_workers=len(cams), thread_name_prefix="gaitcap-camera") as pool:
@@ -200,10 +229,11 @@ def _save_masks(writer: SilhouetteWriter, t: int, sources: dict[str, Source], pr
 
 def _track_session(session: Path, out: Path, ses: Session, videos, cfg: TrackingConfig, views, likelihood,
                    first: list[Observation], stream: Iterator[Observation], height_m: float | None, n_frames: int,
-                   progress: bool, on_frame, t_start: float) -> TrackSummary:  # fmt: skip
+                   progress: bool, on_frame, t_start: float, stages: Stages) -> TrackSummary:  # fmt: skip
     """:func:`run_track` once the output folder is ready: ``first`` the buffered first frames, the
     others read from ``stream``."""
-    warm_up()
+    with stages.timed("kernels"):
+        warm_up(len(views))
     height, height_source = _height(ses, height_m)
     if height is None:
         pos = subject_positions(views, first)
@@ -217,15 +247,18 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
     filt = _new_tracker(cfg, model, likelihood)
     start, settled, shape_note = None, False, "off"
     if cfg.shape.enabled:
-        filt, start, settled, shape_note = _calibrate_shape(filt, likelihood, views, cfg, first)
+        with stages.timed("shape"):
+            filt, start, settled, shape_note = _calibrate_shape(filt, likelihood, views, cfg, first, stages)
     attrs = {"config": yaml.safe_dump(cfg.model_dump(), sort_keys=False), "tracker": cfg.tracker,
              "height_m": float(height), "height_source": height_source, "session": str(session),
              "shape": shape_note}  # fmt: skip
     writer = TrackWriter(out / "trajectories.h5", model.point_names, model.dof_names, videos.fps, attrs)
     timing = FrameTiming()
     try:
-        tracked = _track_frames(filt, likelihood, views, cfg, first, stream, writer, n_frames, progress, timing,
-                                on_frame, start, settled)  # fmt: skip
+        with stages.timed("tracking"):
+            tracked = _track_frames(filt, likelihood, views, cfg, first, stream, writer, n_frames, progress, timing,
+                                    on_frame, start, settled)  # fmt: skip
+        t_writing = time.perf_counter()
         raw, quality = writer.read_back()
         if not np.any((quality == QUALITY_OK) | (quality == QUALITY_POOR_FIT)):
             raise TrackingError(
@@ -241,12 +274,13 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
     write_joints_csv(out / "joints.csv", traj)
     write_trc(out / "joints.trc", traj, units="mm")
     n_flagged = int(np.sum(quality != QUALITY_OK))
+    stages["writing"] = time.perf_counter() - t_writing
     seconds = time.perf_counter() - t_start
     summary = TrackSummary(session=session, out=out, status="ok", n_frames=tracked, n_flagged=n_flagged,
                            seconds=seconds,
                            message=f"{cfg.tracker}: {tracked} frames, {n_flagged} flagged, "
                                    f"{1000 * timing.tracking_s / max(tracked, 1):.0f} ms/frame tracking, "
-                                   f"{tracked / seconds:.1f} frames/s end to end")  # fmt: skip
+                                   f"{tracked / seconds:.1f} frames/s end to end", stages=stages)  # fmt: skip
     write_track_json(summary)
     return summary
 
@@ -260,7 +294,8 @@ def _new_tracker(cfg: TrackingConfig, model, likelihood):
 _REPEAT_SEED_STEP = 7919
 
 
-def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[Observation]):
+def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[Observation],
+                     stages: Stages | None = None):  # fmt: skip
     """Fit the subject's proportions on the buffered first frames (gaitcap.tracking.shape).
 
     Returns the tracker to use (with the calibrated model), the pose of the first frame under it
@@ -277,8 +312,9 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
                     "tracking with the proportions of body.yaml", len(first))  # fmt: skip
         return filt, None, False, "skipped: subject not in view in the first frames"
     try:
-        init = initialise(filt, likelihood, views, first[: cfg.init.frames], cfg.init.heading_step_deg,
-                          cfg.init.refine_passes, cfg.init.widen, leg_frames=cfg.init.leg_frames)  # fmt: skip
+        with (stages or Stages()).timed("initialisation"):
+            init = initialise(filt, likelihood, views, first[: cfg.init.frames], cfg.init.heading_step_deg,
+                              cfg.init.refine_passes, cfg.init.widen, leg_frames=cfg.init.leg_frames)  # fmt: skip
     except TrackingError as e:
         log.warning("shape calibration skipped: %s", e)
         return filt, None, False, f"skipped: {e}"

@@ -6,7 +6,9 @@ folder that the next run redoes.
 
 ```json
 {"status": "ok", "n_frames": 56, "n_flagged": 0, "seconds": 12.3, "gaitcap_version": "0.1.0",
- "session": "sessions/walk01", "message": ""}
+ "session": "sessions/walk01", "message": "",
+ "stages_s": {"setup": 0.2, "kernels": 0.1, "first_frames": 1.1, "initialisation": 0.9, "shape": 5.7,
+              "tracking": 3.6, "writing": 0.3}}
 ```
 
 :class:`TrackSummary` is the contract between ``gaitcap.pipeline.run_track`` (one session) and
@@ -17,7 +19,7 @@ from __future__ import annotations
 
 import json
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -45,6 +47,8 @@ class TrackSummary:
         n_flagged: frames flagged as unreliable (NaN in the trajectories).
         seconds: wall-clock time of the run.
         message: the error for a failed run, a note otherwise.
+        stages: wall seconds of the run's stages, in their order (``stages_s`` in track.json;
+            empty when not measured): see ``gaitcap.pipeline.Stages``.
     """
 
     session: Path
@@ -54,6 +58,7 @@ class TrackSummary:
     n_flagged: int
     seconds: float
     message: str = ""
+    stages: dict[str, float] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         """The ``track.json`` document."""
@@ -65,6 +70,7 @@ class TrackSummary:
             "gaitcap_version": __version__,
             "session": str(self.session),
             "message": self.message,
+            **({"stages_s": {k: round(float(v), 3) for k, v in self.stages.items()}} if self.stages else {}),
         }
 
 

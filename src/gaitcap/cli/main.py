@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib
 import logging
 
 import click
@@ -25,7 +26,22 @@ def _setup_logging(verbose: int, quiet: bool) -> None:
     logger.propagate = False
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+class _LazyGroup(click.Group):
+    """The commands of :data:`COMMAND_MODULES`, each module imported when its command is looked up:
+    ``gaitcap track`` does not import what synth, calibrate or report need (scipy.optimize, the
+    renderer, matplotlib), and ``gaitcap --help`` only the command modules (which defer their own
+    heavy imports to the command's body)."""
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return sorted(COMMAND_MODULES)
+
+    def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
+        if name not in self.commands and name in COMMAND_MODULES:
+            self.add_command(importlib.import_module(f"gaitcap.cli.{name}").command, name)
+        return self.commands.get(name)
+
+
+@click.group(cls=_LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, "--version", prog_name="gaitcap")
 @click.option("-v", "--verbose", count=True, help="More detail (repeat for debug output).")
 @click.option("-q", "--quiet", is_flag=True, help="Only warnings and errors.")
@@ -43,16 +59,5 @@ def cli(ctx: click.Context, verbose: int, quiet: bool) -> None:
     _setup_logging(verbose, quiet)
 
 
-def _register() -> None:
-    # one line per command module; each module defines ``command``
-    import importlib
-
-    for name in COMMAND_MODULES:
-        cli.add_command(importlib.import_module(f"gaitcap.cli.{name}").command)
-
-
-# the command modules, in the order of the pipeline
+# the command modules (gaitcap.cli.NAME, each defining ``command``), in the order of the pipeline
 COMMAND_MODULES: list[str] = ["calibrate", "markers", "synth", "silhouettes", "track", "report", "eval", "demo"]
-
-
-_register()

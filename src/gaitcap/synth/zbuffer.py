@@ -13,12 +13,12 @@ the light, into a top-down grid, depth ignored.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from gaitcap.jit import cached_njit
 
 NEAR_M = 0.05  # triangles with a vertex closer to the camera than this are skipped
 
 
-@njit(cache=True)
+@cached_njit()
 def _raster(px, z, shade, tris, colors, img, zbuf, cover, use_depth):  # pragma: no cover - compiled
     H, W = zbuf.shape
     for m in range(tris.shape[0]):
@@ -88,3 +88,10 @@ def fill_triangles(shape: tuple[int, int], px: np.ndarray, tris: np.ndarray) -> 
     _raster(np.ascontiguousarray(px, np.float64), zero, zero, np.ascontiguousarray(tris, np.int64),
             np.zeros((len(tris), 3), np.float32), dummy, np.zeros(shape, np.float32), cover, False)  # fmt: skip
     return cover
+
+
+def warm_up() -> None:
+    """Compile (or load from numba's cache) the kernel with the argument types the renderer passes."""
+    img = np.zeros((4, 4, 3), np.float32)
+    draw_mesh(img, np.zeros((3, 2)), np.ones(3), np.ones(3), np.zeros((1, 3), np.int64), np.zeros((1, 3), np.float32))
+    fill_triangles((4, 4), np.zeros((3, 2)), np.zeros((1, 3), np.int64))

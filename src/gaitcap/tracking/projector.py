@@ -18,12 +18,16 @@ both against the numpy path to 1e-9.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
-from gaitcap.body.model import BodyModel
-from gaitcap.tracking.observation import TrackingView
+from gaitcap.tracking.jit import cached_njit
+
+if TYPE_CHECKING:  # annotations only: this module needs numpy and numba alone (see gaitcap.tracking.precompile)
+    from gaitcap.body.model import BodyModel
+    from gaitcap.tracking.observation import TrackingView
 
 
 @dataclass(frozen=True)
@@ -39,7 +43,7 @@ class Projected:
         return self.a[c], self.b[c], self.ra[c], self.rb[c]
 
 
-@njit(cache=True, inline="always")
+@cached_njit(inline="always")
 def _rotate(R: np.ndarray, n: int, s: int, axis: int, angle: float) -> None:
     """R[n, s] <- R[n, s] · R_axis(angle), in place (R: (N, S, 3, 3))."""
     c, sn = np.cos(angle), np.sin(angle)
@@ -50,7 +54,7 @@ def _rotate(R: np.ndarray, n: int, s: int, axis: int, angle: float) -> None:
         R[n, s, r, j] = -ri * sn + rj * c
 
 
-@njit(cache=True, inline="always")
+@cached_njit(inline="always")
 def _frames(Q, n, need, parent, origin, dof_start, dof_stop, axis, sign, trans, R, o) -> None:
     """World frames of the segments ``need`` (S,) bool (closed under parents) for pose Q[n]:
     R[n] (S, 3, 3), o[n] (S, 3), in place. The other segments are left unset.
@@ -80,13 +84,13 @@ def _frames(Q, n, need, parent, origin, dof_start, dof_stop, axis, sign, trans, 
                 _rotate(R, n, s, axis[d], sign[d] * Q[n, d])
 
 
-@njit(cache=True, inline="always")
+@cached_njit(inline="always")
 def _world(R: np.ndarray, o: np.ndarray, n: int, s: int, loc: np.ndarray, k: int, i: int) -> float:
     """Coordinate i of the point with coordinates loc[k] (3,) in segment s's frame of pose n."""
     return o[n, s, i] + R[n, s, i, 0] * loc[k, 0] + R[n, s, i, 1] * loc[k, 1] + R[n, s, i, 2] * loc[k, 2]
 
 
-@njit(parallel=True, cache=True, nogil=True)
+@cached_njit(parallel=True, nogil=True)
 def _project(Q, need, parent, origin, dof_start, dof_stop, axis, sign, trans, cap_seg, cap_a, cap_b, cap_r,
              cam_R, cam_t, cam_k):  # fmt: skip
     N, K, C, S = Q.shape[0], cap_seg.shape[0], cam_R.shape[0], parent.shape[0]
@@ -116,7 +120,7 @@ def _project(Q, need, parent, origin, dof_start, dof_stop, axis, sign, trans, ca
     return a, b, ra, rb
 
 
-@njit(parallel=True, cache=True, nogil=True)
+@cached_njit(parallel=True, nogil=True)
 def _points(Q, need, parent, origin, dof_start, dof_stop, axis, sign, trans, pt_seg, pt_local):  # fmt: skip
     N, P, S = Q.shape[0], pt_seg.shape[0], parent.shape[0]
     out = np.empty((N, P, 3))
@@ -128,6 +132,16 @@ def _points(Q, need, parent, origin, dof_start, dof_stop, axis, sign, trans, pt_
             for i in range(3):
                 out[n, p, i] = _world(R, o, n, pt_seg[p], pt_local, p, i)
     return out
+
+
+def warm_up() -> None:
+    """Compile the kernels with the argument types :class:`PoseProjector` passes, on a one-segment
+    chain (a no-op when numba's on-disk cache already holds them)."""
+    i1, f1, f2 = np.zeros(1, np.int64), np.zeros(1), np.zeros((1, 3))
+    chain = (np.full(1, -1, np.int64), f2, i1, i1 + 1, i1, f1 + 1, np.zeros(1, np.bool_))
+    Q, need = np.zeros((1, 1)), np.ones(1, np.bool_)
+    _project(Q, need, *chain, i1, f2, f2, np.ones((1, 2)), np.eye(3)[None], f2 + 1, np.ones((1, 4)))
+    _points(Q, need, *chain, i1, f2)
 
 
 class PoseProjector:

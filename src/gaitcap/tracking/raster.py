@@ -20,7 +20,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
+
+from gaitcap.tracking.jit import cached_njit
 
 
 def row_prefix(g: np.ndarray) -> np.ndarray:
@@ -32,7 +34,7 @@ def row_prefix(g: np.ndarray) -> np.ndarray:
     return out
 
 
-@njit(cache=True, inline="always")
+@cached_njit(inline="always")
 def _disc_span(y: float, cx: float, cy: float, r: float, lo: float, hi: float) -> tuple[float, float]:
     dy = y - cy
     if abs(dy) <= r:
@@ -41,7 +43,7 @@ def _disc_span(y: float, cx: float, cy: float, r: float, lo: float, hi: float) -
     return lo, hi
 
 
-@njit(cache=True, inline="always")
+@cached_njit(inline="always")
 def _edge(y: float, x0: float, y0: float, x1: float, y1: float, lo: float, hi: float) -> tuple[float, float]:
     if (y0 <= y <= y1) or (y1 <= y <= y0):
         if y1 != y0:
@@ -59,7 +61,7 @@ def _edge(y: float, x0: float, y0: float, x1: float, y1: float, lo: float, hi: f
 _G = 15
 
 
-@njit(cache=True, inline="always")
+@cached_njit(inline="always")
 def _geometry(ax: float, ay: float, bx: float, by: float, ra: float, rb: float, g: np.ndarray, k: int) -> None:
     g[k, 0], g[k, 1], g[k, 2], g[k, 3], g[k, 4], g[k, 5] = ax, ay, ra, bx, by, rb
     dx, dy = bx - ax, by - ay
@@ -74,7 +76,7 @@ def _geometry(ax: float, ay: float, bx: float, by: float, ra: float, rb: float, 
         g[k, 14] = 1.0
 
 
-@njit(cache=True, inline="always")
+@cached_njit(inline="always")
 def _span(y: float, g: np.ndarray, k: int) -> tuple[float, float]:
     """Interval [lo, hi] of x covered by capsule k (geometry table ``g``) on row y (lo > hi: empty)."""
     lo, hi = _disc_span(y, g[k, 0], g[k, 1], g[k, 2], math.inf, -math.inf)
@@ -87,7 +89,7 @@ def _span(y: float, g: np.ndarray, k: int) -> tuple[float, float]:
     return lo, hi
 
 
-@njit(cache=True, inline="always")
+@cached_njit(inline="always")
 def _clamped_int(v: float, lo: int, hi: int) -> int:
     """int(v) clamped to [lo, hi], v integral-valued; casting inf, NaN or |v| >= 2**63 to an int is
     undefined behaviour, so the clamp happens before the cast (NaN: lo)."""
@@ -98,7 +100,7 @@ def _clamped_int(v: float, lo: int, hi: int) -> int:
     return int(v)
 
 
-@njit(cache=True, inline="always")
+@cached_njit(inline="always")
 def _row_range(g: np.ndarray, k: int, H: int) -> tuple[int, int]:
     """Rows capsule k can touch, clipped to the image (empty: lo > hi); NaN or infinite ends or
     radii touch none."""
@@ -110,7 +112,7 @@ def _row_range(g: np.ndarray, k: int, H: int) -> tuple[int, int]:
             _clamped_int(math.floor(max(g[k, 1], g[k, 4]) + r), -1, H - 1))  # fmt: skip
 
 
-@njit(cache=True, inline="always")
+@cached_njit(inline="always")
 def _prepare(a, b, ra, rb, n: int, H: int, geo: np.ndarray, ylo: np.ndarray, yhi: np.ndarray) -> tuple[int, int]:
     """Geometry and row ranges of particle n's capsules; returns the rows the particle spans."""
     ymin, ymax = H, -1
@@ -123,7 +125,7 @@ def _prepare(a, b, ra, rb, n: int, H: int, geo: np.ndarray, ylo: np.ndarray, yhi
     return ymin, ymax
 
 
-@njit(cache=True, inline="always")
+@cached_njit(inline="always")
 def _row_intervals(y: int, geo, ylo, yhi, W: int, lo: np.ndarray, hi: np.ndarray) -> int:
     """The pixel intervals covered on row y, sorted by their left end; returns their count."""
     m = 0
@@ -147,7 +149,7 @@ def _row_intervals(y: int, geo, ylo, yhi, W: int, lo: np.ndarray, hi: np.ndarray
     return m
 
 
-@njit(cache=True, inline="always")
+@cached_njit(inline="always")
 def _particle_sums(a, b, ra, rb, n: int, c1, c2, geo, ylo, yhi, lo, hi) -> tuple[float, float]:
     """(sum of c1's map, sum of c2's map) over particle n's capsules, scratch arrays given (K,)."""
     H, W = c1.shape[0], c1.shape[1] - 1
@@ -170,7 +172,7 @@ def _particle_sums(a, b, ra, rb, n: int, c1, c2, geo, ylo, yhi, lo, hi) -> tuple
     return acc1, acc2
 
 
-@njit(parallel=True, cache=True, nogil=True)
+@cached_njit(parallel=True, nogil=True)
 def capsule_sums_views(a: np.ndarray, b: np.ndarray, ra: np.ndarray, rb: np.ndarray, c1s: tuple, c2s: tuple
                        ) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
     """Sums of two maps over the union of each particle's capsules, in every view, through the
@@ -190,7 +192,7 @@ def capsule_sums_views(a: np.ndarray, b: np.ndarray, ra: np.ndarray, rb: np.ndar
     return s1, s2
 
 
-@njit(cache=True, nogil=True, inline="always")
+@cached_njit(nogil=True, inline="always")
 def _free_prefixes_into(silhouette: np.ndarray, placed: np.ndarray, C1: np.ndarray, C2: np.ndarray,
                         y0: int = 0, y1: int = -1) -> None:  # fmt: skip
     """Rows y0..y1 (default: all) of :func:`free_prefixes`, written into C1, C2 (H, W + 1)."""
@@ -209,7 +211,7 @@ def _free_prefixes_into(silhouette: np.ndarray, placed: np.ndarray, C1: np.ndarr
             C2[y, x + 1] = r2
 
 
-@njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def free_prefix_rows(silhouette: np.ndarray, placed: np.ndarray, C1: np.ndarray, C2: np.ndarray, y0: int, y1: int) -> None:
     """Recompute rows y0..y1 of the :func:`free_prefixes` C1, C2 in place, after ``placed``
     changed on those rows only (y0 > y1: nothing)."""
@@ -217,7 +219,7 @@ def free_prefix_rows(silhouette: np.ndarray, placed: np.ndarray, C1: np.ndarray,
         _free_prefixes_into(silhouette, placed, C1, C2, y0, y1)
 
 
-@njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def free_prefixes(silhouette: np.ndarray, placed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Row prefix sums (H, W + 1) of silhouette x free and of free, free = 1 - placed, for
     silhouette and placed (H, W) float32, in one pass without temporaries: equal bit for bit to
@@ -230,7 +232,7 @@ def free_prefixes(silhouette: np.ndarray, placed: np.ndarray) -> tuple[np.ndarra
     return C1, C2
 
 
-@njit(parallel=True, cache=True, nogil=True)
+@cached_njit(parallel=True, nogil=True)
 def free_prefixes_views(silhouettes: tuple, placed: tuple) -> tuple[np.ndarray, np.ndarray]:
     """:func:`free_prefixes` of every view (C silhouettes and placed masks (H, W) float32, all of
     one size), the views in parallel: C1, C2 (C, H, W + 1)."""
@@ -243,7 +245,7 @@ def free_prefixes_views(silhouettes: tuple, placed: tuple) -> tuple[np.ndarray, 
     return C1, C2
 
 
-@njit(cache=True, nogil=True)
+@cached_njit(nogil=True)
 def fill_capsules(mask: np.ndarray, a: np.ndarray, b: np.ndarray, ra: np.ndarray, rb: np.ndarray,
                   value: float) -> tuple[int, int]:  # fmt: skip
     """Set the pixels of the union of one pose's capsules a, b (K, 2), ra, rb (K,) to ``value``
@@ -264,14 +266,15 @@ def fill_capsules(mask: np.ndarray, a: np.ndarray, b: np.ndarray, ra: np.ndarray
     return ymin, ymax
 
 
-def warm_up() -> None:
-    """Compile the kernel (cached on disk after the first run)."""
-    z = np.zeros((1, 1, 2))
-    r = np.ones((1, 1))
+def warm_up(n_views: int = 2) -> None:
+    """Compile the kernels for ``n_views`` views, with the argument types the tracker passes (a
+    no-op when numba's on-disk cache already holds them: see :mod:`gaitcap.tracking.precompile`)."""
+    z = np.zeros((n_views, 1, 1, 2))
+    r = np.ones((n_views, 1, 1))
     c = row_prefix(np.ones((4, 4), np.float32))
-    capsule_sums_views(z[None], z[None] + 1, r[None], r[None], (c,), (c,))
-    free_prefixes(np.ones((4, 4), np.float32), np.zeros((4, 4), np.float32))
-    free_prefixes_views((np.ones((4, 4), np.float32),) * 2, (np.zeros((4, 4), np.float32),) * 2)
-    fill_capsules(np.zeros((4, 4), np.float32), z[0], z[0] + 1, r[0], r[0], 1.0)
-    m = np.zeros((4, 4), np.float32)
+    m = np.ones((4, 4), np.float32)
+    capsule_sums_views(z, z + 1, r, r, (c,) * n_views, (c,) * n_views)
+    free_prefixes(m, m)
+    free_prefixes_views((m,) * n_views, (m,) * n_views)
+    fill_capsules(np.zeros((4, 4), np.float32), z[0, 0], z[0, 0] + 1, r[0, 0], r[0, 0], 1.0)
     free_prefix_rows(m, m, c, c, 1, 2)

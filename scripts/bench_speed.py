@@ -1,0 +1,97 @@
+"""End-to-end speed of ``gaitcap track`` on short and long clips, stage by stage, against its floor.
+
+    PYTHONPATH=src python scripts/bench_speed.py [--runs 3] [--seconds 2.5 5 20] [--fps 25]
+        [--work /tmp/gaitcap-bench] [-- extra gaitcap track options]
+
+The sessions are those of scripts/bench_memory.py: the embedded walk rendered once (2 cameras,
+640x480, ``gaitcap synth``'s defaults) and its videos looped forwards and backwards to each clip
+length. Each clip is tracked ``--runs`` times by ``python -m gaitcap -q track`` in a child process;
+the table gives the medians of:
+
+- wall: the child's wall time, start to exit; fps: frames / wall;
+- start-up: wall minus the run's own seconds (track.json): interpreter, imports, exit;
+- the stages of track.json's ``stages_s`` (gaitcap.pipeline.Stages): setup (configuration,
+  session and video checks), kernels (numba: loaded from the cache, or compiled), first frames
+  (waiting for the frames buffered for initialisation: background fitting and their silhouettes),
+  init (initialisation), shape (shape calibration), tracking (the per-frame loop), writing
+  (read-back, smoothing, CSV/TRC); background (its fitting, in the prefetch thread, overlapping
+  setup, kernels and first frames) is shown apart;
+- floor: in this process, the same decoding and silhouettes alone (gaitcap.pipeline's
+  observation stream: background fitting, decoding, extraction and preparation of every frame of
+  both cameras, side by side as in a run), and wall / floor.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from bench_memory import base_session, long_session, track_in_child  # noqa: E402
+
+from gaitcap.pipeline import Stages, _observations  # noqa: E402
+from gaitcap.session import Session  # noqa: E402
+from gaitcap.session_check import check_session_videos  # noqa: E402
+from gaitcap.silhouette.config import SilhouetteConfig  # noqa: E402
+from gaitcap.tracking.config import load_tracking_config  # noqa: E402
+from gaitcap.tracking.observation import tracking_views  # noqa: E402
+
+#: track.json's main-thread stages, in their order, and the table's headings for them
+STAGES = {"setup": "setup", "kernels": "kernels", "first_frames": "first frames", "initialisation": "init",
+          "shape": "shape", "tracking": "tracking", "writing": "writing"}  # fmt: skip
+
+
+def floor_seconds(session: Path) -> float:
+    """Wall seconds of the observation stream alone (no tracking) over the whole session."""
+    ses = Session.open(session)
+    rig = check_session_videos(ses).rig
+    views = tracking_views(rig, load_tracking_config().scale)
+    t0 = time.perf_counter()
+    frames = sum(1 for _ in _observations(ses, rig.names, views, SilhouetteConfig.load(), 10**9, Stages()))
+    if frames == 0:
+        raise SystemExit(f"{session}: no frame decoded")
+    return time.perf_counter() - t0
+
+
+def measure(session: Path, out: Path, extra: list[str]) -> dict[str, float]:
+    """One tracking run and one floor measurement of ``session``: the table's quantities."""
+    _, wall, summary = track_in_child(session, out, extra)
+    stages = summary.get("stages_s", {})
+    row = {"frames": summary["n_frames"], "wall": wall, "start-up": wall - summary["seconds"]}
+    row |= {name: stages.get(key, float("nan")) for key, name in STAGES.items()}
+    row["background"] = stages.get("background", float("nan"))
+    row["floor"] = floor_seconds(session)
+    return row
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--runs", type=int, default=3, help="runs per clip (the table gives their medians)")
+    ap.add_argument("--seconds", type=float, nargs="+", default=[2.5, 5.0, 20.0], help="clip lengths")
+    ap.add_argument("--fps", type=float, default=25.0)
+    ap.add_argument("--work", type=Path, default=Path("/tmp/gaitcap-bench"))
+    ap.add_argument("extra", nargs="*", help="options passed on to gaitcap track (after --)")
+    args = ap.parse_args()
+    source = base_session(args.work, args.fps)
+    cols = ["wall", "start-up", *STAGES.values(), "background", "floor"]
+    print(f"| clip s | frames | fps | {' | '.join(c + ' s' for c in cols)} | wall / floor |")
+    print("|" + "---|" * (len(cols) + 4))
+    for seconds in args.seconds:
+        n = int(round(seconds * args.fps))
+        session = long_session(source, args.work / f"{source.name}-{n}frames", n, args.fps)
+        runs = []
+        for k in range(args.runs):
+            runs.append(measure(session, args.work / f"{session.name}-speed-out", args.extra))
+            print(f"<!-- {seconds:g} s, run {k + 1}: wall {runs[-1]['wall']:.1f} s, floor {runs[-1]['floor']:.2f} s -->",
+                  flush=True)  # fmt: skip
+        med = {c: statistics.median(r[c] for r in runs) for c in ["frames", *cols]}
+        print(f"| {seconds:g} | {med['frames']:.0f} | {med['frames'] / med['wall']:.1f} | "
+              + " | ".join(f"{med[c]:.2f}" for c in cols) + f" | {med['wall'] / med['floor']:.0f} |", flush=True)  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
