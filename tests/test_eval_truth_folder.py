@@ -166,3 +166,9 @@ def test_track_save_masks_streams_the_silhouettes(embedded_session, tmp_path):
         masks = read_masks(h5, cam)
         assert masks.shape == (3, 480, 640) and masks[0].any()
         np.testing.assert_array_equal(masks, np.stack(expected))
+    # again into the same folder (a finished run there, --force): the frames decoded before the
+    # output folder is prepared are held, not written into a temporary file that the preparation
+    # removes as a killed run's leftover
+    run_track(ses, tmp_path / "out", config=config, progress=False, max_frames=4, save_masks=True, force=True)
+    assert read_masks(h5, cams[0]).shape == (4, 480, 640)
+    assert not list((tmp_path / "out").glob(".*.part*"))

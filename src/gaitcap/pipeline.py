@@ -15,7 +15,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
-from contextlib import contextmanager, nullcontext
+from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -143,16 +143,21 @@ def run_track(
     views = tracking_views(rig, cfg.scale)
     likelihood = SilhouetteLikelihood(views, cfg.beta)
     # the videos are read and the silhouettes extracted in a worker thread, a few frames ahead
-    masks = out / SILHOUETTES_FILE if save_masks else None
-    stream = Prefetched(_observations(ses, rig.names, views, sil_cfg, n_frames, stages, masks), depth=PREFETCH_FRAMES)
+    saver = MaskSaver(out / SILHOUETTES_FILE, file_attrs(sil_cfg)) if save_masks else None
+    stream = Prefetched(_observations(ses, rig.names, views, sil_cfg, n_frames, stages, saver), depth=PREFETCH_FRAMES)
     stages["setup"] = time.perf_counter() - t_start
     with stream, kernel_threads(cfg.threads):
         with stages.timed("first_frames"):
             first = _first_observations(session, stream, cfg)
         check_silhouettes_meet(views, first, ses.root / CALIBRATION_FILE)
         _prepare_out(out)  # only once the inputs are known good: bad input creates nothing
-        return _track_session(session, out, ses, videos, cfg, views, likelihood, first, stream, height_m, n_frames,
-                              progress, on_frame, t_start, stages)  # fmt: skip
+        if saver is not None:
+            saver.open()
+        summary = _track_session(session, out, ses, videos, cfg, views, likelihood, first, stream, height_m, n_frames,
+                                 progress, on_frame, t_start, stages)  # fmt: skip
+    if saver is not None:
+        saver.finish()
+    return summary
 
 
 def _first_observations(session: Path, stream: Iterator[Observation], cfg: TrackingConfig) -> list[Observation]:
@@ -185,35 +190,94 @@ def _thread_count(n: int | None) -> int:
     return min(n or numba.config.NUMBA_NUM_THREADS, numba.config.NUMBA_NUM_THREADS)
 
 
+class MaskSaver:
+    """Appends each frame's masks to ``OUT/silhouettes.h5`` (``track --save-masks``) once the output
+    folder is ready (:meth:`open`, called after the checks that must create nothing); the frames
+    decoded before that, the few the checks and the initialisation read, are held until then. The
+    prefetch thread adds frames and reports its end (:meth:`done`); the tracking thread renames the
+    file into place once the stream is closed (:meth:`finish`)."""
+
+    def __init__(self, path: Path, attrs: dict) -> None:
+        self.path, self.attrs = path, attrs
+        self._ready = threading.Event()
+        self._held: list[tuple[int, list]] = []
+        self._writer: SilhouetteWriter | None = None
+        self._context: tuple[dict, dict] | None = None  # (sources, prepared) of the cameras
+        self._error: BaseException | None = None
+
+    def open(self) -> None:
+        self._ready.set()
+
+    def add(self, t: int, sources: dict[str, Source], prepared: dict, masks: list) -> None:
+        """Frame ``t``'s (mask, quality) per camera, in rig order (prefetch thread)."""
+        self._context = (sources, prepared)
+        self._held.append((t, masks))
+        if self._ready.is_set():
+            self._flush()
+
+    def _flush(self) -> None:
+        if not self._held or self._context is None:
+            return
+        if self._writer is None:
+            self._writer = SilhouetteWriter(self.path, self.attrs)
+        for t, masks in self._held:
+            _save_masks(self._writer, t, *self._context, masks)
+        self._held.clear()
+
+    def done(self, error: BaseException | None) -> None:
+        """The stream ended (prefetch thread); on an error the file is removed."""
+        self._error = error
+        if error is not None and self._writer is not None:
+            self._writer.__exit__(type(error), error, None)
+            self._writer = None
+
+    def finish(self) -> None:
+        """After the stream is closed and the run succeeded: write what is held, rename into place."""
+        if self._error is not None or not self._ready.is_set():
+            return
+        self._flush()
+        if self._writer is not None:
+            self._writer.__exit__(None, None, None)
+            self._writer = None
+
+
 def _observations(ses: Session, cams: tuple[str, ...], views, sil_cfg: SilhouetteConfig,
-                  n_frames: int, stages: Stages, masks_path: Path | None = None) -> Iterator[Observation]:  # fmt: skip
+                  n_frames: int, stages: Stages, saver: MaskSaver | None = None) -> Iterator[Observation]:  # fmt: skip
     """The session's observations, frame by frame (run by the prefetch thread): each camera's
     background is fitted first, then each frame's silhouettes are extracted and prepared, with
     the row prefix sums and areas the likelihood reads. The frames' cameras are processed side by
     side, one thread each (OpenCV and numpy release the GIL); each camera's frames stay in order,
     and an error is raised for the first camera (rig order) that has one, as one after the other.
     The backgrounds are fitted one after the other: side by side, they raise the peak memory for
-    no measurable time. With ``masks_path`` the full-resolution masks are appended to that
-    silhouettes HDF5 file as they come (renamed into place once the last frame is written)."""
+    no measurable time. With ``saver`` the full-resolution masks are kept (:class:`MaskSaver`)."""
     sources = {cam: Source(cam, ses.videos[cam], ses.backgrounds.get(cam)) for cam in cams}
     with stages.timed("background"):
         prepared = {cam: prepare_extractor(sources[cam], sil_cfg) for cam in cams}
     extractors = {cam: p[0] for cam, p in prepared.items()}
-    saving = SilhouetteWriter(masks_path, file_attrs(sil_cfg)) if masks_path is not None else nullcontext()
-    with saving as writer, ThreadPoolExecutor(max_workers=len(cams), thread_name_prefix="gaitcap-camera") as pool:
-        def silhouette(c: int, image: np.ndarray) -> tuple[np.ndarray, np.ndarray, object]:
-            mask, quality = extractors[cams[c]].process(image)
-            return views[c].prepare(mask), mask, quality
+    error: BaseException | None = None
+    try:
+        with ThreadPoolExecutor(max_workers=len(cams), thread_name_prefix="gaitcap-camera") as pool:
+            def silhouette(c: int, image: np.ndarray) -> tuple[np.ndarray, np.ndarray, object]:
+                mask, quality = extractors[cams[c]].process(image)
+                return views[c].prepare(mask), mask, quality
 
-        for t, images in iter_synchronised({c: ses.videos[c] for c in cams}, 0, n_frames):
-            done = list(pool.map(silhouette, range(len(cams)), [images[c] for c in cams]))
-            if writer is not None:
-                _save_masks(writer, t, sources, prepared, [(m, q) for _, m, q in done])
-            obs = Observation([prep for prep, _, _ in done])
-            for c in range(len(cams)):
-                obs.prefix(c)
-            obs.areas  # noqa: B018 - cached here, off the tracking thread
-            yield obs
+            for t, images in iter_synchronised({c: ses.videos[c] for c in cams}, 0, n_frames):
+                done = list(pool.map(silhouette, range(len(cams)), [images[c] for c in cams]))
+                if saver is not None:
+                    saver.add(t, sources, prepared, [(m, q) for _, m, q in done])
+                obs = Observation([prep for prep, _, _ in done])
+                for c in range(len(cams)):
+                    obs.prefix(c)
+                obs.areas  # noqa: B018 - cached here, off the tracking thread
+                yield obs
+    except GeneratorExit:  # the tracking took what it needed: the frames decoded so far are kept
+        raise
+    except BaseException as e:
+        error = e
+        raise
+    finally:
+        if saver is not None:
+            saver.done(error)
 
 
 def _save_masks(writer: SilhouetteWriter, t: int, sources: dict[str, Source], prepared: dict, masks: list) -> None:
