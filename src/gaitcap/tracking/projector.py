@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numba import prange
 
-from gaitcap.tracking.jit import cached_njit
+from gaitcap.jit import cached_njit
 
 if TYPE_CHECKING:  # annotations only: this module needs numpy and numba alone (see gaitcap.tracking.precompile)
     from gaitcap.body.model import BodyModel

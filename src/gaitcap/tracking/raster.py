@@ -22,7 +22,7 @@ import math
 import numpy as np
 from numba import prange
 
-from gaitcap.tracking.jit import cached_njit
+from gaitcap.jit import cached_njit
 
 
 def row_prefix(g: np.ndarray) -> np.ndarray:
