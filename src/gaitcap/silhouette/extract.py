@@ -8,6 +8,7 @@ it has decoded (``gaitcap.video``), so the tracker can share its decoding. Typic
     for index, frame in VideoReader(path):
         mask, quality = ex.process(frame)          # (H, W) uint8 0/1, FrameQuality
     # or: for mask, quality in ex.extract(frames): ...
+    # several cameras together: evidence = ex.observe(frame); ...; ex.finish(evidence, shadow)
 
 Per pixel, at the working scale (``config.scale``), with ``B`` the background and ``g`` the
 frame's global per-channel brightness ratio to it (lighting drift and jumps):
@@ -19,7 +20,8 @@ frame's global per-channel brightness ratio to it (lighting drift and jumps):
    its normalised rgb chromaticity is within ``max_chroma`` of the background's, and, where the
    background is textured, the frame's local texture correlates with the background's
    (normalised cross-correlation >= ``min_ncc``: a shadow darkens the floor's texture, a dark
-   trouser leg replaces it);
+   trouser leg replaces it); with calibrated cameras run together (:mod:`gaitcap.silhouette.joint`)
+   these candidates are then checked on the floor across the cameras (:mod:`gaitcap.silhouette.floor`);
 3. clean-up: opening, closing; components smaller than ``min_component_fraction`` of the image
    dropped, and smaller than ``keep_relative`` of the largest dropped unless near the main
    parts (within ``keep_margin`` of their box's height: a head or a foot cut off at the neck or
@@ -260,9 +262,10 @@ class SilhouetteExtractor:
         if self._thr2 is None:  # plate without samples: one global noise level from this frame
             g = gain if self.config.background.gain_compensation else global_gain(img, self._bg)
             self._thr2 = self._threshold2(self._global_noise(img, self._bg * g.reshape(1, 1, 3)))
-        candidate = self._candidates(img, bg)
+        d2 = self._diff2(img, bg)
+        candidate = d2 > self._thr2
         shadow = self._shadow(img, bg, candidate) if self.config.shadow.enabled else np.zeros_like(candidate)
-        return FrameEvidence(img, gain, candidate, shadow, candidate | self._darker(img, bg))
+        return FrameEvidence(img, gain, candidate, shadow, candidate | self._darker(img, bg, d2))
 
     def finish(self, evidence: FrameEvidence, shadow: np.ndarray) -> tuple[np.ndarray, FrameQuality]:
         """Steps 3-4: clean-up of ``candidate & ~shadow`` and background adaptation.
@@ -307,19 +310,18 @@ class SilhouetteExtractor:
         log.debug("%s: global noise sigma %.2f grey levels (from the first frame)", self.name, sigma)
         return np.full(img.shape[:2], sigma, np.float32)
 
-    def _candidates(self, img: np.ndarray, bg: np.ndarray) -> np.ndarray:
-        """(h, w) bool: mean-square channel difference above the per-pixel threshold."""
+    @staticmethod
+    def _diff2(img: np.ndarray, bg: np.ndarray) -> np.ndarray:
+        """(h, w) float32: mean over channels of the squared difference frame - background."""
         diff = cv2.subtract(img, bg)
-        d2 = cv2.transform(cv2.multiply(diff, diff), np.full((1, 3), 1.0 / 3.0, np.float32))
-        return d2 > self._thr2
+        return cv2.transform(cv2.multiply(diff, diff), np.full((1, 3), 1.0 / 3.0, np.float32))
 
-    def _darker(self, img: np.ndarray, bg: np.ndarray) -> np.ndarray:
-        """(h, w) bool: locally darker than the background (3x3 mean brightness ratio below
-        ``shadow.max_ratio``), whether or not the difference passes the foreground threshold."""
+    def _darker(self, img: np.ndarray, bg: np.ndarray, d2: np.ndarray) -> np.ndarray:
+        """(h, w) bool: darker than the background (brightness ratio below ``shadow.max_ratio``) by
+        at least half the foreground threshold, whether or not the difference passes it."""
         ones = np.ones((1, 3), np.float32)
-        si = cv2.blur(cv2.transform(img, ones), (3, 3))
-        sb = cv2.blur(cv2.transform(bg, ones), (3, 3))
-        return si < np.float32(self.config.shadow.max_ratio) * (sb + np.float32(1.0))
+        darker = cv2.transform(img, ones) < np.float32(self.config.shadow.max_ratio) * cv2.transform(bg, ones)
+        return darker & (d2 > np.float32(0.25) * self._thr2)
 
     def _shadow(self, img: np.ndarray, bg: np.ndarray, candidate: np.ndarray) -> np.ndarray:
         """(h, w) bool: candidate pixels explained as cast shadow on the background.

@@ -57,7 +57,7 @@ def floor_points(camera: Camera, size_work: tuple[int, int]) -> np.ndarray:
     K = camera.matrix
     y = (ideal[:, 1] - K[1, 2]) / K[1, 1]
     x = (ideal[:, 0] - K[0, 2] - K[0, 1] * y) / K[0, 0]
-    rays = np.stack([x, y, np.ones_like(x)], axis=1) @ camera.R  # world directions (R^T d)
+    rays = np.einsum("nj,jk->nk", np.stack([x, y, np.ones_like(x)], axis=1), camera.R)  # world directions R^T d
     c = camera.center
     with np.errstate(divide="ignore", invalid="ignore"):
         t = -c[2] / rays[:, 2]
