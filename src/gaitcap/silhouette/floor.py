@@ -167,8 +167,14 @@ class FloorShadowCheck:
             dark = [cv2.dilate(d, self._grow) for d in dark]
         out = []
         for i, shadow in enumerate(shadows):
-            confirmed = np.zeros(shadow.shape, np.uint8)
-            for j, m in self.maps[i]:
-                confirmed |= cv2.remap(dark[j], m, None, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-            out.append(shadow & self.on_floor[i] & self.near[i] & ((confirmed > 0) | ~self.seen[i]))
+            kept = np.zeros_like(shadow)
+            x, y, w, h = cv2.boundingRect(shadow.view(np.uint8))  # only where there are candidates
+            if w and h:
+                box = np.s_[y : y + h, x : x + w]
+                confirmed = np.zeros((h, w), np.uint8)
+                for j, m in self.maps[i]:
+                    confirmed |= cv2.remap(dark[j], m[box], None, cv2.INTER_NEAREST,
+                                           borderMode=cv2.BORDER_CONSTANT, borderValue=0)  # fmt: skip
+                kept[box] = shadow[box] & self.on_floor[i][box] & self.near[i][box] & ((confirmed > 0) | ~self.seen[i][box])
+            out.append(kept)
         return out
