@@ -12,6 +12,8 @@ from gaitcap.config import model_from_mapping
 from gaitcap.errors import ConfigError, InputError
 from gaitcap.silhouette import SilhouetteConfig, SilhouetteExtractor
 from gaitcap.silhouette.extract import BORDER, EMPTY, NO_BACKGROUND, TOO_LARGE
+from gaitcap.camera import Camera
+from gaitcap.silhouette.floor import floor_map, floor_points
 from gaitcap.silhouette.joint import JointExtractor
 
 
@@ -231,3 +233,22 @@ def test_a_head_cut_off_at_a_thin_neck_is_kept_a_far_speck_is_not():
     assert mask[24, 79] == 1 and mask[70, 80] == 1
     assert mask[12, 142] == 0
     assert q.components == 2
+
+
+def test_floor_map_sends_a_floor_point_to_where_the_other_camera_sees_it():
+    cams = [
+        Camera.look_at(name, (x, -3.0, 1.4), (0.0, 0.0, 0.5), size=(160, 120), focal_px=120.0, dist=(-0.2, 0.05, 0, 0))
+        for name, x in (("a", -2.0), ("b", 1.5))
+    ]
+    points = floor_points(cams[0], (80, 60))  # half scale
+    # a pixel of the top row sees the wall region above the horizon: no floor point
+    assert np.isnan(points[0, 40]).all() and np.isfinite(points[59, 40]).all()
+    mapped = floor_map(points, cams[1], (80, 60))
+    for world in ([0.3, 0.2, 0.0], [-0.5, -1.0, 0.0]):
+        u, v = (cams[0].project(np.array(world)) + 0.5) / 2 - 0.5  # camera a, working scale
+        i, j = int(round(v)), int(round(u))
+        expected = (cams[1].project(points[i, j]) + 0.5) / 2 - 0.5
+        np.testing.assert_allclose(mapped[i, j], expected, atol=1e-3)
+        back = (cams[0].project(points[i, j]) + 0.5) / 2 - 0.5  # the floor point is on the pixel's ray
+        np.testing.assert_allclose(back, [j, i], atol=1e-3)
+        assert abs(points[i, j][2]) < 1e-9 and np.hypot(*(points[i, j][:2] - world[:2])) < 0.15  # near the point
