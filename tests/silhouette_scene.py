@@ -125,3 +125,63 @@ def iou(a: np.ndarray, b: np.ndarray) -> float:
     b = b.astype(bool)
     union = np.logical_or(a, b).sum()
     return float(np.logical_and(a, b).sum() / union) if union else 1.0
+
+
+@dataclass
+class RigScene:
+    """A calibrated scene seen by several cameras (ray-cast, so the views agree geometrically)."""
+
+    cameras: list  # gaitcap.camera.Camera, one per view
+    plates: list[np.ndarray]  # (H, W, 3) uint8 per camera
+    frames: list[np.ndarray]  # (H, W, 3) uint8 per camera, one instant
+    masks: list[np.ndarray]  # (H, W) uint8 0/1 true body per camera
+    shadows: list[np.ndarray]  # (H, W) uint8 0/1 visible floor shadow per camera
+
+
+def grey_body_rig(seed: int = 0, size: tuple[int, int] = (160, 120), noise: float = 2.0) -> RigScene:
+    """A grey upright body (a cylinder 0.4 m wide, 1.7 m tall at the origin) in front of a light grey
+    wall (plane y = 1.2 m), on a darker grey floor, with a cast shadow on the floor beside it, seen by
+    two cameras 1.5 m high. Over the wall the body is a darker grey of the same chromaticity, as a
+    shadow would be; over the floor it is lighter than the floor."""
+    from gaitcap.camera import Camera
+
+    rng = np.random.default_rng(seed)
+    cams = [
+        Camera.look_at(name, (x, -3.0, 1.5), (0.0, 0.0, 0.7), size=size, focal_px=150.0)
+        for name, x in (("left", -2.0), ("right", 2.0))
+    ]
+    wall, floor, body, depth = 160.0, 100.0, 125.0, 0.6
+    out = RigScene(cams, [], [], [], [])
+    for cam in cams:
+        w, h = cam.size
+        u, v = np.meshgrid(np.arange(w, dtype=float), np.arange(h, dtype=float))
+        x = (u - cam.matrix[0, 2]) / cam.matrix[0, 0]
+        y = (v - cam.matrix[1, 2]) / cam.matrix[1, 1]
+        d = np.stack([x, y, np.ones_like(x)], axis=-1) @ cam.R  # world ray directions
+        c = cam.center
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t_floor = np.where(d[..., 2] < 0, -c[2] / d[..., 2], np.inf)
+            t_wall = np.where(d[..., 1] > 0, (1.2 - c[1]) / d[..., 1], np.inf)
+        # cylinder x^2 + y^2 = r^2, 0 <= z <= 1.7: nearest root of a t^2 + b t + cc = 0
+        r = 0.2
+        a = d[..., 0] ** 2 + d[..., 1] ** 2
+        b = 2 * (c[0] * d[..., 0] + c[1] * d[..., 1])
+        cc = c[0] ** 2 + c[1] ** 2 - r * r
+        disc = b * b - 4 * a * cc
+        t_body = np.where(disc > 0, (-b - np.sqrt(np.maximum(disc, 0))) / (2 * a), np.inf)
+        z_body = c[2] + t_body * d[..., 2]
+        t_body = np.where((z_body >= 0) & (z_body <= 1.7), t_body, np.inf)
+        t_scene = np.minimum(t_floor, t_wall)
+        p = c + np.where(np.isfinite(t_scene), t_scene, 0)[..., None] * d
+        is_floor = t_floor < t_wall
+        shadow = is_floor & (((p[..., 0] - 0.8) / 0.5) ** 2 + ((p[..., 1] + 0.5) / 0.4) ** 2 <= 1.0)
+        plate = np.where(is_floor, floor, wall)[..., None] * np.array([0.95, 1.0, 1.05])
+        frame = plate * np.where(shadow, depth, 1.0)[..., None]
+        on_body = t_body < t_scene
+        frame[on_body] = body * np.array([0.95, 1.0, 1.05])
+        out.plates.append(np.clip(plate + rng.normal(0, noise, plate.shape), 0, 255).astype(np.uint8))
+        frame += rng.normal(0, noise, frame.shape)
+        out.frames.append(np.clip(frame, 0, 255).astype(np.uint8))
+        out.masks.append(on_body.astype(np.uint8))
+        out.shadows.append((shadow & ~on_body).astype(np.uint8))
+    return out

@@ -139,13 +139,15 @@ def test_bad_truth_folders_name_the_file(case, tmp_path):
 
 
 def test_track_save_masks_streams_the_silhouettes(embedded_session, tmp_path):
-    """``--save-masks``: silhouettes.h5 holds, per camera, the masks the extractor gives on each frame."""
+    """``--save-masks``: silhouettes.h5 holds, per camera, the masks the cameras' joint extractor gives on each frame."""
     import yaml
 
     from gaitcap.config import default_config_path
     from gaitcap.io.silhouettes_h5 import read_cameras, read_masks
     from gaitcap.pipeline import run_track
+    from gaitcap.io.calibration_toml import read_calibration
     from gaitcap.silhouette.config import SilhouetteConfig
+    from gaitcap.silhouette.joint import JointExtractor
     from gaitcap.silhouette.run import Source, prepare_extractor
     from gaitcap.video import iter_synchronised
 
@@ -159,13 +161,16 @@ def test_track_save_masks_streams_the_silhouettes(embedded_session, tmp_path):
     h5 = tmp_path / "out" / "silhouettes.h5"
     cams = read_cameras(h5)
     assert len(cams) == 2
-    for cam in cams:
-        extractor, _ = prepare_extractor(Source(cam, ses / "videos" / f"{cam}.mp4", ses / "background" / f"{cam}.png"),
-                                         SilhouetteConfig.load())  # fmt: skip
-        expected = [extractor.process(images[cam])[0] for _, images in iter_synchronised({cam: ses / "videos" / f"{cam}.mp4"}, 0, 3)]
+    rig = read_calibration(ses / "calibration.toml")
+    extractors = [prepare_extractor(Source(cam, ses / "videos" / f"{cam}.mp4", ses / "background" / f"{cam}.png"),
+                                    SilhouetteConfig.load())[0] for cam in cams]  # fmt: skip
+    joint = JointExtractor(extractors, [rig[cam] for cam in cams])
+    videos = {cam: ses / "videos" / f"{cam}.mp4" for cam in cams}
+    expected = [joint.process([images[c] for c in cams]) for _, images in iter_synchronised(videos, 0, 3)]
+    for k, cam in enumerate(cams):
         masks = read_masks(h5, cam)
         assert masks.shape == (3, 480, 640) and masks[0].any()
-        np.testing.assert_array_equal(masks, np.stack(expected))
+        np.testing.assert_array_equal(masks, np.stack([frame[k][0] for frame in expected]))
     # again into the same folder (a finished run there, --force): the frames decoded before the
     # output folder is prepared are held, not written into a temporary file that the preparation
     # removes as a killed run's leftover

@@ -3,14 +3,18 @@ from __future__ import annotations
 import itertools
 import logging
 
+import cv2
 import numpy as np
 import pytest
-from silhouette_scene import iou, sway_in_place, walk_across
+from silhouette_scene import grey_body_rig, iou, sway_in_place, walk_across
 
 from gaitcap.config import model_from_mapping
 from gaitcap.errors import ConfigError, InputError
 from gaitcap.silhouette import SilhouetteConfig, SilhouetteExtractor
 from gaitcap.silhouette.extract import BORDER, EMPTY, NO_BACKGROUND, TOO_LARGE
+from gaitcap.camera import Camera
+from gaitcap.silhouette.floor import floor_map, floor_points
+from gaitcap.silhouette.joint import JointExtractor
 
 
 @pytest.fixture(scope="module")
@@ -181,3 +185,70 @@ def test_plate_with_a_subject_who_never_leaves_the_spot():
     ex.fit_background(plate=scene.plate, samples=scene.frames[::3])
     ious = [iou(ex.process(f)[0], m) for f, m in zip(scene.frames, scene.masks)]
     assert np.mean(ious) > 0.85, np.mean(ious)
+
+
+def _rig_masks(rig, config: SilhouetteConfig, calibrated: bool = True) -> list[np.ndarray]:
+    extractors = []
+    for cam, plate in zip(rig.cameras, rig.plates):
+        ex = SilhouetteExtractor(config, name=cam.name)
+        ex.fit_background(plate=plate, samples=np.stack([plate] * 5))
+        extractors.append(ex)
+    joint = JointExtractor(extractors, rig.cameras if calibrated else None)
+    return [mask for mask, _ in joint.process(rig.frames)]
+
+
+def test_floor_check_keeps_a_grey_body_over_a_grey_wall_and_removes_the_floor_shadow():
+    rig = grey_body_rig(seed=5)
+    checked = _rig_masks(rig, SilhouetteConfig())
+    alone = _rig_masks(rig, SilhouetteConfig(), calibrated=False)
+    for c in range(2):
+        truth = rig.masks[c].astype(bool)
+        # alone, the darker grey body over the lighter grey wall passes the photometric shadow test
+        assert checked[c][truth].mean() > 0.9 > 0.6 > alone[c][truth].mean()
+        # the floor shadow, darkened in both views, stays out
+        assert checked[c][rig.shadows[c].astype(bool)].mean() < 0.05
+        assert iou(checked[c], rig.masks[c]) > 0.85
+
+
+def test_floor_check_without_the_other_camera_keeps_the_photometric_shadow():
+    rig = grey_body_rig(seed=6)
+    rig.cameras, rig.plates, rig.frames = rig.cameras[:1], rig.plates[:1], rig.frames[:1]
+    (mask,) = _rig_masks(rig, SilhouetteConfig())
+    # nobody confirms the floor shadow, so it stays a shadow; the body above the horizon is kept
+    assert mask[rig.shadows[0].astype(bool)].mean() < 0.05
+    top = np.flatnonzero(rig.masks[0].any(axis=1))[0]
+    assert mask[top + 3][rig.masks[0][top + 3].astype(bool)].mean() > 0.9
+
+
+def test_a_head_cut_off_at_a_thin_neck_is_kept_a_far_speck_is_not():
+    plate = np.full((120, 160, 3), 128, np.uint8)
+    frame = plate.copy()
+    frame[40:110, 60:100] = 30  # the body (2800 px)
+    frame[30:40, 79] = 30  # a 1-pixel neck, removed by the opening
+    cv2.circle(frame, (79, 24), 6, (30, 30, 30), -1)  # the head (about 4 % of the body)
+    frame[10:16, 140:146] = 30  # a speck away from the body (36 px)
+    ex = SilhouetteExtractor(SilhouetteConfig())
+    ex.fit_background(plate=plate)
+    mask, q = ex.process(frame)
+    assert mask[24, 79] == 1 and mask[70, 80] == 1
+    assert mask[12, 142] == 0
+    assert q.components == 2
+
+
+def test_floor_map_sends_a_floor_point_to_where_the_other_camera_sees_it():
+    cams = [
+        Camera.look_at(name, (x, -3.0, 1.4), (0.0, 0.0, 0.5), size=(160, 120), focal_px=120.0, dist=(-0.2, 0.05, 0, 0))
+        for name, x in (("a", -2.0), ("b", 1.5))
+    ]
+    points = floor_points(cams[0], (80, 60))  # half scale
+    # a pixel of the top row sees the wall region above the horizon: no floor point
+    assert np.isnan(points[0, 40]).all() and np.isfinite(points[59, 40]).all()
+    mapped = floor_map(points, cams[1], (80, 60))
+    for world in ([0.3, 0.2, 0.0], [-0.5, -1.0, 0.0]):
+        u, v = (cams[0].project(np.array(world)) + 0.5) / 2 - 0.5  # camera a, working scale
+        i, j = int(round(v)), int(round(u))
+        expected = (cams[1].project(points[i, j]) + 0.5) / 2 - 0.5
+        np.testing.assert_allclose(mapped[i, j], expected, atol=1e-3)
+        back = (cams[0].project(points[i, j]) + 0.5) / 2 - 0.5  # the floor point is on the pixel's ray
+        np.testing.assert_allclose(back, [j, i], atol=1e-3)
+        assert abs(points[i, j][2]) < 1e-9 and np.hypot(*(points[i, j][:2] - world[:2])) < 0.15  # near the point

@@ -94,7 +94,7 @@ class Camera:
     def to_camera(self, points: np.ndarray) -> np.ndarray:
         """World points (..., 3) -> camera-frame points (..., 3)."""
         pts = _as_points(points)
-        return pts @ self.R.T + self.tvec
+        return np.einsum("...j,ij->...i", pts, self.R) + self.tvec  # pts @ R.T without a BLAS call
 
     def project(self, points: np.ndarray, distort: bool = True) -> np.ndarray:
         """Project world points (..., 3) to pixels (..., 2) with OpenCV's model.

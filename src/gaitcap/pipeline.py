@@ -37,6 +37,7 @@ from gaitcap.session import CALIBRATION_FILE, Session
 from gaitcap.session_check import check_session_videos, check_silhouettes_meet
 from gaitcap.silhouette.config import SilhouetteConfig
 from gaitcap.io.silhouettes_h5 import SILHOUETTES_FILE, SilhouetteWriter
+from gaitcap.silhouette.joint import JointExtractor
 from gaitcap.silhouette.run import Source, camera_attrs, file_attrs, prepare_extractor, quality_row
 from gaitcap.track_summary import TrackSummary, is_finished, write_track_json
 from gaitcap.tracking.condensation import Condensation
@@ -246,26 +247,23 @@ def _observations(ses: Session, cams: tuple[str, ...], views, sil_cfg: Silhouett
     """The session's observations, frame by frame (run by the prefetch thread): each camera's
     background is fitted first, then each frame's silhouettes are extracted and prepared, with
     the row prefix sums and areas the likelihood reads. The frames' cameras are processed side by
-    side, one thread each (OpenCV and numpy release the GIL); each camera's frames stay in order,
+    side, one thread each (OpenCV and numpy release the GIL), with the shadows checked on the floor
+    across the cameras in between (:class:`JointExtractor`); each camera's frames stay in order,
     and an error is raised for the first camera (rig order) that has one, as one after the other.
     The backgrounds are fitted one after the other: side by side, they raise the peak memory for
     no measurable time. With ``saver`` the full-resolution masks are kept (:class:`MaskSaver`)."""
     sources = {cam: Source(cam, ses.videos[cam], ses.backgrounds.get(cam)) for cam in cams}
     with stages.timed("background"):
         prepared = {cam: prepare_extractor(sources[cam], sil_cfg) for cam in cams}
-    extractors = {cam: p[0] for cam, p in prepared.items()}
     error: BaseException | None = None
     try:
         with ThreadPoolExecutor(max_workers=len(cams), thread_name_prefix="gaitcap-camera") as pool:
-            def silhouette(c: int, image: np.ndarray) -> tuple[np.ndarray, np.ndarray, object]:
-                mask, quality = extractors[cams[c]].process(image)
-                return views[c].prepare(mask), mask, quality
-
+            joint = JointExtractor([prepared[c][0] for c in cams], [ses.rig[c] for c in cams], map_fn=pool.map)
             for t, images in iter_synchronised({c: ses.videos[c] for c in cams}, 0, n_frames):
-                done = list(pool.map(silhouette, range(len(cams)), [images[c] for c in cams]))
+                done = joint.process([images[c] for c in cams])  # (mask, quality) per camera
                 if saver is not None:
-                    saver.add(t, sources, prepared, [(m, q) for _, m, q in done])
-                obs = Observation([prep for prep, _, _ in done])
+                    saver.add(t, sources, prepared, done)
+                obs = Observation(list(pool.map(lambda c: views[c].prepare(done[c][0]), range(len(cams)))))
                 for c in range(len(cams)):
                     obs.prefix(c)
                 obs.areas  # noqa: B018 - cached here, off the tracking thread

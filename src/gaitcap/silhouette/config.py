@@ -65,6 +65,17 @@ class ShadowConfig(Strict):
         default=4.0, ge=0, description="background local std (grey levels) above which the texture test applies"
     )
     texture_window: int = Field(default=5, ge=3, le=31, description="window (pixels) of the texture test")
+    floor_check: bool = Field(
+        default=True,
+        description="with calibrated cameras, a shadow must lie on the floor and be darkened in the other cameras too",
+    )
+    floor_tolerance: int = Field(
+        default=2, ge=0, le=15, description="slack (pixels at working scale) when looking up a floor point in another camera"
+    )
+    floor_reach: float = Field(
+        default=1.0, gt=0, le=20,
+        description="with several cameras, a shadow lies within this many metres of the floor two cameras see",
+    )
 
     @model_validator(mode="after")
     def _ratios_ordered(self) -> ShadowConfig:
@@ -85,7 +96,11 @@ class CleanupConfig(Strict):
         default=0.0005, ge=0, lt=1, description="drop components smaller than this fraction of the image"
     )
     keep_relative: float = Field(
-        default=0.15, ge=0, le=1, description="keep components at least this fraction of the largest one"
+        default=0.15, ge=0, le=1, description="components at least this fraction of the largest one are main parts"
+    )
+    keep_margin: float = Field(
+        default=0.15, ge=0, le=2,
+        description="smaller components are kept within this fraction of the main parts' box height from the box",
     )
 
 

@@ -8,6 +8,7 @@ it has decoded (``gaitcap.video``), so the tracker can share its decoding. Typic
     for index, frame in VideoReader(path):
         mask, quality = ex.process(frame)          # (H, W) uint8 0/1, FrameQuality
     # or: for mask, quality in ex.extract(frames): ...
+    # several cameras together: evidence = ex.observe(frame); ...; ex.finish(evidence, shadow)
 
 Per pixel, at the working scale (``config.scale``), with ``B`` the background and ``g`` the
 frame's global per-channel brightness ratio to it (lighting drift and jumps):
@@ -19,10 +20,12 @@ frame's global per-channel brightness ratio to it (lighting drift and jumps):
    its normalised rgb chromaticity is within ``max_chroma`` of the background's, and, where the
    background is textured, the frame's local texture correlates with the background's
    (normalised cross-correlation >= ``min_ncc``: a shadow darkens the floor's texture, a dark
-   trouser leg replaces it);
-3. clean-up: opening, closing, components smaller than ``min_component_fraction`` of the image
-   or than ``keep_relative`` of the largest dropped, holes up to ``max_hole_fraction`` of
-   their component filled;
+   trouser leg replaces it); with calibrated cameras run together (:mod:`gaitcap.silhouette.joint`)
+   these candidates are then checked on the floor across the cameras (:mod:`gaitcap.silhouette.floor`);
+3. clean-up: opening, closing; components smaller than ``min_component_fraction`` of the image
+   dropped, and smaller than ``keep_relative`` of the largest dropped unless near the main
+   parts (within ``keep_margin`` of their box's height: a head or a foot cut off at the neck or
+   ankle stays); holes up to ``max_hole_fraction`` of their component filled;
 4. background adaptation: ``B <- (1 - a) B + a I / g`` where the (dilated) mask and the shadow
    are off.
 """
@@ -95,8 +98,54 @@ def _scalar(values: np.ndarray) -> tuple[float, float, float, float]:
     return (float(values[0]), float(values[1]), float(values[2]), 0.0)
 
 
+def _body_components(stats: np.ndarray, min_area: float, relative: float, margin: float) -> np.ndarray:
+    """Indices of the components that belong to the person.
+
+    The main parts are the components of at least ``relative`` of the largest one's area; a
+    smaller component is kept when it touches their common bounding box grown by ``margin`` of
+    its height on every side (a head or a foot cut off at the neck or ankle), and dropped when it
+    lies away from the body. Nothing below ``min_area`` pixels is kept.
+
+    Args:
+        stats: (n, 5) ``cv2.connectedComponentsWithStats`` rows (x, y, w, h, area), background excluded.
+        min_area: least area in pixels.
+        relative: fraction of the largest area that makes a main part.
+        margin: growth of the main parts' box, as a fraction of its height.
+
+    Returns:
+        (k,) int indices into ``stats`` of the kept components.
+    """
+    x, y, w, h, area = (stats[:, i].astype(np.float64) for i in range(5))
+    main = area >= relative * area.max()
+    x0, y0 = x[main].min(), y[main].min()
+    x1, y1 = (x + w)[main].max(), (y + h)[main].max()
+    grow = margin * (y1 - y0)
+    near = (x + w >= x0 - grow) & (x <= x1 + grow) & (y + h >= y0 - grow) & (y <= y1 + grow)
+    return np.flatnonzero((main | near) & (area >= min_area))
+
+
 def _disk(radius: int) -> np.ndarray:
     return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
+
+
+@dataclass(frozen=True)
+class FrameEvidence:
+    """One frame's per-pixel tests at working scale (h, w), before the joint step over cameras.
+
+    Attributes:
+        image: (h, w, 3) float32 frame at working scale.
+        gain: (3,) the frame's global per-channel brightness ratio to the background.
+        candidate: (h, w) bool, differs from the background by more than the threshold.
+        shadow: (h, w) bool, candidate pixels that pass this camera's cast-shadow test.
+        darkening: (h, w) bool, candidate or darker than the background (what another camera
+            looks up to confirm that a floor point is shadowed).
+    """
+
+    image: np.ndarray
+    gain: np.ndarray
+    candidate: np.ndarray
+    shadow: np.ndarray
+    darkening: np.ndarray
 
 
 class SilhouetteExtractor:
@@ -187,6 +236,19 @@ class SilhouetteExtractor:
         Returns:
             ``(mask, quality)``: mask (H, W) uint8 with 1 = person, and its :class:`FrameQuality`.
         """
+        evidence = self.observe(frame)
+        return self.finish(evidence, evidence.shadow)
+
+    def observe(self, frame: np.ndarray) -> FrameEvidence:
+        """Steps 1-2 for one frame: the per-pixel tests, before any joint step over cameras.
+
+        Args:
+            frame: (H, W, 3) uint8 BGR, the size of the background.
+
+        Returns:
+            The frame's :class:`FrameEvidence` at working scale; pass it (and its shadow map,
+            possibly re-labelled) to :meth:`finish`.
+        """
         if self._bg is None or self._full_size is None:
             raise InputError(f"{self.name}: fit_background() must be called before extracting silhouettes")
         if frame.ndim != 3 or (frame.shape[1], frame.shape[0]) != self._full_size:
@@ -200,15 +262,42 @@ class SilhouetteExtractor:
         if self._thr2 is None:  # plate without samples: one global noise level from this frame
             g = gain if self.config.background.gain_compensation else global_gain(img, self._bg)
             self._thr2 = self._threshold2(self._global_noise(img, self._bg * g.reshape(1, 1, 3)))
-        candidate = self._candidates(img, bg)
+        d2 = self._diff2(img, bg)
+        candidate = d2 > self._thr2
         shadow = self._shadow(img, bg, candidate) if self.config.shadow.enabled else np.zeros_like(candidate)
-        raw = (candidate & ~shadow).astype(np.uint8) * 255
+        return FrameEvidence(img, gain, candidate, shadow, candidate | self._darker(img, bg, d2))
+
+    def finish(self, evidence: FrameEvidence, shadow: np.ndarray) -> tuple[np.ndarray, FrameQuality]:
+        """Steps 3-4: clean-up of ``candidate & ~shadow`` and background adaptation.
+
+        Args:
+            evidence: this camera's :meth:`observe` of the frame.
+            shadow: (h, w) bool, the pixels finally taken as cast shadow.
+
+        Returns:
+            ``(mask, quality)`` as :meth:`process`.
+        """
+        raw = (evidence.candidate & ~shadow).astype(np.uint8) * 255
         mask_small, n_comp = self._clean(raw)
-        self._adapt(img, gain, mask_small, shadow)
+        self._adapt(evidence.image, evidence.gain, mask_small, shadow)
         mask = self._to_full(mask_small)
         quality = self._quality(mask, float(shadow.mean()), n_comp)
         self._count += 1
         return mask, quality
+
+    @property
+    def work_size(self) -> tuple[int, int]:
+        """(w, h) of the working scale (known once the background is fitted)."""
+        if self._work_size is None:
+            raise InputError(f"{self.name}: fit_background() must be called first")
+        return self._work_size
+
+    @property
+    def full_size(self) -> tuple[int, int]:
+        """(W, H) of the video (known once the background is fitted)."""
+        if self._full_size is None:
+            raise InputError(f"{self.name}: fit_background() must be called first")
+        return self._full_size
 
     def extract(self, frames: Iterable[np.ndarray]) -> Iterator[tuple[np.ndarray, FrameQuality]]:
         """Lazily apply :meth:`process` to each frame: yields ``(mask, quality)``."""
@@ -221,11 +310,18 @@ class SilhouetteExtractor:
         log.debug("%s: global noise sigma %.2f grey levels (from the first frame)", self.name, sigma)
         return np.full(img.shape[:2], sigma, np.float32)
 
-    def _candidates(self, img: np.ndarray, bg: np.ndarray) -> np.ndarray:
-        """(h, w) bool: mean-square channel difference above the per-pixel threshold."""
+    @staticmethod
+    def _diff2(img: np.ndarray, bg: np.ndarray) -> np.ndarray:
+        """(h, w) float32: mean over channels of the squared difference frame - background."""
         diff = cv2.subtract(img, bg)
-        d2 = cv2.transform(cv2.multiply(diff, diff), np.full((1, 3), 1.0 / 3.0, np.float32))
-        return d2 > self._thr2
+        return cv2.transform(cv2.multiply(diff, diff), np.full((1, 3), 1.0 / 3.0, np.float32))
+
+    def _darker(self, img: np.ndarray, bg: np.ndarray, d2: np.ndarray) -> np.ndarray:
+        """(h, w) bool: darker than the background (brightness ratio below ``shadow.max_ratio``) by
+        at least half the foreground threshold, whether or not the difference passes it."""
+        ones = np.ones((1, 3), np.float32)
+        darker = cv2.transform(img, ones) < np.float32(self.config.shadow.max_ratio) * cv2.transform(bg, ones)
+        return darker & (d2 > np.float32(0.25) * self._thr2)
 
     def _shadow(self, img: np.ndarray, bg: np.ndarray, candidate: np.ndarray) -> np.ndarray:
         """(h, w) bool: candidate pixels explained as cast shadow on the background.
@@ -281,9 +377,7 @@ class SilhouetteExtractor:
         n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
         if n <= 1:
             return np.zeros_like(mask), 0
-        areas = stats[1:, cv2.CC_STAT_AREA]
-        min_area = max(c.min_component_fraction * mask.size, c.keep_relative * areas.max())
-        keep = np.flatnonzero(areas >= min_area) + 1
+        keep = _body_components(stats[1:], c.min_component_fraction * mask.size, c.keep_relative, c.keep_margin) + 1
         lut = np.zeros(n, np.uint8)
         lut[keep] = 255
         mask = lut[labels]

@@ -26,12 +26,14 @@ from gaitcap.errors import InputError, OutputError
 from gaitcap.io.atomic import atomic_path
 from gaitcap.io.silhouettes_h5 import SILHOUETTES_FILE, SilhouetteWriter
 from gaitcap.io.video_write import AtomicVideoWriter as VideoWriter
+from gaitcap.camera import Camera
 from gaitcap.session import IMAGE_EXTENSIONS, VIDEO_EXTENSIONS, Session
 from gaitcap.silhouette.background import BackgroundReport
 from gaitcap.silhouette.config import SilhouetteConfig
 from gaitcap.silhouette.extract import FLAG_NAMES, FrameQuality, SilhouetteExtractor, flag_names
+from gaitcap.silhouette.joint import JointExtractor
 from gaitcap.silhouette.overlay import draw_overlay
-from gaitcap.video import VideoReader, sample_frames
+from gaitcap.video import VideoReader, iter_synchronised, sample_frames
 
 log = logging.getLogger(__name__)
 
@@ -41,11 +43,12 @@ CSV_NAME = "silhouettes_quality.csv"
 
 @dataclass(frozen=True)
 class Source:
-    """One camera's input: its video and optional empty-scene plate."""
+    """One camera's input: its video, optional empty-scene plate and optional calibration."""
 
     camera: str
     video: Path
     plate: Path | None = None
+    calibration: Camera | None = None
 
 
 @dataclass
@@ -60,9 +63,10 @@ class CameraSummary:
 
 
 def sources_from_session(root: str | Path) -> list[Source]:
-    """One :class:`Source` per camera of a session folder (plates from ``background/``)."""
+    """One :class:`Source` per camera of a session folder (plates from ``background/``, calibrations
+    from ``calibration.toml``)."""
     session = Session.open(root)
-    return [Source(cam, session.videos[cam], session.backgrounds.get(cam)) for cam in session.camera_names]
+    return [Source(cam.name, session.videos[cam.name], session.backgrounds.get(cam.name), cam) for cam in session.rig]
 
 
 def sources_from_videos(paths: Sequence[str | Path]) -> list[Source]:
@@ -134,7 +138,11 @@ def run_silhouettes(
     max_frames: int | None = None,
     progress: Callable[[str, int], None] | None = None,
 ) -> list[CameraSummary]:
-    """Extract silhouettes of every source, one camera after the other, streaming the frames.
+    """Extract silhouettes of every source, streaming the frames.
+
+    When every source has a calibration, the cameras are read frame by frame together and the
+    shadows checked on the floor across them (:class:`JointExtractor`); otherwise one camera
+    after the other.
 
     Args:
         sources: the cameras (see :func:`sources_from_session`, :func:`sources_from_videos`).
@@ -157,65 +165,76 @@ def run_silhouettes(
     _check_outputs(out, force)
     attrs = file_attrs(config)
     # prepare every camera first: bad input fails before anything is written
-    prepared = [(s, *prepare_extractor(s, config)) for s in sources]
-    summaries = []
+    prepared = [_Camera(s, *prepare_extractor(s, config)) for s in sources]
+    calibrated = all(s.calibration is not None for s in sources)
+    groups = [prepared] if calibrated else [[c] for c in prepared]
     with atomic_path(out / CSV_NAME) as csv_tmp, csv_tmp.open("w", newline="") as fh, SilhouetteWriter(
         out / H5_NAME, attrs
-    ) as writer:
+    ) as writer, contextlib.ExitStack() as stack:
         table = csv.writer(fh)
         table.writerow(["camera", "frame", "time_s", "fraction", "shadow_fraction", "components", "flags"])
-        for source, extractor, fps in prepared:
-            summaries.append(
-                _run_camera(source, extractor, fps, writer, table, out, png, overlay, max_frames, progress)
-            )
-    return summaries
+        for c in prepared:
+            c.open_outputs(writer, out, png, overlay, stack)
+        for group in groups:
+            joint = JointExtractor([c.extractor for c in group],
+                                   [c.source.calibration for c in group] if calibrated else None)  # fmt: skip
+            videos = {c.source.camera: c.source.video for c in group}
+            for index, images in iter_synchronised(videos, 0, max_frames):
+                results = joint.process([images[c.source.camera] for c in group])
+                for c, frame, (mask, q) in zip(group, (images[c.source.camera] for c in group), results):
+                    c.record(index, frame, mask, q, writer, table)
+                    if progress is not None:
+                        progress(c.source.camera, index)
+        return [c.summary() for c in prepared]  # raises, writing nothing, when a video had no frame
 
 
-def _run_camera(
-    source: Source,
-    extractor: SilhouetteExtractor,
-    fps: float,
-    writer: SilhouetteWriter,
-    table: csv.writer,  # type: ignore[valid-type]
-    out: Path,
-    png: bool,
-    overlay: bool,
-    max_frames: int | None,
-    progress: Callable[[str, int], None] | None,
-) -> CameraSummary:
-    report = extractor.report
-    if report is None:
-        raise InputError(f"{source.camera}: the background was not fitted")
-    cam = source.camera
-    with VideoReader(source.video, stop=max_frames) as video:
-        w, h = video.info.size
-        writer.add_camera(cam, w, h, extractor.background, camera_attrs(source, report, fps))
-        png_dir = out / "silhouettes" / cam
+@dataclass
+class _Camera:
+    """One camera's state while :func:`run_silhouettes` runs: its outputs and running counts."""
+
+    source: Source
+    extractor: SilhouetteExtractor
+    fps: float
+    png_dir: Path | None = None
+    overlay: VideoWriter | None = None
+    fractions: list[float] = field(default_factory=list)
+    counts: dict[str, int] = field(default_factory=lambda: dict.fromkeys(FLAG_NAMES.values(), 0))
+
+    def open_outputs(self, writer: SilhouetteWriter, out: Path, png: bool, overlay: bool,
+                     stack: contextlib.ExitStack) -> None:  # fmt: skip
+        report = self.extractor.report
+        if report is None:
+            raise InputError(f"{self.source.camera}: the background was not fitted")
+        cam = self.source.camera
+        w, h = self.extractor.full_size
+        writer.add_camera(cam, w, h, self.extractor.background, camera_attrs(self.source, report, self.fps))
         if png:
-            png_dir.mkdir(parents=True, exist_ok=True)
-        overlay_cm = VideoWriter(out / "overlay" / f"{cam}.mp4", fps, (w, h)) if overlay else contextlib.nullcontext()
-        with overlay_cm as ov:
-            fractions = []
-            counts = dict.fromkeys(FLAG_NAMES.values(), 0)
-            for index, frame in video:
-                mask, q = extractor.process(frame)
-                writer.append(cam, mask, quality_row(q))
-                table.writerow(
-                    [cam, index, f"{index / fps:.4f}" if fps else "", f"{q.fraction:.6f}",
-                     f"{q.shadow_fraction:.6f}", q.components, "|".join(q.flag_names)]
-                )
-                if png and not cv2.imwrite(str(png_dir / f"{index:06d}.png"), mask * 255):
-                    raise OutputError(f"{png_dir}: cannot write PNG masks")
-                if ov is not None:
-                    ov.write(draw_overlay(frame, mask, q))
-                fractions.append(q.fraction)
-                for name in q.flag_names:
-                    counts[name] += 1
-                if progress is not None:
-                    progress(cam, index)
-    if not fractions:
-        raise InputError(f"{source.video}: no frame decoded")
-    return CameraSummary(cam, len(fractions), report, float(np.mean(fractions)), counts)
+            self.png_dir = out / "silhouettes" / cam
+            self.png_dir.mkdir(parents=True, exist_ok=True)
+        if overlay:
+            self.overlay = stack.enter_context(VideoWriter(out / "overlay" / f"{cam}.mp4", self.fps, (w, h)))
+
+    def record(self, index: int, frame: np.ndarray, mask: np.ndarray, q: FrameQuality, writer: SilhouetteWriter,
+               table: csv.writer) -> None:  # type: ignore[valid-type]  # fmt: skip
+        cam, fps = self.source.camera, self.fps
+        writer.append(cam, mask, quality_row(q))
+        table.writerow(
+            [cam, index, f"{index / fps:.4f}" if fps else "", f"{q.fraction:.6f}",
+             f"{q.shadow_fraction:.6f}", q.components, "|".join(q.flag_names)]
+        )  # fmt: skip
+        if self.png_dir is not None and not cv2.imwrite(str(self.png_dir / f"{index:06d}.png"), mask * 255):
+            raise OutputError(f"{self.png_dir}: cannot write PNG masks")
+        if self.overlay is not None:
+            self.overlay.write(draw_overlay(frame, mask, q))
+        self.fractions.append(q.fraction)
+        for name in q.flag_names:
+            self.counts[name] += 1
+
+    def summary(self) -> CameraSummary:
+        if not self.fractions:
+            raise InputError(f"{self.source.video}: no frame decoded")
+        return CameraSummary(self.source.camera, len(self.fractions), self.extractor.report,  # type: ignore[arg-type]
+                             float(np.mean(self.fractions)), self.counts)  # fmt: skip
 
 
 def file_attrs(config: SilhouetteConfig) -> dict[str, object]:

@@ -1,0 +1,180 @@
+"""Cast shadows checked with the calibration: a shadow lies on the floor and every camera sees it.
+
+The photometric shadow test of :mod:`gaitcap.silhouette.extract` (darker, same chromaticity, same
+texture) cannot tell grey clothes over a grey floor or wall from a shadow. With calibrated
+cameras two geometric facts can:
+
+* a cast shadow lies on the floor plane z = 0, so a pixel whose ray does not meet the floor in
+  front of the camera (above the horizon) is not a floor shadow;
+* a floor shadow belongs to the floor: every camera that sees its floor point sees it darkened.
+  A point of the body above the floor, back-projected to z = 0 through camera i, lands on a
+  floor point that camera j sees elsewhere than the body (parallax), as plain floor.
+
+So a shadow candidate of camera i stays a shadow only where its ray meets the floor and at least
+one other camera that sees that floor point finds it darkened (foreground or darker than its
+background); where no other camera sees the point, camera i's photometric decision stands. With
+several cameras, a shadow must also lie near the capture area (the floor two cameras see, grown
+by ``reach``): a pixel of a wall, back-projected to the floor, lands behind the wall, outside the
+view of the other cameras, where no shadow of the person can be seen.
+
+The floor point of every working-scale pixel of camera i, projected into camera j, is computed
+once per rig (:class:`FloorShadowCheck`); each frame then costs one ``cv2.remap`` per camera pair.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import cv2
+import numpy as np
+
+from gaitcap.camera import Camera
+
+# a floor point farther than this from camera i is too near the horizon to be looked up
+_MAX_FLOOR_DISTANCE_M = 50.0
+
+
+def _work_to_full(size_work: tuple[int, int], size_full: tuple[int, int]) -> tuple[float, float]:
+    """Per-axis factors full / working pixel size."""
+    return size_full[0] / size_work[0], size_full[1] / size_work[1]
+
+
+def floor_points(camera: Camera, size_work: tuple[int, int]) -> np.ndarray:
+    """Where each working-scale pixel's ray meets the floor z = 0.
+
+    Args:
+        camera: the calibrated camera (world z up, floor z = 0).
+        size_work: (w, h) of the working-scale image.
+
+    Returns:
+        (h, w, 3) world points in metres, NaN where the ray does not meet the floor in front of
+        the camera (at or above the horizon) or meets it farther than 50 m.
+    """
+    w, h = size_work
+    fx, fy = _work_to_full(size_work, camera.size)
+    u, v = np.meshgrid((np.arange(w) + 0.5) * fx - 0.5, (np.arange(h) + 0.5) * fy - 0.5)
+    ideal = camera.undistort_pixels(np.stack([u.ravel(), v.ravel()], axis=1))
+    K = camera.matrix
+    y = (ideal[:, 1] - K[1, 2]) / K[1, 1]
+    x = (ideal[:, 0] - K[0, 2] - K[0, 1] * y) / K[0, 0]
+    rays = np.einsum("nj,jk->nk", np.stack([x, y, np.ones_like(x)], axis=1), camera.R)  # world directions R^T d
+    c = camera.center
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = -c[2] / rays[:, 2]
+    points = c + t[:, None] * rays
+    far = np.linalg.norm(points - c, axis=1) > _MAX_FLOOR_DISTANCE_M
+    points[~(t > 0) | far] = np.nan
+    return points.reshape(h, w, 3)
+
+
+def floor_map(points: np.ndarray, other: Camera, other_work: tuple[int, int]) -> np.ndarray:
+    """Working-scale pixel coordinates in camera ``other`` of floor points, for ``cv2.remap``.
+
+    Args:
+        points: (h, w, 3) floor points (NaN: none), from :func:`floor_points`.
+        other: the camera looking at them.
+        other_work: (w, h) of that camera's working-scale image.
+
+    Returns:
+        (h, w, 2) float32 coordinates; (-1, -1) (outside the image) where the point is NaN,
+        behind the camera or outside its view.
+    """
+    h, w = points.shape[:2]
+    flat = points.reshape(-1, 3)
+    full = other.project(flat)
+    # the polynomial distortion folds back far outside the view: check the ideal projection too
+    inside = other.in_image(full) & other.in_image(other.project(flat, distort=False), margin=-0.25 * max(other.size))
+    fx, fy = _work_to_full(other_work, other.size)
+    out = np.stack([(full[:, 0] + 0.5) / fx - 0.5, (full[:, 1] + 0.5) / fy - 0.5], axis=1)
+    out[~inside] = -1.0
+    return out.reshape(h, w, 2).astype(np.float32)
+
+
+_GRID_M = 0.05  # cell of the floor grid that measures the distance to the capture area
+
+
+def _near_shared_floor(points: Sequence[np.ndarray], seen: Sequence[np.ndarray], reach: float) -> list[np.ndarray]:
+    """Per camera, (h_i, w_i) bool: the pixel's floor point lies within ``reach`` metres of a floor
+    point that two cameras see. With one camera (nothing shared) every floor point counts as near.
+
+    The shared floor is rasterised on a 5 cm grid and measured with a distance transform.
+    """
+    shared = np.concatenate([p[s][:, :2] for p, s in zip(points, seen)])
+    if len(shared) == 0:
+        return [np.isfinite(p[..., 0]) for p in points]
+    lo = shared.min(axis=0) - reach - _GRID_M
+    hi = shared.max(axis=0) + reach + _GRID_M
+    shape = tuple(np.ceil((hi - lo) / _GRID_M).astype(int)[::-1])  # (rows: y, cols: x)
+    free = np.full(shape, 255, np.uint8)
+    cells = ((shared - lo) / _GRID_M).astype(int)
+    free[cells[:, 1], cells[:, 0]] = 0
+    dist = cv2.distanceTransform(free, cv2.DIST_L2, 5) * _GRID_M
+    near = []
+    for p in points:
+        xy = p[..., :2]
+        ok = np.isfinite(xy[..., 0])
+        idx = np.where(ok[..., None], (xy - lo) / _GRID_M, -1).astype(int)
+        inside = ok & (idx[..., 0] >= 0) & (idx[..., 0] < shape[1]) & (idx[..., 1] >= 0) & (idx[..., 1] < shape[0])
+        d = np.full(ok.shape, np.inf, np.float32)
+        d[inside] = dist[idx[..., 1][inside], idx[..., 0][inside]]
+        near.append(d <= reach)
+    return near
+
+
+class FloorShadowCheck:
+    """The floor geometry of a rig, to re-label shadow candidates frame by frame.
+
+    Args:
+        cameras: the calibrated cameras, in the order of the frames given to :meth:`relabel`.
+        work_sizes: (w, h) of each camera's working-scale image.
+        tolerance: pixels (working scale) by which another camera's darkening is grown before it
+            is looked up (calibration error, soft shadow edges).
+        reach: metres; with several cameras, a shadow lies within this distance of the floor that
+            two cameras see (the capture area, where the person walks).
+    """
+
+    def __init__(self, cameras: Sequence[Camera], work_sizes: Sequence[tuple[int, int]], tolerance: int = 2,
+                 reach: float = 1.0) -> None:  # fmt: skip
+        if len(cameras) != len(work_sizes):
+            raise ValueError(f"{len(cameras)} cameras but {len(work_sizes)} working sizes")
+        points = [floor_points(cam, size) for cam, size in zip(cameras, work_sizes)]
+        self.on_floor = [np.isfinite(p[..., 0]) for p in points]  # (h_i, w_i) bool each
+        self.maps: list[list[tuple[int, np.ndarray]]] = []  # camera i -> [(j, (h_i, w_i, 2) map)]
+        self.seen: list[np.ndarray] = []  # (h_i, w_i) bool: another camera sees the floor point
+        for i, p in enumerate(points):
+            maps = [(j, floor_map(p, cam, work_sizes[j])) for j, cam in enumerate(cameras) if j != i]
+            self.maps.append(maps)
+            seen = np.zeros(p.shape[:2], bool)
+            for _, m in maps:
+                seen |= m[..., 0] >= 0
+            self.seen.append(seen)
+        self.near = _near_shared_floor(points, self.seen, reach)
+        self._grow = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * tolerance + 1,) * 2) if tolerance > 0 else None
+
+    def relabel(self, shadows: Sequence[np.ndarray], darkening: Sequence[np.ndarray]) -> list[np.ndarray]:
+        """The shadow maps kept by the floor test, one per camera.
+
+        Args:
+            shadows: (h_i, w_i) bool per camera, the photometric shadow candidates.
+            darkening: (h_i, w_i) bool per camera, foreground or darker than the background.
+
+        Returns:
+            (h_i, w_i) bool per camera: candidates on the floor near the capture area that another
+            camera seeing the floor point also finds darkened, or that no other camera sees.
+        """
+        dark = [d.view(np.uint8) for d in darkening]
+        if self._grow is not None:
+            dark = [cv2.dilate(d, self._grow) for d in dark]
+        out = []
+        for i, shadow in enumerate(shadows):
+            kept = np.zeros_like(shadow)
+            x, y, w, h = cv2.boundingRect(shadow.view(np.uint8))  # only where there are candidates
+            if w and h:
+                box = np.s_[y : y + h, x : x + w]
+                confirmed = np.zeros((h, w), np.uint8)
+                for j, m in self.maps[i]:
+                    confirmed |= cv2.remap(dark[j], m[box], None, cv2.INTER_NEAREST,
+                                           borderMode=cv2.BORDER_CONSTANT, borderValue=0)  # fmt: skip
+                kept[box] = shadow[box] & self.on_floor[i][box] & self.near[i][box] & ((confirmed > 0) | ~self.seen[i][box])
+            out.append(kept)
+        return out

@@ -1,0 +1,54 @@
+"""The silhouettes of one frame of every camera together: per-camera tests, the floor-shadow
+check across cameras (:mod:`gaitcap.silhouette.floor`), then each camera's clean-up."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Sequence
+from typing import Any
+
+import numpy as np
+
+from gaitcap.camera import Camera
+from gaitcap.errors import InputError
+from gaitcap.silhouette.extract import FrameQuality, SilhouetteExtractor
+from gaitcap.silhouette.floor import FloorShadowCheck
+
+MapFn = Callable[..., Iterable[Any]]
+
+
+class JointExtractor:
+    """Fitted extractors of synchronised cameras, run frame by frame.
+
+    Args:
+        extractors: one fitted :class:`SilhouetteExtractor` per camera.
+        cameras: their calibrations in the same order, or None (no floor check: each camera alone).
+        map_fn: how the per-camera steps are mapped over the cameras (``map``, or a thread
+            pool's ``map`` to run them side by side).
+    """
+
+    def __init__(self, extractors: Sequence[SilhouetteExtractor], cameras: Sequence[Camera] | None = None,
+                 map_fn: MapFn = map) -> None:  # fmt: skip
+        self.extractors = list(extractors)
+        self._map = map_fn
+        self.floor: FloorShadowCheck | None = None
+        if cameras is None or not self.extractors:
+            return
+        if len(cameras) != len(self.extractors):
+            raise InputError(f"{len(self.extractors)} cameras to extract but {len(cameras)} calibrations")
+        for ex, cam in zip(self.extractors, cameras):
+            if ex.full_size != tuple(cam.size):
+                raise InputError(
+                    f"{ex.name}: the video is {ex.full_size[0]}x{ex.full_size[1]} but the calibration says "
+                    f"{cam.size[0]}x{cam.size[1]}"
+                )
+        s = self.extractors[0].config.shadow
+        if s.enabled and s.floor_check:
+            self.floor = FloorShadowCheck(cameras, [ex.work_size for ex in self.extractors], s.floor_tolerance, s.floor_reach)
+
+    def process(self, images: Sequence[np.ndarray]) -> list[tuple[np.ndarray, FrameQuality]]:
+        """Masks of one frame: ``images`` (H_c, W_c, 3) uint8 BGR per camera -> (mask, quality) per camera."""
+        evidence = list(self._map(lambda ex, im: ex.observe(im), self.extractors, images))
+        shadows = [e.shadow for e in evidence]
+        if self.floor is not None:
+            shadows = self.floor.relabel(shadows, [e.darkening for e in evidence])
+        return list(self._map(lambda ex, e, s: ex.finish(e, s), self.extractors, evidence, shadows))
