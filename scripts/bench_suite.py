@@ -216,9 +216,10 @@ def stats(values: list[float | None], higher_better: bool) -> tuple[float, float
     v = np.asarray([x for x in values if x is not None and not math.isnan(x)], float)
     if not len(v):
         return (math.nan,) * 3
+    # order statistics, not interpolated: a lost run (inf) among the worst 10 % makes the 90th "lost"
     if higher_better:
-        return float(np.median(v)), float(np.percentile(v, 10)), float(v.min())
-    return float(np.median(v)), float(np.percentile(v, 90)), float(v.max())
+        return float(np.median(v)), float(np.percentile(v, 10, method="lower")), float(v.min())
+    return float(np.median(v)), float(np.percentile(v, 90, method="higher")), float(v.max())
 
 
 def fmt(x: float) -> str:
@@ -276,7 +277,11 @@ def main() -> None:
     ap.add_argument("--only-external", action="store_true")
     ap.add_argument("--reuse", action="store_true", help="re-use the rows of runs that finished before (same code!)")
     ap.add_argument("--silhouettes-only", action="store_true", help="only the silhouettes' IoU (no tracking): a minute")
+    ap.add_argument("--tables", type=Path, help="print the tables of an earlier run's suite.json and stop")
     args = ap.parse_args()
+    if args.tables:
+        print_tables(json.loads(args.tables.read_text()))
+        return
     args.work.mkdir(parents=True, exist_ok=True)
     todo = [] if args.only_external else own_sessions(args)
     if not args.no_external and (SHARED / "external_sessions").is_dir():
