@@ -56,8 +56,8 @@ METRICS = (
     ("lower_mm", "lower-limb MPJPE (mm)"), ("knee_deg", "knee flexion RMSE (deg)"),
     ("swap_frames", "frames with swapped legs"), ("longest_swap", "longest swap (frames)"),
     ("iou", "silhouette IoU (mean)"), ("iou_p10", "silhouette IoU (10th pct of frames)"),
-    ("event_ms", "event timing |error| (ms)"), ("events_missed", "events missed"),
-    ("cadence_pct", "cadence |error| (%)"), ("stride_pct", "stride length |error| (%)"), ("seconds", "seconds per session"),
+    ("event_ms", "event timing abs. error (ms)"), ("events_missed", "events missed"),
+    ("cadence_pct", "cadence abs. error (%)"), ("stride_pct", "stride length abs. error (%)"), ("seconds", "seconds per session"),
 )  # fmt: skip
 HIGHER_IS_BETTER = {"iou", "iou_p10"}
 
