@@ -189,9 +189,9 @@ def own_sessions(args: argparse.Namespace) -> list[dict]:
 def external_sessions() -> list[dict]:
     base = SHARED / "external_sessions"
     rows = []
+    readme = (base / "README.md").read_text()
     for session in sorted(p for p in base.glob("*") if (p / "truth").is_dir()):
         info = json.loads((session / "truth" / "info.json").read_text())
-        readme = (base / "README.md").read_text()
         line = next((ln for ln in readme.splitlines() if f"`{session.name}`" in ln), "")
         bare = "shorts" in line
         cams = len(info.get("cameras", [])) or 2

@@ -2,9 +2,9 @@
 
 The walking direction d is the principal horizontal direction of the pelvis path (or, for a walk
 in place, the direction the subject faces). Camera i sits at azimuth theta_i from d (90 degrees:
-lateral, on the subject's left; -45 degrees: front-oblique on the right), at ``height`` metres,
-looking at the middle of the walk, and is moved back until every point of the walk, padded by the
-body's thickness, lies inside the image with a margin.
+lateral, on the subject's left; -45 degrees: front-oblique on the right), at a given distance and
+height, looking at the middle of the walk, and is zoomed so that every point of the walk, padded
+by the body's thickness, lies inside the image with a margin.
 """
 
 from __future__ import annotations
@@ -17,7 +17,6 @@ from gaitcap.camera import Camera
 
 #: default azimuths (degrees from the walking direction, positive to the subject's left)
 DEFAULT_AZIMUTHS = (90.0, -45.0, -135.0, 45.0, 180.0, -90.0, 0.0, 135.0)
-DEFAULT_DISTORTION = (-0.06, 0.015, 0.0, 0.0)
 
 
 def walking_direction(pelvis: np.ndarray, hip_l: np.ndarray, hip_r: np.ndarray) -> np.ndarray:
@@ -33,51 +32,6 @@ def walking_direction(pelvis: np.ndarray, hip_l: np.ndarray, hip_r: np.ndarray) 
     else:
         d = facing
     return np.array([d[0], d[1], 0.0]) / np.linalg.norm(d)
-
-
-def _fits(cam: Camera, pts: np.ndarray, margin: float) -> bool:
-    px = cam.project(pts)
-    return bool(np.all(cam.in_image(px, margin=margin * min(cam.size))))
-
-
-def place_cameras(
-    points: np.ndarray,
-    pelvis: np.ndarray,
-    hip_l: np.ndarray,
-    hip_r: np.ndarray,
-    n_cameras: int = 2,
-    size: tuple[int, int] = (640, 480),
-    focal_factor: float = 0.85,
-    height_m: float = 1.1,
-    azimuths_deg: Sequence[float] | None = None,
-    distortion: Sequence[float] = DEFAULT_DISTORTION,
-    margin: float = 0.04,
-) -> list[Camera]:
-    """Cameras named cam1..camN keeping ``points`` (T, P, 3) in view (see the module docstring)."""
-    azimuths = list(azimuths_deg) if azimuths_deg is not None else list(DEFAULT_AZIMUTHS[:n_cameras])
-    if len(azimuths) < n_cameras:
-        raise ValueError(f"{n_cameras} cameras need {n_cameras} azimuths, got {len(azimuths)}")
-    d = walking_direction(pelvis, hip_l, hip_r)
-    n = np.cross([0.0, 0.0, 1.0], d)  # to the subject's left
-    padded = padded_walk(points)
-    lo, hi = padded.min(axis=0), padded.max(axis=0)
-    centre = 0.5 * (lo + hi)
-    target = np.array([centre[0], centre[1], 0.5 * (hi[2] + lo[2])])
-    w, _ = size
-    cams = []
-    for i, az in enumerate(azimuths[:n_cameras]):
-        a = np.radians(az)
-        direction = np.cos(a) * d + np.sin(a) * n
-        dist = 1.5
-        while True:
-            pos = target + dist * direction
-            pos[2] = height_m
-            cam = Camera.look_at(f"cam{i + 1}", pos, target, size=size, focal_px=focal_factor * w, dist=distortion)
-            if _fits(cam, padded, margin) or dist > 30:
-                break
-            dist *= 1.05
-        cams.append(cam)
-    return cams
 
 
 def padded_walk(points: np.ndarray) -> np.ndarray:
@@ -97,7 +51,7 @@ def place_cameras_at(
     distances_m: Sequence[float],
     heights_m: Sequence[float],
     size: tuple[int, int] = (640, 480),
-    distortion: Sequence[float] = DEFAULT_DISTORTION,
+    distortion: Sequence[float] = (0.0, 0.0, 0.0, 0.0),
     margin: float = 0.04,
     min_clearance_m: float = 1.5,
 ) -> list[Camera]:

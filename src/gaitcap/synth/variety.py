@@ -25,6 +25,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from gaitcap.synth.mannequin import Build, Color, Outfit
+from gaitcap.synth.placement import DEFAULT_AZIMUTHS
 
 SKIN_TONES: tuple[Color, ...] = (
     (190, 205, 240), (160, 185, 225), (130, 160, 210), (105, 140, 190), (80, 110, 160),
@@ -219,8 +220,7 @@ def draw_cameras(rng: np.random.Generator, n_cameras: int | None) -> CameraPlan:
     """Camera azimuths, distances (3-6 m) and heights (0.8-2 m), with a jitter of +-15 degrees."""
     layouts = [lay for lay in LAYOUTS if n_cameras is None or len(lay) == n_cameras]
     if not layouts:
-        base = (90.0, -45.0, -135.0, 45.0, 180.0, -90.0, 0.0, 135.0)[:n_cameras]
-        layouts = [base]
+        layouts = [DEFAULT_AZIMUTHS[:n_cameras]]
     lay = layouts[int(rng.integers(len(layouts)))]
     az = tuple(float(a + rng.uniform(-15, 15)) for a in lay)
     return CameraPlan(
