@@ -26,6 +26,7 @@ import yaml
 from tqdm import tqdm
 
 from gaitcap import __version__
+from gaitcap.body.measures import model_lengths, outside_ranges
 from gaitcap.body.model import load_body_model
 from gaitcap.errors import OutputError, TrackingError
 from gaitcap.io.atomic import write_text_atomic
@@ -48,7 +49,7 @@ from gaitcap.tracking.ipf import IntervalPF
 from gaitcap.tracking.likelihood import SilhouetteLikelihood
 from gaitcap.tracking.observation import Observation, tracking_views
 from gaitcap.tracking.raster import warm_up
-from gaitcap.tracking.shape import ShapeResult, average_shapes, calibrate_shape
+from gaitcap.tracking.shape import ShapeResult, average_shapes, calibrate_shape, fit_shape
 from gaitcap.tracking.smoothing import lowpass
 from gaitcap.trajectory import Trajectory
 from gaitcap.video import iter_synchronised
@@ -342,7 +343,10 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
                            seconds=seconds,
                            message=f"{cfg.tracker}: {tracked} frames, {n_flagged} flagged, "
                                    f"{1000 * timing.tracking_s / max(tracked, 1):.0f} ms/frame tracking, "
-                                   f"{tracked / seconds:.1f} frames/s end to end", stages=stages)  # fmt: skip
+                                   f"{tracked / seconds:.1f} frames/s end to end", stages=stages,
+                           body={"height_m": round(float(height), 4), "height_source": height_source,
+                                 "shape": shape_note,
+                                 "segment_lengths_m": {k: round(v, 4) for k, v in model_lengths(filt.model).items()}})  # fmt: skip
     write_track_json(summary)
     return summary
 
@@ -392,10 +396,58 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
         return [tracker.step(o).q for o in first]
 
     setup = partial(numba.set_num_threads, _thread_count(cfg.threads))
+    if cfg.shape.method == "alternating":
+        result = _fit_shape(filt.model, likelihood, refit_cfg, first, poses, cfg)
+    else:
+        result = _search_shape(filt.model, likelihood, refit_cfg, first, poses, cfg, retrack, setup)
+    factors = ", ".join(f"{k} x{v:.3f}" for k, v in result.factors.items())
+    log.info("shape: %s (mean fit %.3f -> %.3f)", factors, result.fit_before, result.fit_after)
+    problems = outside_ranges(model_lengths(result.model), result.model.height_m, cfg.shape.ranges)
+    if problems:  # a body no person has: the silhouettes misled the fit
+        log.warning("shape calibration rejected, tracking with the proportions of body.yaml: %s", "; ".join(problems))
+        factors = f"rejected ({'; '.join(problems)}): {factors}"
+        result = ShapeResult(model=filt.model, start=poses[0], factors={k: 1.0 for k in result.factors},
+                             fit_before=result.fit_before, fit_after=result.fit_before)  # fmt: skip
+    tracker = _new_tracker(cfg, result.model, likelihood)
+    start = result.start
+    settled = cfg.init.leg_frames > 1
+    if settled:  # which leg is which, again, with the calibrated model
+        start = settle_legs(tracker, first[: cfg.init.leg_frames], start)
+    note = f"{factors}; mean fit {result.fit_before:.4f} -> {result.fit_after:.4f} on {len(first)} frames"
+    return tracker, start, settled, note
+
+
+def _fit_shape(model, likelihood, refit_cfg: TrackingConfig, first: list[Observation], poses, cfg: TrackingConfig
+               ) -> ShapeResult:  # fmt: skip
+    """The alternating calibration (:func:`~gaitcap.tracking.shape.fit_shape`): every re-fit of the
+    samples' poses on the same random stream, so that rounds are compared on equal terms."""
+
+    def refit(candidate, Q: np.ndarray) -> tuple[np.ndarray, float]:
+        tracker = FactoredIPF(candidate, likelihood, refit_cfg, np.random.default_rng(cfg.seed))
+        pick = np.unique(np.linspace(0, len(first) - 1, min(cfg.shape.samples, len(first))).round().astype(int))
+        out, fits = [], []
+        for i, q in zip(pick, Q):
+            tracker.start(q)
+            est = tracker.step(first[i])
+            out.append(est.q)
+            fits.append(est.fit)
+        return np.array(out), float(np.mean(fits))
+
+    sh = cfg.shape
+    return fit_shape(model, likelihood, refit, first, poses, sh.parameters, sh.limits_of(), samples=sh.samples,
+                     rounds=sh.rounds, steps=sh.steps, max_moves=sh.max_moves, random_candidates=sh.random_candidates,
+                     random_sigma=sh.random_sigma, prior_weight=sh.prior_weight, prior_sigma=sh.prior_sigma,
+                     seed=cfg.seed)  # fmt: skip
+
+
+def _search_shape(model, likelihood, refit_cfg: TrackingConfig, first: list[Observation], poses, cfg: TrackingConfig,
+                  retrack, setup) -> ShapeResult:  # fmt: skip
+    """The coordinate and random search that re-fits every candidate (``shape.method: search``),
+    ``shape.repeats`` times side by side with their own random streams, the factors averaged."""
 
     def calibrate(k: int, workers: int) -> ShapeResult:  # the k-th calibration, its own random streams
         return calibrate_shape(
-            filt.model, lambda m: FactoredIPF(m, likelihood, refit_cfg, np.random.default_rng(cfg.seed)), first,
+            model, lambda m: FactoredIPF(m, likelihood, refit_cfg, np.random.default_rng(cfg.seed)), first,
             poses, cfg.shape.parameters, cfg.shape.steps, cfg.shape.bounds, cfg.shape.samples,
             cfg.seed + _REPEAT_SEED_STEP * k, cfg.shape.max_moves, cfg.shape.planted, cfg.shape.random_candidates,
             cfg.shape.random_sigma, retrack if cfg.shape.retrack else None, workers, setup,
@@ -409,16 +461,8 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
             results = list(pool.map(lambda k: calibrate(k, 1), range(cfg.shape.repeats)))
         for r in results:
             log.info("shape, one calibration: %s", ", ".join(f"{k} x{v:.3f}" for k, v in r.factors.items()))
-        result = average_shapes(filt.model, cfg.shape.parameters, results)
-    factors = ", ".join(f"{k} x{v:.3f}" for k, v in result.factors.items())
-    log.info("shape: %s (mean fit %.3f -> %.3f)", factors, result.fit_before, result.fit_after)
-    tracker = _new_tracker(cfg, result.model, likelihood)
-    start = result.start
-    settled = cfg.init.leg_frames > 1
-    if settled:  # which leg is which, again, with the calibrated model
-        start = settle_legs(tracker, first[: cfg.init.leg_frames], start)
-    note = f"{factors}; mean fit {result.fit_before:.4f} -> {result.fit_after:.4f} on {len(first)} frames"
-    return tracker, start, settled, note
+        result = average_shapes(model, cfg.shape.parameters, results)
+    return result
 
 
 def _concurrent_kernels() -> bool:

@@ -8,7 +8,9 @@ folder that the next run redoes.
 {"status": "ok", "n_frames": 56, "n_flagged": 0, "seconds": 12.3, "gaitcap_version": "0.1.0",
  "session": "sessions/walk01", "message": "",
  "stages_s": {"setup": 0.2, "kernels": 0.1, "first_frames": 1.1, "initialisation": 0.9, "shape": 5.7,
-              "tracking": 3.6, "writing": 0.3}}
+              "tracking": 3.6, "writing": 0.3},
+ "body": {"height_m": 1.7, "height_source": "session.yaml", "shape": "pelvis_height x0.960, ...",
+          "segment_lengths_m": {"thigh": 0.41, "shank": 0.42, "leg": 0.83, ...}}}
 ```
 
 :class:`TrackSummary` is the contract between ``gaitcap.pipeline.run_track`` (one session) and
@@ -49,6 +51,8 @@ class TrackSummary:
         message: the error for a failed run, a note otherwise.
         stages: wall seconds of the run's stages, in their order (``stages_s`` in track.json;
             empty when not measured): see ``gaitcap.pipeline.Stages``.
+        body: the tracked body: height, how it was obtained, the shape calibration's note and the
+            model's segment lengths (``gaitcap.body.measures``); empty for a failed run.
     """
 
     session: Path
@@ -59,6 +63,7 @@ class TrackSummary:
     seconds: float
     message: str = ""
     stages: dict[str, float] = field(default_factory=dict)
+    body: dict[str, Any] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         """The ``track.json`` document."""
@@ -71,6 +76,7 @@ class TrackSummary:
             "session": str(self.session),
             "message": self.message,
             **({"stages_s": {k: round(float(v), 3) for k, v in self.stages.items()}} if self.stages else {}),
+            **({"body": self.body} if self.body else {}),
         }
 
 

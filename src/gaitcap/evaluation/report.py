@@ -174,13 +174,23 @@ def _silhouette_lines(ev: Evaluation) -> list[str]:
     return lines
 
 
+def _length_lines(ev: Evaluation) -> list[str]:
+    if not ev.segment_lengths:
+        return []
+    lines = [f"{'segment lengths (m)':<22}{'tracked':>8}{'ref':>8}{'diff %':>8}"]
+    for name, d in ev.segment_lengths.items():
+        lines.append(f"  {name:<20}{d['tracked_m']:>8.3f}{d['reference_m']:>8.3f}{d['diff_pct']:>+8.1f}")
+    return lines
+
+
 def format_evaluation(ev: Evaluation) -> str:
     """The readable report of an evaluation (what ``gaitcap eval`` prints)."""
     compared = ev.n_frames - ev.n_flagged - ev.n_reference_missing
     head = [f"{ev.out_source} against {ev.reference_source}",
             f"{compared} of {ev.n_frames} frames compared at {ev.rate_hz:g} Hz ({ev.n_flagged} flagged in OUT, "
             f"{ev.n_reference_missing} missing in the reference), {len(ev.points)} points"]  # fmt: skip
-    sections = [head, _positions_lines(ev), _angle_lines(ev), _event_lines(ev), _parameter_lines(ev), _silhouette_lines(ev)]
+    sections = [head, _positions_lines(ev), _angle_lines(ev), _event_lines(ev), _parameter_lines(ev), _silhouette_lines(ev),
+                _length_lines(ev)]
     if ev.notes:
         sections.append(["notes:", *(f"  {n}" for n in ev.notes)])
     if ev.failures:
