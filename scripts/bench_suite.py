@@ -152,10 +152,16 @@ def _measure(session: Path, truth: Path, truth_masks: Path, run: Path,
     swaps = d.get("left_right_swaps") or {}
     events = d.get("events") or {}
     params = (d.get("parameters") or {}).get("values") or {}
+    sides = (d.get("parameters") or {}).get("sides") or {}
 
     def pct(name: str) -> float | None:
+        """|difference| % of a parameter: the overall value, else the mean over the sides (a truth
+        may state stride length per side only, as the external sessions' parameters.json do)."""
         v = params.get(name) or {}
-        return abs(v["diff_pct"]) if v.get("diff_pct") is not None else None
+        if v.get("diff_pct") is not None:
+            return abs(v["diff_pct"])
+        per_side = [abs(s[name]["diff_pct"]) for s in sides.values() if (s.get(name) or {}).get("diff_pct") is not None]
+        return float(np.mean(per_side)) if per_side else None
 
     row.update(
         lower_mm=lower, knee_deg=float(np.mean(knees)) if knees else None, swap_frames=swaps.get("n_frames"),

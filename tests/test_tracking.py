@@ -420,6 +420,59 @@ def _short_legs_window(embedded_session):
     return wrong, make_tracker, obs, [truth.poses[t] for t in frames], parameters
 
 
+def _refit_of(make_tracker, obs):
+    """fit_shape's re-fit: one pass from each pose, the same random stream at every call."""
+
+    def refit(model, Q):
+        tracker = make_tracker(model)
+        out, fits = [], []
+        for o, q in zip(obs, Q):
+            tracker.start(q)
+            est = tracker.step(o)
+            out.append(est.q)
+            fits.append(est.fit)
+        return np.array(out), float(np.mean(fits))
+
+    return refit
+
+
+def test_alternating_calibration_lengthens_short_legs_within_their_limits(embedded_session):
+    """From a leg 12 % too short, the alternating calibration (factors at held poses, then the poses
+    re-fitted) lengthens the leg, raises the fit, stays within each parameter's limits, and with a
+    tight limit stops at it (so the limit check can fail)."""
+    from gaitcap.tracking.shape import fit_shape
+
+    wrong, make_tracker, obs, starts, parameters = _short_legs_window(embedded_session)
+    lik = make_tracker(wrong).likelihood
+    refit = _refit_of(make_tracker, obs)
+
+    def run(limits):
+        return fit_shape(wrong, lik, refit, obs, starts, parameters, limits, samples=3, rounds=2,
+                         steps=[0.08, 0.04], random_candidates=10, seed=1)  # fmt: skip
+
+    free = run({"thigh_length": (0.8, 1.25), "shank_length": (0.8, 1.25)})
+    assert free.fit_after > free.fit_before
+    assert free.factors["thigh_length"] * free.factors["shank_length"] > 1.05  # the leg lengthened
+    assert all(0.8 <= f <= 1.25 for f in free.factors.values())
+    tight = run({"thigh_length": (0.97, 1.02), "shank_length": (0.97, 1.02)})
+    assert all(0.97 <= f <= 1.02 for f in tight.factors.values())
+    assert tight.factors["thigh_length"] * tight.factors["shank_length"] < free.factors["thigh_length"] * free.factors["shank_length"]
+
+
+def test_alternating_calibration_prior_holds_the_shipped_proportions(embedded_session):
+    """A strong prior on the factors keeps them at 1 (the fit gain cannot pay for the move); a
+    round that does not raise the objective is dropped, so the result is the start."""
+    from gaitcap.tracking.shape import fit_shape
+
+    wrong, make_tracker, obs, starts, parameters = _short_legs_window(embedded_session)
+    lik = make_tracker(wrong).likelihood
+    held = fit_shape(wrong, lik, _refit_of(make_tracker, obs), obs, starts, parameters,
+                     {"thigh_length": (0.8, 1.25), "shank_length": (0.8, 1.25)}, samples=3, rounds=2,
+                     steps=[0.08, 0.04], prior_weight=10.0, prior_sigma=0.06)  # fmt: skip
+    assert held.factors == {"thigh_length": 1.0, "shank_length": 1.0}
+    assert held.fit_after == held.fit_before
+
+
 def test_random_shape_moves_only_ever_raise_the_fit(embedded_session):
     """The random stage after the coordinate search (every parameter moved at once) keeps a move
     only when it fits better: from a leg 12 % too short in both segments it lengthens the leg, it

@@ -101,13 +101,16 @@ def _check_out(out: Path, force: bool) -> None:
         raise OutputError(f"{out}: exists and is not a folder")
 
 
-def _prepare_out(out: Path) -> None:
-    """Create the output folder; a previous run in it is no longer finished."""
+def _prepare_out(out: Path, save_masks: bool = False) -> None:
+    """Create the output folder; a previous run in it is no longer finished, and its silhouettes,
+    unless this run saves its own, are removed (``gaitcap eval`` would score them as this run's)."""
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as e:
         raise OutputError(f"{out}: cannot create the output folder ({e.strerror})") from e
     (out / "track.json").unlink(missing_ok=True)  # the old run is no longer finished
+    if not save_masks:
+        (out / SILHOUETTES_FILE).unlink(missing_ok=True)
     for stale in out.glob(".*.part*"):  # temporary files of a run that was killed
         stale.unlink(missing_ok=True)
 
@@ -152,7 +155,7 @@ def run_track(
         with stages.timed("first_frames"):
             first = _first_observations(session, stream, cfg)
         check_silhouettes_meet(views, first, ses.root / CALIBRATION_FILE)
-        _prepare_out(out)  # only once the inputs are known good: bad input creates nothing
+        _prepare_out(out, save_masks)  # only once the inputs are known good: bad input creates nothing
         if saver is not None:
             saver.open()
         summary = _track_session(session, out, ses, videos, cfg, views, likelihood, first, stream, height_m, n_frames,
@@ -450,7 +453,7 @@ def _search_shape(model, likelihood, refit_cfg: TrackingConfig, first: list[Obse
             model, lambda m: FactoredIPF(m, likelihood, refit_cfg, np.random.default_rng(cfg.seed)), first,
             poses, cfg.shape.parameters, cfg.shape.steps, cfg.shape.bounds, cfg.shape.samples,
             cfg.seed + _REPEAT_SEED_STEP * k, cfg.shape.max_moves, cfg.shape.planted, cfg.shape.random_candidates,
-            cfg.shape.random_sigma, retrack if cfg.shape.retrack else None, workers, setup,
+            cfg.shape.random_sigma, retrack if cfg.shape.retrack else None, workers, setup, cfg.shape.limits_of(),
         )  # fmt: skip
 
     concurrent = (cfg.shape.workers > 1 or cfg.shape.repeats > 1) and _concurrent_kernels()
