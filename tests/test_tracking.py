@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import yaml
 
+from gaitcap.body.measures import model_lengths
 from gaitcap.body.model import load_body_model
 from gaitcap.errors import ConfigError, OutputError
 from gaitcap.io.calibration_toml import read_calibration
@@ -420,59 +421,6 @@ def _short_legs_window(embedded_session):
     return wrong, make_tracker, obs, [truth.poses[t] for t in frames], parameters
 
 
-def _refit_of(make_tracker, obs):
-    """fit_shape's re-fit: one pass from each pose, the same random stream at every call."""
-
-    def refit(model, Q):
-        tracker = make_tracker(model)
-        out, fits = [], []
-        for o, q in zip(obs, Q):
-            tracker.start(q)
-            est = tracker.step(o)
-            out.append(est.q)
-            fits.append(est.fit)
-        return np.array(out), float(np.mean(fits))
-
-    return refit
-
-
-def test_alternating_calibration_lengthens_short_legs_within_their_limits(embedded_session):
-    """From a leg 12 % too short, the alternating calibration (factors at held poses, then the poses
-    re-fitted) lengthens the leg, raises the fit, stays within each parameter's limits, and with a
-    tight limit stops at it (so the limit check can fail)."""
-    from gaitcap.tracking.shape import fit_shape
-
-    wrong, make_tracker, obs, starts, parameters = _short_legs_window(embedded_session)
-    lik = make_tracker(wrong).likelihood
-    refit = _refit_of(make_tracker, obs)
-
-    def run(limits):
-        return fit_shape(wrong, lik, refit, obs, starts, parameters, limits, samples=3, rounds=2,
-                         steps=[0.08, 0.04], random_candidates=10, seed=1)  # fmt: skip
-
-    free = run({"thigh_length": (0.8, 1.25), "shank_length": (0.8, 1.25)})
-    assert free.fit_after > free.fit_before
-    assert free.factors["thigh_length"] * free.factors["shank_length"] > 1.05  # the leg lengthened
-    assert all(0.8 <= f <= 1.25 for f in free.factors.values())
-    tight = run({"thigh_length": (0.97, 1.02), "shank_length": (0.97, 1.02)})
-    assert all(0.97 <= f <= 1.02 for f in tight.factors.values())
-    assert tight.factors["thigh_length"] * tight.factors["shank_length"] < free.factors["thigh_length"] * free.factors["shank_length"]
-
-
-def test_alternating_calibration_prior_holds_the_shipped_proportions(embedded_session):
-    """A strong prior on the factors keeps them at 1 (the fit gain cannot pay for the move); a
-    round that does not raise the objective is dropped, so the result is the start."""
-    from gaitcap.tracking.shape import fit_shape
-
-    wrong, make_tracker, obs, starts, parameters = _short_legs_window(embedded_session)
-    lik = make_tracker(wrong).likelihood
-    held = fit_shape(wrong, lik, _refit_of(make_tracker, obs), obs, starts, parameters,
-                     {"thigh_length": (0.8, 1.25), "shank_length": (0.8, 1.25)}, samples=3, rounds=2,
-                     steps=[0.08, 0.04], prior_weight=10.0, prior_sigma=0.06)  # fmt: skip
-    assert held.factors == {"thigh_length": 1.0, "shank_length": 1.0}
-    assert held.fit_after == held.fit_before
-
-
 def test_random_shape_moves_only_ever_raise_the_fit(embedded_session):
     """The random stage after the coordinate search (every parameter moved at once) keeps a move
     only when it fits better: from a leg 12 % too short in both segments it lengthens the leg, it
@@ -737,6 +685,30 @@ def test_track_with_shape_calibration_records_it(embedded_session, tmp_path):
     with h5py.File(tmp_path / "out" / "trajectories.h5") as f:
         note = f.attrs["shape"]
     assert note.startswith("thigh_length x") and "mean fit" in note
+    body = json.loads((tmp_path / "out" / "track.json").read_text())["body"]
+    assert body["shape"] == note and body["height_source"] == "session.yaml"
+    factor = float(note.split(" x")[1].split(";")[0])
+    shipped = model_lengths(load_body_model(height_m=body["height_m"]))
+    assert body["segment_lengths_m"]["thigh"] == pytest.approx(shipped["thigh"] * factor, abs=1e-4)
+    assert body["segment_lengths_m"]["shank"] == pytest.approx(shipped["shank"], abs=1e-4)
+
+
+def test_calibrated_body_outside_the_ranges_is_rejected(embedded_session, tmp_path, caplog):
+    """A calibrated body whose leg is outside shape.ranges (here a range no body meets) is not
+    tracked: the shipped proportions are, the log warns and track.json says why."""
+    data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
+    data["shape"].update(enabled=True, frames=4, samples=2, steps=[0.08], random_candidates=0, repeats=1,
+                         ranges={"leg": [0.1, 0.2]})  # fmt: skip
+    data["shape"]["parameters"] = {"thigh_length": ["thigh_l.z", "thigh_r.z"]}
+    data["factored_ipf"].update(particles=60, root_particles=150)
+    config = tmp_path / "tracking.yaml"
+    config.write_text(yaml.safe_dump(data))
+    run_track(embedded_session.session, tmp_path / "out", config=config, progress=False, max_frames=5)
+    body = json.loads((tmp_path / "out" / "track.json").read_text())["body"]
+    assert body["shape"].startswith("rejected (leg ") and "outside 0.10-0.20" in body["shape"]
+    shipped = model_lengths(load_body_model(height_m=body["height_m"]))
+    assert body["segment_lengths_m"]["leg"] == pytest.approx(shipped["leg"], abs=1e-4)
+    assert "shape calibration rejected" in caplog.text
 
 
 def test_kernel_threads_are_set_capped_and_restored(tmp_path):

@@ -49,7 +49,7 @@ from gaitcap.tracking.ipf import IntervalPF
 from gaitcap.tracking.likelihood import SilhouetteLikelihood
 from gaitcap.tracking.observation import Observation, tracking_views
 from gaitcap.tracking.raster import warm_up
-from gaitcap.tracking.shape import ShapeResult, average_shapes, calibrate_shape, fit_shape
+from gaitcap.tracking.shape import ShapeResult, average_shapes, calibrate_shape
 from gaitcap.tracking.smoothing import lowpass
 from gaitcap.trajectory import Trajectory
 from gaitcap.video import iter_synchronised
@@ -399,10 +399,7 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
         return [tracker.step(o).q for o in first]
 
     setup = partial(numba.set_num_threads, _thread_count(cfg.threads))
-    if cfg.shape.method == "alternating":
-        result = _fit_shape(filt.model, likelihood, refit_cfg, first, poses, cfg)
-    else:
-        result = _search_shape(filt.model, likelihood, refit_cfg, first, poses, cfg, retrack, setup)
+    result = _search_shape(filt.model, likelihood, refit_cfg, first, poses, cfg, retrack, setup)
     factors = ", ".join(f"{k} x{v:.3f}" for k, v in result.factors.items())
     log.info("shape: %s (mean fit %.3f -> %.3f)", factors, result.fit_before, result.fit_after)
     problems = outside_ranges(model_lengths(result.model), result.model.height_m, cfg.shape.ranges)
@@ -418,29 +415,6 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
         start = settle_legs(tracker, first[: cfg.init.leg_frames], start)
     note = f"{factors}; mean fit {result.fit_before:.4f} -> {result.fit_after:.4f} on {len(first)} frames"
     return tracker, start, settled, note
-
-
-def _fit_shape(model, likelihood, refit_cfg: TrackingConfig, first: list[Observation], poses, cfg: TrackingConfig
-               ) -> ShapeResult:  # fmt: skip
-    """The alternating calibration (:func:`~gaitcap.tracking.shape.fit_shape`): every re-fit of the
-    samples' poses on the same random stream, so that rounds are compared on equal terms."""
-
-    def refit(candidate, Q: np.ndarray) -> tuple[np.ndarray, float]:
-        tracker = FactoredIPF(candidate, likelihood, refit_cfg, np.random.default_rng(cfg.seed))
-        pick = np.unique(np.linspace(0, len(first) - 1, min(cfg.shape.samples, len(first))).round().astype(int))
-        out, fits = [], []
-        for i, q in zip(pick, Q):
-            tracker.start(q)
-            est = tracker.step(first[i])
-            out.append(est.q)
-            fits.append(est.fit)
-        return np.array(out), float(np.mean(fits))
-
-    sh = cfg.shape
-    return fit_shape(model, likelihood, refit, first, poses, sh.parameters, sh.limits_of(), samples=sh.samples,
-                     rounds=sh.rounds, steps=sh.steps, max_moves=sh.max_moves, random_candidates=sh.random_candidates,
-                     random_sigma=sh.random_sigma, prior_weight=sh.prior_weight, prior_sigma=sh.prior_sigma,
-                     seed=cfg.seed)  # fmt: skip
 
 
 def _search_shape(model, likelihood, refit_cfg: TrackingConfig, first: list[Observation], poses, cfg: TrackingConfig,

@@ -84,15 +84,8 @@ def parse_target(target: str, parameter: str = "") -> tuple[str, int, float]:
 
 class ShapeConfig(Strict):
     enabled: bool = False
-    #: 'alternating': the factors searched with the poses held, then the poses re-fitted, for
-    #: ``rounds`` rounds (tracking/shape.py fit_shape); 'search': every candidate re-fitted
-    method: Literal["alternating", "search"] = "alternating"
-    rounds: int = Field(default=3, ge=1, le=20)
     #: per-parameter (low, high) range of the factor, overriding ``bounds``
     limits: dict[str, tuple[float, float]] = Field(default_factory=dict)
-    #: prior on the factors: J = fit - prior_weight / 2 * sum_j (ln f_j / prior_sigma)^2
-    prior_weight: float = Field(default=0.0, ge=0.0)
-    prior_sigma: float = Field(default=0.06, gt=0.0, le=1.0)
     #: accepted (low, high) ratio of each calibrated length to the height (gaitcap.body.measures
     #: names); a calibrated body outside them is rejected and the shipped proportions are tracked
     ranges: dict[str, tuple[float, float]] = Field(default_factory=dict)

@@ -49,9 +49,7 @@ import numpy as np
 from gaitcap.body.model import BodyModel
 from gaitcap.tracking.base import Tracker
 from gaitcap.tracking.config import parse_target
-from gaitcap.tracking.likelihood import SilhouetteLikelihood
 from gaitcap.tracking.observation import Observation
-from gaitcap.tracking.projector import Projected
 
 log = logging.getLogger("gaitcap.tracking.shape")
 
@@ -212,125 +210,6 @@ def calibrate_shape(
                     break
         return ShapeResult(model=_scaled(model, parameters, factors), start=current[0], factors=factors,
                            fit_before=fit_before, fit_after=best_fit)
-
-
-def fits_at(likelihood: SilhouetteLikelihood, model: BodyModel, poses: np.ndarray,
-            observations: list[Observation]) -> np.ndarray:  # fmt: skip
-    """The fit (1 - xor/|S|, mean over the cameras) of ``model`` at each pose (N, D) against its own
-    observation (N of them): shape (N,). The numpy projection: one pose per frame, for any model."""
-    A, B, radii = model.capsules(poses)
-    proj = likelihood.projected(A, B, radii)
-    out = np.empty(len(observations))
-    for k, obs in enumerate(observations):
-        one = Projected(*(np.ascontiguousarray(x[:, k : k + 1]) for x in (proj.a, proj.b, proj.ra, proj.rb)))
-        out[k] = likelihood.fit_of(obs, one)[0]
-    return out
-
-
-@dataclass
-class _Search:
-    """The shape step's state: factors, the poses planted for them, the objective J."""
-
-    factors: dict[str, float]
-    poses: np.ndarray  # (K, D)
-    score: float
-
-
-def fit_shape(
-    model: BodyModel,
-    likelihood: SilhouetteLikelihood,
-    refit: Callable[[BodyModel, np.ndarray], tuple[np.ndarray, float]],
-    observations: list[Observation],
-    poses: list[np.ndarray],
-    parameters: dict[str, list[str]],
-    limits: dict[str, tuple[float, float]],
-    *,
-    samples: int,
-    rounds: int,
-    steps: list[float],
-    max_moves: int = 3,
-    random_candidates: int = 0,
-    random_sigma: float = 0.03,
-    prior_weight: float = 0.0,
-    prior_sigma: float = 0.06,
-    seed: int = 0,
-) -> ShapeResult:
-    """Alternating shape calibration: the factors fitted at fixed poses, then the poses re-fitted.
-
-    ``samples`` frames spread over the tracked window (``observations``, ``poses``) are scored. Each
-    of ``rounds`` rounds:
-
-    1. shape step: the factors p maximise J(p) = F(p) - prior(p) with the poses held, where
-       F(p) = mean_k fit(M(p), x_k planted) (:func:`planted_poses`: the lowest point stays on
-       the floor) and prior(p) = prior_weight / 2 * sum_j (ln p_j / prior_sigma)^2 (the shipped
-       proportions are the population's; each factor also stays within ``limits[j]``). A
-       coordinate search (each parameter by ``steps``, up to ``max_moves`` moves while J
-       improves), then ``random_candidates`` moves of every factor at once, p_j exp(sigma z_j).
-       Each candidate costs one projection per frame, not a re-fit: thousands fit in a second;
-    2. pose step: ``refit`` (model, poses (K, D)) -> (poses, mean fit) re-fits the samples' poses
-       from where they are with the new proportions (one factored pass each).
-
-    A round whose re-fitted J is not better than the previous round's ends the search and its
-    shape is dropped. ``refit`` should use the same random stream at every call (paired scores).
-    """
-    if len(observations) != len(poses) or not observations:
-        raise ValueError("fit_shape needs one pose per observation")
-    pick = np.unique(np.linspace(0, len(observations) - 1, min(samples, len(observations))).round().astype(int))
-    obs = [observations[i] for i in pick]
-    rng = np.random.default_rng([seed, 2])
-
-    def prior(factors: dict[str, float]) -> float:
-        z = np.log(np.array(list(factors.values()))) / prior_sigma
-        return 0.5 * prior_weight * float(np.sum(z * z))
-
-    def inside(factors: dict[str, float]) -> bool:
-        return all(limits[k][0] <= f <= limits[k][1] for k, f in factors.items())
-
-    def shape_step(start: _Search) -> _Search:
-        held = _scaled(model, parameters, start.factors)
-
-        def score(trial: dict[str, float]) -> _Search | None:
-            if not inside(trial):
-                return None
-            candidate = _scaled(model, parameters, trial)
-            Q = np.array(planted_poses(held, candidate, list(start.poses)))
-            return _Search(trial, Q, float(np.mean(fits_at(likelihood, candidate, Q, obs))) - prior(trial))
-
-        best = score(start.factors) or start
-        for delta in steps:
-            for name in parameters:
-                for direction in (-1, 1):
-                    moves = 0
-                    while moves < max_moves:
-                        tried = score({**best.factors, name: best.factors[name] * (1 + direction * delta)})
-                        if tried is None or tried.score <= best.score:
-                            break
-                        best, moves = tried, moves + 1
-                    if moves:
-                        break  # the other direction cannot improve as well
-        for _ in range(random_candidates):
-            trial = {k: f * float(np.exp(random_sigma * rng.standard_normal())) for k, f in best.factors.items()}
-            tried = score(trial)
-            if tried is not None and tried.score > best.score:
-                best = tried
-        return best
-
-    factors = {name: 1.0 for name in parameters}
-    Q, fit = refit(model, np.array([poses[i] for i in pick]))
-    fit_before = fit
-    current = _Search(factors, Q, fit - prior(factors))
-    for round_index in range(rounds):
-        moved = shape_step(current)
-        if moved.factors == current.factors:
-            break
-        Q, fit_moved = refit(_scaled(model, parameters, moved.factors), moved.poses)
-        j = fit_moved - prior(moved.factors)
-        log.debug("shape round %d: J %.4f -> %.4f (fit %.4f)", round_index, current.score, j, fit_moved)
-        if j <= current.score:
-            break
-        current, fit = _Search(moved.factors, Q, j), fit_moved
-    return ShapeResult(model=_scaled(model, parameters, current.factors), start=current.poses[0],
-                       factors=current.factors, fit_before=fit_before, fit_after=fit)  # fmt: skip
 
 
 def average_shapes(model: BodyModel, parameters: dict[str, list[str]], results: list[ShapeResult]) -> ShapeResult:
