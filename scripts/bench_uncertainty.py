@@ -130,8 +130,8 @@ def load_run(row: dict, run: Path, cfg: TrackingConfig) -> Run:
     res = np.maximum(point_residuals(raw, rate, cfg.uncertainty.cutoff_hz), cfg.uncertainty.min_residual_m)
     floor = abs(s.floor_m) if np.isfinite(s.floor_m) else 0.0
     T, P = res.shape
-    terms = np.stack([np.log(res), np.broadcast_to(1 - fit[:, None], (T, P)), np.full((T, P), s.crossed_fraction),
-                      np.full((T, P), floor), np.broadcast_to(s.crossed[:, None], (T, P)).astype(float)], axis=2)  # fmt: skip
+    per_frame = [1 - fit, np.full(T, s.crossed_fraction), np.full(T, floor), s.crossed.astype(float)]
+    terms = np.stack([np.log(res), *(np.broadcast_to(v[:, None], (T, P)) for v in per_frame)], axis=2)
     mm = row.get("lower_mm")
     group = "external" if row.get("source") == "external" else str(row.get("walk"))
     return Run(row["name"], names, group, float(mm) if mm is not None else np.inf, s, judged.verdict.verdict,
@@ -233,12 +233,14 @@ def _point_index(run: Run, point: str) -> int:
 
 def print_coverage(before: dict, after: dict, title: str) -> None:
     print(f"\n## {title}\n")
-    print("| point | within 1 u before | after | within 2 u before | after | run corr before | after | median u mm before | after |")
+    print("| point | within 1 u before | after | within 2 u before | after | run corr before | after "
+          "| median u mm before | after |")
     print("|---|---|---|---|---|---|---|---|---|")
     for k in before:
         b, a = before[k], after[k]
-        print(f"| {k} | {b['within_1']:.3f} | {a['within_1']:.3f} | {b['within_2']:.3f} | {a['within_2']:.3f} | "
-              f"{b['run_corr']:.2f} | {a['run_corr']:.2f} | {b['median_u_mm']:.1f} | {a['median_u_mm']:.1f} |")  # fmt: skip
+        cells = [f"{x[key]:.{d}f}" for key, d in (("within_1", 3), ("within_2", 3), ("run_corr", 2), ("median_u_mm", 1))
+                 for x in (b, a)]  # fmt: skip
+        print(f"| {k} | " + " | ".join(cells) + " |")
 
 
 def _samples(runs: list[Run]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -300,14 +302,16 @@ def refit(runs: list[Run], cfg: TrackingConfig) -> dict:
     pooled_table = coverage_table(held, "after")
     print_coverage(coverage_table(measured, "before"), pooled_table,
                    "Uncertainty, every run held out with its walk (before: particle spread; after: held-out fit)")
-    return {"coefficients": pooled.model_dump(), "point_scale": scales, "held_out": rows, "held_out_by_point": pooled_table}
+    return {"coefficients": pooled.model_dump(), "point_scale": scales, "held_out": rows,
+            "held_out_by_point": pooled_table}
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--work", type=Path, default=Path("/tmp/gaitcap_suite"), help="bench_suite.py's work folder")
     ap.add_argument("--config", type=Path, default=None, help="tracking.yaml to judge with (default: the shipped one)")
-    ap.add_argument("--fit", action="store_true", help="fit the uncertainty's coefficients again (pooled, held-out walks)")
+    ap.add_argument("--fit", action="store_true",
+                    help="fit the uncertainty's coefficients again (pooled, and leaving each walk out)")
     ap.add_argument("--json", type=Path, default=None, help="also write the tables here")
     args = ap.parse_args()
     cfg = load_tracking_config(args.config)

@@ -59,7 +59,8 @@ def test_poor_fit_for_most_frames_is_doubtful_and_nearly_all_failed(walk):
     v = _judge(points, names, q)
     assert v.verdict == "failed" and "only 3 of 50 frames" in v.reasons[0]
     q[:] = QUALITY_OUT_OF_VIEW
-    assert _judge(points, names, q).verdict == "failed"  # no frame at all
+    v = _judge(points, names, q)
+    assert v.verdict == "failed" and v.reasons[0].startswith("none of the 50 frames fits")
 
 
 def _cross(points: np.ndarray, names, frames: slice, by_m: float) -> np.ndarray:

@@ -179,8 +179,8 @@ def judge(signals: RunSignals, cfg: VerdictConfig) -> RunVerdict:
     (``cfg.min_ok_fraction``), else ``doubtful`` when any check fails, else ``ok``."""
     s, n = signals, signals.n_frames
     if s.n_ok < cfg.min_ok_fraction * n or s.n_ok == 0:
-        return RunVerdict("failed", (f"only {s.n_ok} of {n} frames fit the silhouettes (fit below quality.min_fit "
-                                     f"or subject not found)",))  # fmt: skip
+        count = f"only {s.n_ok} of {n} frames fit" if s.n_ok else f"none of the {n} frames fits"
+        return RunVerdict("failed", (f"{count} the silhouettes (fit below quality.min_fit, or subject not found)",))
     reasons = []
     if s.flagged_fraction > cfg.max_flagged_fraction:
         reasons.append(f"a poor fit for {n - s.n_ok} of {n} frames")
