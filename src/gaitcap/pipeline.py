@@ -2,8 +2,9 @@
 
 session + videos -> silhouettes (gaitcap.silhouette, per camera, streamed; optionally saved to
 silhouettes.h5) -> observation (soft, undistorted, downscaled) -> initialisation -> the chosen
-tracker per frame -> trajectories.h5 (streamed) -> zero-lag filtering -> joints.csv, joints.trc ->
-track.json (written last: a session with it is finished).
+tracker per frame -> trajectories.h5 (streamed) -> zero-lag filtering, the run's verdict and the
+calibrated uncertainty (gaitcap.quality) -> joints.csv, joints.trc -> track.json (written last: a
+session with it is finished).
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ from gaitcap.io.track_h5 import (QUALITY_NOT_INITIALISED, QUALITY_OK, QUALITY_OU
                                  TrackWriter)  # fmt: skip
 from gaitcap.io.trc import write_trc
 from gaitcap.prefetch import Prefetched
+from gaitcap.quality import assess
 from gaitcap.session import CALIBRATION_FILE, Session
 from gaitcap.session_check import check_session_videos, check_silhouettes_meet
 from gaitcap.silhouette.config import SilhouetteConfig
@@ -328,21 +330,26 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
                 f"silhouette covering at least {100 * cfg.quality.min_silhouette_fraction:.1f} % of its image)"
             )
         points, note = _finish_points(raw, quality, videos.fps, cfg)
-        writer.finish(points, note)
+        with stages.timed("verdict"):
+            judged = assess(raw, model.point_names, writer.read_fit(), quality, height, videos.fps, cfg.verdict,
+                            cfg.uncertainty, rig=videos.rig)  # fmt: skip
+        writer.finish(points, note, uncertainty=judged.uncertainty)
     except BaseException as e:
         writer.abort(e)
         raise
+    log.info("verdict: %s%s", judged.verdict.verdict, "".join(f"; {r}" for r in judged.verdict.reasons))
     traj = Trajectory(model.point_names, points, videos.fps)
     write_joints_csv(out / "joints.csv", traj)
     write_trc(out / "joints.trc", traj, units="mm")
     n_flagged = int(np.sum(quality != QUALITY_OK))
-    stages["writing"] = time.perf_counter() - t_writing
+    stages["writing"] = time.perf_counter() - t_writing - stages.get("verdict", 0.0)
     seconds = time.perf_counter() - t_start
     summary = TrackSummary(session=session, out=out, status="ok", n_frames=tracked, n_flagged=n_flagged,
                            seconds=seconds,
                            message=f"{cfg.tracker}: {tracked} frames, {n_flagged} flagged, "
                                    f"{1000 * timing.tracking_s / max(tracked, 1):.0f} ms/frame tracking, "
-                                   f"{tracked / seconds:.1f} frames/s end to end", stages=stages)  # fmt: skip
+                                   f"{tracked / seconds:.1f} frames/s end to end", stages=stages,
+                           verdict=judged.verdict.verdict, verdict_reasons=list(judged.verdict.reasons))  # fmt: skip
     write_track_json(summary)
     return summary
 

@@ -7,12 +7,15 @@ folder that the next run redoes.
 ```json
 {"status": "ok", "n_frames": 56, "n_flagged": 0, "seconds": 12.3, "gaitcap_version": "0.1.0",
  "session": "sessions/walk01", "message": "",
+ "verdict": "doubtful", "verdict_reasons": ["the ankles cross in 14 of 56 frames: a suspected leg swap"],
  "stages_s": {"setup": 0.2, "kernels": 0.1, "first_frames": 1.1, "initialisation": 0.9, "shape": 5.7,
               "tracking": 3.6, "writing": 0.3}}
 ```
 
 :class:`TrackSummary` is the contract between ``gaitcap.pipeline.run_track`` (one session) and
-``gaitcap.batch`` (many); the pipeline may re-export it.
+``gaitcap.batch`` (many); the pipeline may re-export it. ``verdict`` (``ok``, ``doubtful`` or
+``failed``) and ``verdict_reasons`` say whether the result can be trusted (gaitcap.quality); a run
+without them (failed before tracking, or written by an older version) has no verdict.
 """
 
 from __future__ import annotations
@@ -33,6 +36,8 @@ STATUS_OK = "ok"
 STATUS_FAILED = "failed"
 STATUS_SKIPPED = "skipped"
 STATUSES = (STATUS_OK, STATUS_FAILED, STATUS_SKIPPED)
+#: a run's verdict (gaitcap.quality.judge): the result can be trusted, should be checked, or is wrong
+VERDICTS = ("ok", "doubtful", "failed")
 
 
 @dataclass
@@ -49,6 +54,8 @@ class TrackSummary:
         message: the error for a failed run, a note otherwise.
         stages: wall seconds of the run's stages, in their order (``stages_s`` in track.json;
             empty when not measured): see ``gaitcap.pipeline.Stages``.
+        verdict: ``"ok"``, ``"doubtful"`` or ``"failed"`` (gaitcap.quality.judge); None: not judged.
+        verdict_reasons: short sentences naming what was wrong.
     """
 
     session: Path
@@ -59,6 +66,8 @@ class TrackSummary:
     seconds: float
     message: str = ""
     stages: dict[str, float] = field(default_factory=dict)
+    verdict: str | None = None
+    verdict_reasons: list[str] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
         """The ``track.json`` document."""
@@ -70,8 +79,16 @@ class TrackSummary:
             "gaitcap_version": __version__,
             "session": str(self.session),
             "message": self.message,
+            **({"verdict": self.verdict, "verdict_reasons": list(self.verdict_reasons)} if self.verdict else {}),
             **({"stages_s": {k: round(float(v), 3) for k, v in self.stages.items()}} if self.stages else {}),
         }
+
+
+def format_verdict(verdict: str | None, reasons: list[str] | tuple[str, ...] = ()) -> str:
+    """One line: ``doubtful: reason; reason`` (``not judged`` without a verdict)."""
+    if not verdict:
+        return "not judged"
+    return verdict + (": " + "; ".join(reasons) if reasons else "")
 
 
 def write_track_json(summary: TrackSummary) -> Path:

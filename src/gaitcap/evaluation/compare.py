@@ -152,6 +152,9 @@ class Evaluation:
     silhouettes: dict[str, dict[str, Any]] | None = None
     notes: list[str] = field(default_factory=list)
     failures: list[str] = field(default_factory=list)
+    #: the run's own verdict and its reasons (OUT's track.json), when it has one
+    verdict: str | None = None
+    verdict_reasons: list[str] = field(default_factory=list)
 
     @property
     def mpjpe_mm(self) -> float:
@@ -172,6 +175,8 @@ class Evaluation:
             "out": self.out_source,
             "reference": self.reference_source,
             "rate_hz": self.rate_hz,
+            "verdict": self.verdict,
+            "verdict_reasons": self.verdict_reasons,
             "frames": {"compared": self.n_frames - self.n_flagged - self.n_reference_missing, "total": self.n_frames,
                        "flagged": self.n_flagged, "reference_missing": self.n_reference_missing},
             "points": self.points,
