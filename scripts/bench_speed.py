@@ -42,7 +42,7 @@ from gaitcap.tracking.observation import tracking_views  # noqa: E402
 
 #: track.json's main-thread stages, in their order, and the table's headings for them
 STAGES = {"setup": "setup", "kernels": "kernels", "first_frames": "first frames", "initialisation": "init",
-          "shape": "shape", "tracking": "tracking", "writing": "writing"}  # fmt: skip
+          "shape": "shape", "tracking": "tracking", "verdict": "verdict", "writing": "writing"}  # fmt: skip
 
 
 def floor_seconds(session: Path) -> float:

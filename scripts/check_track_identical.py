@@ -6,7 +6,7 @@
 Renders the embedded walk once into --work (``gaitcap synth``, seed 0), then runs ``python -m gaitcap
 -q track`` in a child process for each case below (default configuration, seed 0) and either saves
 the outputs under REF or compares every dataset of ``trajectories.h5`` (points, points_unfiltered,
-uncertainty, poses, likelihood, fit, quality, times) and the root attributes ``shape`` / ``height_m``
+uncertainty, spread, poses, likelihood, fit, quality, times) and the root attributes ``shape`` / ``height_m``
 with exact equality (``np.array_equal``, NaN equal to NaN). Prints one line per case with its wall
 seconds and exits 1 at the first difference.
 

@@ -33,6 +33,7 @@ def fake_track(
     if (session / "CRASH").exists():
         raise ZeroDivisionError("division by zero")
     write_text_atomic(out / "joints.csv", f"frame,pid\n0,{os.getpid()}\n")
-    summary = TrackSummary(session, out, STATUS_OK, N_FRAMES, 1, 0.01, f"pid {os.getpid()}")
+    summary = TrackSummary(session, out, STATUS_OK, N_FRAMES, 1, 0.01, f"pid {os.getpid()}", verdict="doubtful",
+                           verdict_reasons=["a poor fit for 1 of 12 frames"])
     write_track_json(summary)
     return summary

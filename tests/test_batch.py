@@ -146,11 +146,15 @@ def test_format_summary_table(tmp_path):
     sessions = make_sessions(tmp_path / "in", ["walk01", "walk02"], fail=("walk02",))
     text = format_summary(run_batch(sessions, tmp_path / "out", task=fake_track))
     lines = text.splitlines()
-    assert lines[0].split() == ["session", "status", "frames", "flagged", "seconds", "message"]
-    assert lines[1].split()[:4] == ["walk01", "ok", str(N_FRAMES), "1"]
-    assert lines[2].split()[:2] == ["walk02", "failed"] and "never in view" in lines[2]
-    assert lines[-1] == "2 sessions: 1 ok, 1 failed, 0 skipped"
-    assert json.loads((tmp_path / "out" / "walk01" / TRACK_JSON).read_text())["status"] == "ok"
+    assert lines[0].split() == ["session", "status", "verdict", "frames", "flagged", "seconds", "message"]
+    assert lines[1].split()[:5] == ["walk01", "ok", "doubtful", str(N_FRAMES), "1"]
+    assert lines[1].endswith("a poor fit for 1 of 12 frames")  # the verdict's reasons replace the message
+    assert lines[2].split()[:3] == ["walk02", "failed", "-"] and "never in view" in lines[2]
+    assert lines[-1] == "2 sessions: 1 ok, 1 failed, 0 skipped; verdicts: 0 ok, 1 doubtful, 0 failed"
+    doc = json.loads((tmp_path / "out" / "walk01" / TRACK_JSON).read_text())
+    assert doc["status"] == "ok" and doc["verdict"] == "doubtful" and doc["verdict_reasons"]
+    again = format_summary(run_batch(sessions[:1], tmp_path / "out", task=fake_track)).splitlines()
+    assert again[1].split()[:3] == ["walk01", "skipped", "doubtful"]  # a skipped run keeps its verdict
 
 
 def test_dask_local_cluster(tmp_path):

@@ -69,7 +69,8 @@ def test_demo_runs_end_to_end(runner, tmp_path):
                        ("report", out / "gait" / "report.html")]:  # fmt: skip
         assert f"{line}: {path}" in result.output
         assert path.exists(), path
-    assert json.loads((out / "track.json").read_text())["n_frames"] == 2
+    track = json.loads((out / "track.json").read_text())
+    assert track["n_frames"] == 2 and f"verdict: {track['verdict']}" in result.output
     doc = json.loads((out / "eval.json").read_text())
     assert doc["frames"]["total"] == 2
     mpjpe = re.search(r"lower-limb MPJPE ([0-9.]+) mm", result.output)

@@ -194,6 +194,21 @@ def test_cli_thresholds_flip_the_exit_code(tmp_path, session, truth):
     assert json.loads((out / "eval.json").read_text())["thresholds_failed"] == ["MPJPE 10.0 mm > 5 mm"]
 
 
+def test_cli_shows_the_runs_verdict(tmp_path, session, truth):
+    out = write_out(tmp_path / "OUT", tracked(truth, truth.points))
+    runner = CliRunner()
+    res = runner.invoke(cli, ["eval", str(out), "--truth", str(session / "truth.h5")])
+    assert res.exit_code == 0 and "verdict of the run: not judged" in res.output
+    assert json.loads((out / "eval.json").read_text())["verdict"] is None
+    reasons = ["the ankles cross in 12 of 40 frames: a suspected leg swap"]
+    (out / "track.json").write_text(json.dumps({"status": "ok", "verdict": "doubtful", "verdict_reasons": reasons}))
+    res = runner.invoke(cli, ["eval", str(out / "trajectories.h5"), "--truth", str(session / "truth.h5"), "--force"])
+    assert res.exit_code == 0, res.output
+    assert f"verdict of the run: doubtful: {reasons[0]}" in res.output
+    doc = json.loads((out / "eval.json").read_text())
+    assert doc["verdict"] == "doubtful" and doc["verdict_reasons"] == reasons
+
+
 def test_cli_reference_mode_and_output_option(tmp_path, truth):
     a = write_out(tmp_path / "A", tracked(truth, truth.points))
     b = write_out(tmp_path / "B", tracked(truth, truth.points + [0, 0.02, 0]))

@@ -69,10 +69,11 @@ def test_trajectories_h5_layout(tracked_session):
         assert list(f["points"].attrs["names"]) == list(POINT_NAMES)
         assert f["points"].attrs["rate_hz"] == 25.0
         assert f["poses"].shape == (20, 31) and len(f["poses"].attrs["dof_names"]) == 31
-        for key in ("uncertainty", "quality", "likelihood", "fit", "times", "points_unfiltered"):
+        for key in ("uncertainty", "spread", "quality", "likelihood", "fit", "times", "points_unfiltered"):
             assert f[key].shape[0] == 20, key
-        unc = f["uncertainty"][()]
-        assert np.all(np.isfinite(unc)) and np.all(unc >= 0) and unc.mean() > 0
+        unc, spread = f["uncertainty"][()], f["spread"][()]
+        assert np.all(np.isfinite(unc)) and np.all(unc > 0) and unc.shape == spread.shape == (20, 20)
+        assert np.all(np.isfinite(spread)) and np.all(spread >= 0) and not np.allclose(unc, spread)
         cfg = yaml.safe_load(f.attrs["config"])
         assert cfg["tracker"] == "factored-ipf"
         assert f.attrs["height_source"] == "session.yaml"
@@ -1058,10 +1059,18 @@ def test_stages_leave_an_inner_stage_out_of_the_outer_one():
     assert 0.02 <= stages["outer"] < 0.05 + 0.02  # not the 0.07 s it was open
 
 
+def test_track_json_holds_the_verdict(tracked_session):
+    _, out, summary = tracked_session
+    doc = json.loads((out / "track.json").read_text())
+    assert doc["verdict"] == summary.verdict and doc["verdict"] in ("ok", "doubtful", "failed")
+    assert doc["verdict_reasons"] == summary.verdict_reasons
+    assert (doc["verdict"] == "ok") == (doc["verdict_reasons"] == [])
+
+
 def test_track_json_records_the_stage_times(tracked_session):
     _, out, summary = tracked_session
     stages = json.loads((out / "track.json").read_text())["stages_s"]
-    main_thread = ["setup", "kernels", "first_frames", "initialisation", "shape", "tracking", "writing"]
+    main_thread = ["setup", "kernels", "first_frames", "initialisation", "shape", "tracking", "verdict", "writing"]
     assert set(stages) == set(main_thread) | {"background"}
     assert all(v >= 0 for v in stages.values())
     # the main thread's stages follow one another: together they take (nearly) the whole run

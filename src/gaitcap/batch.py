@@ -37,7 +37,8 @@ from typing import Any
 
 from gaitcap.errors import ConfigError, GaitcapError, InputError, OutputError
 from gaitcap.session import CALIBRATION_FILE
-from gaitcap.track_summary import STATUS_FAILED, STATUS_OK, STATUS_SKIPPED, TrackSummary, is_finished
+from gaitcap.track_summary import (STATUS_FAILED, STATUS_OK, STATUS_SKIPPED, VERDICTS, TrackSummary, is_finished,
+                                   read_track_json)  # fmt: skip
 
 log = logging.getLogger("gaitcap.batch")
 
@@ -311,7 +312,9 @@ def run_batch(
     for i, session in enumerate(paths):
         out = out_root / session.name
         if not force and is_finished(out):
-            results[i] = TrackSummary(session, out, STATUS_SKIPPED, 0, 0, 0.0, "finished before (use --force to redo)")
+            before = read_track_json(out) or {}
+            results[i] = TrackSummary(session, out, STATUS_SKIPPED, 0, 0, 0.0, "finished before (use --force to redo)",
+                                      verdict=before.get("verdict"), verdict_reasons=before.get("verdict_reasons", []))
             log.info("%s: finished before, skipped", session.name)
         else:
             todo.append((i, SessionJob(task, session, out, force, dict(task_kwargs))))
@@ -334,15 +337,24 @@ def any_failed(summaries: Sequence[TrackSummary]) -> bool:
     return any(s.status == STATUS_FAILED for s in summaries)
 
 
+def _note(s: TrackSummary) -> str:
+    """The message column: the verdict's reasons when there are some, else the message's first line."""
+    if s.verdict_reasons:
+        return "; ".join(s.verdict_reasons)
+    return s.message.splitlines()[0] if s.message else ""
+
+
 def format_summary(summaries: Sequence[TrackSummary]) -> str:
-    """A plain-text table: session, status, frames, flagged, seconds, message; and a total line."""
-    header = ("session", "status", "frames", "flagged", "seconds", "message")
+    """A plain-text table: session, status, verdict, frames, flagged, seconds, message (the verdict's
+    reasons when it is not ok, else the run's message); and a total line."""
+    header = ("session", "status", "verdict", "frames", "flagged", "seconds", "message")
     rows = [
-        (Path(s.session).name, s.status, str(s.n_frames), str(s.n_flagged), f"{s.seconds:.1f}", s.message.splitlines()[0] if s.message else "")
+        (Path(s.session).name, s.status, s.verdict or "-", str(s.n_frames), str(s.n_flagged), f"{s.seconds:.1f}",
+         _note(s))
         for s in summaries
     ]  # fmt: skip
     widths = [max(len(r[k]) for r in [header, *rows]) for k in range(len(header) - 1)]
-    right = {2, 3, 4}
+    right = {3, 4, 5}
 
     def line(r: tuple[str, ...]) -> str:
         cells = [r[k].rjust(widths[k]) if k in right else r[k].ljust(widths[k]) for k in range(len(widths))]
@@ -350,4 +362,7 @@ def format_summary(summaries: Sequence[TrackSummary]) -> str:
 
     counts = {st: sum(s.status == st for s in summaries) for st in (STATUS_OK, STATUS_FAILED, STATUS_SKIPPED)}
     total = f"{len(summaries)} sessions: " + ", ".join(f"{n} {st}" for st, n in counts.items())
+    verdicts = {v: sum(s.verdict == v for s in summaries) for v in VERDICTS}
+    if any(verdicts.values()):
+        total += "; verdicts: " + ", ".join(f"{n} {v}" for v, n in verdicts.items())
     return "\n".join([line(header), *(line(r) for r in rows), total])

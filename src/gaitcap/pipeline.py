@@ -2,8 +2,9 @@
 
 session + videos -> silhouettes (gaitcap.silhouette, per camera, streamed; optionally saved to
 silhouettes.h5) -> observation (soft, undistorted, downscaled) -> initialisation -> the chosen
-tracker per frame -> trajectories.h5 (streamed) -> zero-lag filtering -> joints.csv, joints.trc ->
-track.json (written last: a session with it is finished).
+tracker per frame -> trajectories.h5 (streamed) -> zero-lag filtering, the run's verdict and the
+calibrated uncertainty (gaitcap.quality) -> joints.csv, joints.trc -> track.json (written last: a
+session with it is finished).
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ from gaitcap.io.track_h5 import (QUALITY_NOT_INITIALISED, QUALITY_OK, QUALITY_OU
                                  TrackWriter)  # fmt: skip
 from gaitcap.io.trc import write_trc
 from gaitcap.prefetch import Prefetched
+from gaitcap.quality import assess
 from gaitcap.session import CALIBRATION_FILE, Session
 from gaitcap.session_check import check_session_videos, check_silhouettes_meet
 from gaitcap.silhouette.config import SilhouetteConfig
@@ -311,10 +313,11 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
         log.warning("subject height not given: estimated %.2f m from the silhouettes (give --height for accuracy)", height)
     model = load_body_model(height_m=height)
     filt = _new_tracker(cfg, model, likelihood)
-    start, settled, shape_note = None, False, "off"
+    start, settled, shape_note, body_problems = None, False, "off", []
     if cfg.shape.enabled:
         with stages.timed("shape"):
-            filt, start, settled, shape_note = _calibrate_shape(filt, likelihood, views, cfg, first, stages)
+            filt, start, settled, shape_note, body_problems = _calibrate_shape(filt, likelihood, views, cfg, first,
+                                                                               stages)  # fmt: skip
     attrs = {"config": yaml.safe_dump(cfg.model_dump(), sort_keys=False), "tracker": cfg.tracker,
              "height_m": float(height), "height_source": height_source, "session": str(session),
              "shape": shape_note}  # fmt: skip
@@ -332,21 +335,26 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
                 f"silhouette covering at least {100 * cfg.quality.min_silhouette_fraction:.1f} % of its image)"
             )
         points, note = _finish_points(raw, quality, videos.fps, cfg)
-        writer.finish(points, note)
+        with stages.timed("verdict"):
+            judged = assess(raw, model.point_names, writer.read_fit(), quality, height, videos.fps, cfg.verdict,
+                            cfg.uncertainty, rig=videos.rig, body_problems=tuple(body_problems))  # fmt: skip
+        writer.finish(points, note, uncertainty=judged.uncertainty)
     except BaseException as e:
         writer.abort(e)
         raise
+    log.info("verdict: %s%s", judged.verdict.verdict, "".join(f"; {r}" for r in judged.verdict.reasons))
     traj = Trajectory(model.point_names, points, videos.fps)
     write_joints_csv(out / "joints.csv", traj)
     write_trc(out / "joints.trc", traj, units="mm")
     n_flagged = int(np.sum(quality != QUALITY_OK))
-    stages["writing"] = time.perf_counter() - t_writing
+    stages["writing"] = time.perf_counter() - t_writing - stages.get("verdict", 0.0)
     seconds = time.perf_counter() - t_start
     summary = TrackSummary(session=session, out=out, status="ok", n_frames=tracked, n_flagged=n_flagged,
                            seconds=seconds,
                            message=f"{cfg.tracker}: {tracked} frames, {n_flagged} flagged, "
                                    f"{1000 * timing.tracking_s / max(tracked, 1):.0f} ms/frame tracking, "
                                    f"{tracked / seconds:.1f} frames/s end to end", stages=stages,
+                           verdict=judged.verdict.verdict, verdict_reasons=list(judged.verdict.reasons),
                            body={"height_m": round(float(height), 4), "height_source": height_source,
                                  "shape": shape_note,
                                  "segment_lengths_m": {k: round(v, 4) for k, v in model_lengths(filt.model).items()}})  # fmt: skip
@@ -369,8 +377,9 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
 
     Returns the tracker to use (with the calibrated model), the pose of the first frame under it
     (None: initialise as usual), whether that pose's leg assignment was settled over the first
-    ``init.leg_frames`` frames with that model (:func:`~gaitcap.tracking.init.settle_legs`) and a
-    note for the output's attributes. Skipped, with a warning, when the subject is not in every
+    ``init.leg_frames`` frames with that model (:func:`~gaitcap.tracking.init.settle_legs`), a
+    note for the output's attributes and the calibrated body's lengths outside ``shape.ranges``
+    (then the shipped proportions are tracked). Skipped, with a warning, when the subject is not in every
     view of the first frame or the window is too short. With ``shape.repeats`` > 1 the calibrations
     run side by side, the k-th with the random streams of seed + k x ``_REPEAT_SEED_STEP``, and their factors are
     averaged (:func:`~gaitcap.tracking.shape.average_shapes`).
@@ -379,14 +388,14 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
     if not in_view or len(first) < 2:
         log.warning("shape calibration skipped: the subject is not in every view of the first %d frames; "
                     "tracking with the proportions of body.yaml", len(first))  # fmt: skip
-        return filt, None, False, "skipped: subject not in view in the first frames"
+        return filt, None, False, "skipped: subject not in view in the first frames", []
     try:
         with (stages or Stages()).timed("initialisation"):
             init = initialise(filt, likelihood, views, first[: cfg.init.frames], cfg.init.heading_step_deg,
                               cfg.init.refine_passes, cfg.init.widen, leg_frames=cfg.init.leg_frames)  # fmt: skip
     except TrackingError as e:
         log.warning("shape calibration skipped: %s", e)
-        return filt, None, False, f"skipped: {e}"
+        return filt, None, False, f"skipped: {e}", []
     filt.start(init.q, fresh=not init.legs_settled)
     poses = [filt.step(o).q for o in first]
     refit_cfg = cfg.model_copy(deep=True)
@@ -414,7 +423,7 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
     if settled:  # which leg is which, again, with the calibrated model
         start = settle_legs(tracker, first[: cfg.init.leg_frames], start)
     note = f"{factors}; mean fit {result.fit_before:.4f} -> {result.fit_after:.4f} on {len(first)} frames"
-    return tracker, start, settled, note
+    return tracker, start, settled, note, problems
 
 
 def _search_shape(model, likelihood, refit_cfg: TrackingConfig, first: list[Observation], poses, cfg: TrackingConfig,

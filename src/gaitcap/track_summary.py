@@ -7,6 +7,7 @@ folder that the next run redoes.
 ```json
 {"status": "ok", "n_frames": 56, "n_flagged": 0, "seconds": 12.3, "gaitcap_version": "0.1.0",
  "session": "sessions/walk01", "message": "",
+ "verdict": "doubtful", "verdict_reasons": ["the ankles cross in 14 of 56 frames: a suspected leg swap"],
  "stages_s": {"setup": 0.2, "kernels": 0.1, "first_frames": 1.1, "initialisation": 0.9, "shape": 5.7,
               "tracking": 3.6, "writing": 0.3},
  "body": {"height_m": 1.7, "height_source": "session.yaml", "shape": "pelvis_height x0.960, ...",
@@ -14,7 +15,9 @@ folder that the next run redoes.
 ```
 
 :class:`TrackSummary` is the contract between ``gaitcap.pipeline.run_track`` (one session) and
-``gaitcap.batch`` (many); the pipeline may re-export it.
+``gaitcap.batch`` (many); the pipeline may re-export it. ``verdict`` (``ok``, ``doubtful`` or
+``failed``) and ``verdict_reasons`` say whether the result can be trusted (gaitcap.quality); a run
+without them (failed before tracking, or written by an older version) has no verdict.
 """
 
 from __future__ import annotations
@@ -35,6 +38,8 @@ STATUS_OK = "ok"
 STATUS_FAILED = "failed"
 STATUS_SKIPPED = "skipped"
 STATUSES = (STATUS_OK, STATUS_FAILED, STATUS_SKIPPED)
+#: a run's verdict (gaitcap.quality.judge): the result can be trusted, should be checked, or is wrong
+VERDICTS = ("ok", "doubtful", "failed")
 
 
 @dataclass
@@ -51,6 +56,8 @@ class TrackSummary:
         message: the error for a failed run, a note otherwise.
         stages: wall seconds of the run's stages, in their order (``stages_s`` in track.json;
             empty when not measured): see ``gaitcap.pipeline.Stages``.
+        verdict: ``"ok"``, ``"doubtful"`` or ``"failed"`` (gaitcap.quality.judge); None: not judged.
+        verdict_reasons: short sentences naming what was wrong.
         body: the tracked body: height, how it was obtained, the shape calibration's note and the
             model's segment lengths (``gaitcap.body.measures``); empty for a failed run.
     """
@@ -63,6 +70,8 @@ class TrackSummary:
     seconds: float
     message: str = ""
     stages: dict[str, float] = field(default_factory=dict)
+    verdict: str | None = None
+    verdict_reasons: list[str] = field(default_factory=list)
     body: dict[str, Any] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
@@ -75,9 +84,17 @@ class TrackSummary:
             "gaitcap_version": __version__,
             "session": str(self.session),
             "message": self.message,
+            **({"verdict": self.verdict, "verdict_reasons": list(self.verdict_reasons)} if self.verdict else {}),
             **({"stages_s": {k: round(float(v), 3) for k, v in self.stages.items()}} if self.stages else {}),
             **({"body": self.body} if self.body else {}),
         }
+
+
+def format_verdict(verdict: str | None, reasons: list[str] | tuple[str, ...] = ()) -> str:
+    """One line: ``doubtful: reason; reason`` (``not judged`` without a verdict)."""
+    if not verdict:
+        return "not judged"
+    return verdict + (": " + "; ".join(reasons) if reasons else "")
 
 
 def write_track_json(summary: TrackSummary) -> Path:

@@ -9,6 +9,7 @@ from pathlib import Path
 import click
 
 from gaitcap.cli.options import handle_errors
+from gaitcap.track_summary import format_verdict
 
 
 def _f(v: float | None, digits: int = 1) -> str:
@@ -44,7 +45,8 @@ def command(ctx: click.Context, out: Path | None, max_frames: int | None) -> Non
     knee = [ev.angles_rmse_deg.get(f"knee_flexion_{s}") for s in "lr"]
     e = ev.events or {}
     p = r.report.analysis.parameters
-    click.echo(f"tracked {r.track.n_frames} frames ({r.track.n_flagged} flagged) in {r.track.seconds:.0f} s")
+    click.echo(f"tracked {r.track.n_frames} frames ({r.track.n_flagged} flagged) in {r.track.seconds:.0f} s; "
+               f"verdict: {format_verdict(r.track.verdict, r.track.verdict_reasons)}")
     click.echo(f"lower-limb MPJPE {_f(lower.get('mpjpe_mm'))} mm; knee flexion RMSE left {_f(knee[0])} deg, "
                f"right {_f(knee[1])} deg")  # fmt: skip
     if e:

@@ -34,7 +34,7 @@ def command(
 ) -> None:  # fmt: skip
     """Compare the trajectories of OUT with a ground truth (--truth) or another run (--reference).
 
-    Reports position errors (MPJPE over all points, lower limb, heel/toe, per point; frames NaN
+    Reports the run's own verdict (OUT's track.json: ok, doubtful or failed, and why), position errors (MPJPE over all points, lower limb, heel/toe, per point; frames NaN
     in OUT are flagged and excluded), left/right swaps, joint-angle RMSE, gait event timing and
     gait parameter differences, and, when OUT holds silhouettes.h5 (gaitcap track --save-masks)
     and the truth has masks, the silhouette IoU per camera; writes them to OUT/eval.json.
@@ -63,8 +63,8 @@ def command(
     """
     from gaitcap.evaluation import Thresholds, check_thresholds, evaluate
     from gaitcap.evaluation.report import (
-        EVAL_FILE, TruthReference, format_evaluation, out_masks, read_tracked, read_truth_reference, tracked_path,
-        write_evaluation,
+        EVAL_FILE, TruthReference, format_evaluation, out_masks, read_tracked, read_truth_reference, read_verdict,
+        tracked_path, write_evaluation,
     )  # fmt: skip
     from gaitcap.evaluation.compare import compare_lengths
     from gaitcap.evaluation.silhouettes import silhouette_iou
@@ -88,6 +88,7 @@ def command(
     body = (read_track_json(out if out.is_dir() else out.parent) or {}).get("body") or {}
     if body.get("segment_lengths_m"):
         ev.segment_lengths = compare_lengths(body["segment_lengths_m"], ref.trajectory)
+    ev.verdict, ev.verdict_reasons = read_verdict(out)
     ev.failures = check_thresholds(ev, Thresholds(max_mpjpe_mm, max_angle_rmse_deg, max_event_error_frames))
     target = output or (out / EVAL_FILE if out.is_dir() else out.parent / EVAL_FILE)
     write_evaluation(target, ev, force=force)

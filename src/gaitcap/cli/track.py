@@ -11,6 +11,7 @@ import click
 from gaitcap.batch import any_failed, find_sessions, format_summary, is_session, run_batch
 from gaitcap.cli.options import force_option, handle_errors
 from gaitcap.pipeline import TRACKERS, run_track
+from gaitcap.track_summary import format_verdict
 
 log = logging.getLogger("gaitcap")
 
@@ -42,6 +43,7 @@ def command(ctx: click.Context, source: Path, out: Path, tracker: str | None, co
     """Track the subject in a session (or every session of a folder).
 
     Writes OUT/trajectories.h5 (points, per-point uncertainty, poses, likelihood, quality),
+    OUT/track.json (with the run's verdict: ok, doubtful or failed, and why),
     OUT/joints.csv (metres, NaN where flagged) and OUT/joints.trc (OpenSim, mm); with --save-masks
     also OUT/silhouettes.h5 (the masks the tracker saw, as gaitcap silhouettes writes them). A folder of
     sessions gives OUT/<session>/..., a log per session and a summary; finished sessions are
@@ -58,6 +60,11 @@ def command(ctx: click.Context, source: Path, out: Path, tracker: str | None, co
     if is_session(source) and scheduler is None:
         summary = run_track(source, out, force=force, progress=not quiet, **kwargs)
         log.info("%s", summary.message)
+        verdict = f"verdict: {format_verdict(summary.verdict, summary.verdict_reasons)}"
+        if summary.verdict not in (None, "ok"):
+            log.warning("%s", verdict)  # shown with -q too
+        elif not quiet:
+            click.echo(verdict)
         if not quiet:
             click.echo(f"results: {out}")
         return

@@ -155,6 +155,9 @@ class Evaluation:
     segment_lengths: dict[str, dict[str, float]] | None = None
     notes: list[str] = field(default_factory=list)
     failures: list[str] = field(default_factory=list)
+    #: the run's own verdict and its reasons (OUT's track.json), when it has one
+    verdict: str | None = None
+    verdict_reasons: list[str] = field(default_factory=list)
 
     @property
     def mpjpe_mm(self) -> float:
@@ -175,6 +178,8 @@ class Evaluation:
             "out": self.out_source,
             "reference": self.reference_source,
             "rate_hz": self.rate_hz,
+            "verdict": self.verdict,
+            "verdict_reasons": self.verdict_reasons,
             "frames": {"compared": self.n_frames - self.n_flagged - self.n_reference_missing, "total": self.n_frames,
                        "flagged": self.n_flagged, "reference_missing": self.n_reference_missing},
             "points": self.points,

@@ -17,6 +17,7 @@ from gaitcap.io.silhouettes_h5 import SILHOUETTES_FILE
 from gaitcap.io.trajectories_h5 import read_trajectory
 from gaitcap.io.truth_folder import JOINTS_FILE, is_truth_folder, read_truth_folder
 from gaitcap.synth.truth import read_truth
+from gaitcap.track_summary import format_verdict, read_track_json
 from gaitcap.trajectory import Trajectory
 
 TRAJECTORIES_FILE = "trajectories.h5"
@@ -183,12 +184,21 @@ def _length_lines(ev: Evaluation) -> list[str]:
     return lines
 
 
+def read_verdict(path: str | Path) -> tuple[str | None, list[str]]:
+    """(verdict, reasons) of the tracking output ``path`` (folder or its trajectories.h5) from its
+    track.json; (None, []) when it has none."""
+    doc = read_track_json(tracked_path(path).parent) or {}
+    verdict = doc.get("verdict")
+    return (verdict if isinstance(verdict, str) else None), [str(r) for r in doc.get("verdict_reasons") or []]
+
+
 def format_evaluation(ev: Evaluation) -> str:
     """The readable report of an evaluation (what ``gaitcap eval`` prints)."""
     compared = ev.n_frames - ev.n_flagged - ev.n_reference_missing
     head = [f"{ev.out_source} against {ev.reference_source}",
             f"{compared} of {ev.n_frames} frames compared at {ev.rate_hz:g} Hz ({ev.n_flagged} flagged in OUT, "
-            f"{ev.n_reference_missing} missing in the reference), {len(ev.points)} points"]  # fmt: skip
+            f"{ev.n_reference_missing} missing in the reference), {len(ev.points)} points",
+            f"verdict of the run: {format_verdict(ev.verdict, ev.verdict_reasons)}"]  # fmt: skip
     sections = [head, _positions_lines(ev), _angle_lines(ev), _event_lines(ev), _parameter_lines(ev), _silhouette_lines(ev),
                 _length_lines(ev)]
     if ev.notes:

@@ -6,7 +6,9 @@ renames the file into place. A run killed before that leaves no ``trajectories.h
 
 Layout: ``/points`` (T, P, 3) metres, NaN where flagged (filtered when smoothing is on), attrs
 ``names``, ``rate_hz``, ``t0_s``; ``/points_unfiltered`` (T, P, 3) the tracker's raw estimate,
-never NaN; ``/times`` (T,); ``/uncertainty`` (T, P) metres; ``/quality`` (T,) uint8 (0 ok,
+never NaN; ``/times`` (T,); ``/uncertainty`` (T, P) metres, calibrated after tracking
+(gaitcap.quality; the particles' spread when none is given); ``/spread`` (T, P) metres, the weighted
+spread of the tracker's particles; ``/quality`` (T,) uint8 (0 ok,
 1 poor fit, 2 subject out of view, 3 not initialised); ``/poses`` (T, D) attr ``dof_names``;
 ``/likelihood`` (T,); ``/fit`` (T,); root attrs ``gaitcap_version``, ``config`` (YAML),
 ``tracker``, ``height_m``, ``height_source``, ``filter``.
@@ -47,7 +49,7 @@ class TrackWriter:
         f = self._f
         self._ds = {
             "points_unfiltered": f.create_dataset("points_unfiltered", (0, P, 3), maxshape=(None, P, 3), chunks=(64, P, 3), dtype=np.float64),
-            "uncertainty": f.create_dataset("uncertainty", (0, P), maxshape=(None, P), chunks=(256, P), dtype=np.float64),
+            "spread": f.create_dataset("spread", (0, P), maxshape=(None, P), chunks=(256, P), dtype=np.float64),
             "poses": f.create_dataset("poses", (0, D), maxshape=(None, D), chunks=(256, D), dtype=np.float64),
             "likelihood": f.create_dataset("likelihood", (0,), maxshape=(None,), chunks=(1024,), dtype=np.float64),
             "fit": f.create_dataset("fit", (0,), maxshape=(None,), chunks=(1024,), dtype=np.float64),
@@ -61,9 +63,9 @@ class TrackWriter:
 
     def append(self, points: np.ndarray, uncertainty: np.ndarray, pose: np.ndarray, likelihood: float, fit: float,
                quality: int) -> None:  # fmt: skip
-        """One frame: points (P, 3), uncertainty (P,), pose (D,)."""
+        """One frame: points (P, 3), uncertainty (P,) (the particles' spread), pose (D,)."""
         i = self.n
-        for key, value in (("points_unfiltered", points), ("uncertainty", uncertainty), ("poses", pose),
+        for key, value in (("points_unfiltered", points), ("spread", uncertainty), ("poses", pose),
                            ("likelihood", likelihood), ("fit", fit), ("quality", quality)):  # fmt: skip
             ds = self._ds[key]
             ds.resize(i + 1, axis=0)
@@ -74,9 +76,18 @@ class TrackWriter:
         """(points_unfiltered (T, P, 3), quality (T,)) written so far."""
         return self._ds["points_unfiltered"][()], self._ds["quality"][()]
 
-    def finish(self, points: np.ndarray, filter_note: str) -> None:
-        """Write ``/points`` (T, P, 3) (flagged frames NaN) and ``/times``, close and rename."""
+    def read_fit(self) -> np.ndarray:
+        """The fit (T,) written so far."""
+        return self._ds["fit"][()]
+
+    def finish(self, points: np.ndarray, filter_note: str, uncertainty: np.ndarray | None = None) -> None:
+        """Write ``/points`` (T, P, 3) (flagged frames NaN), ``/times`` and ``/uncertainty`` (T, P)
+        (the spread when None), close and rename."""
         f = self._f
+        spread = self._ds["spread"][()]
+        if uncertainty is not None and np.shape(uncertainty) != spread.shape:
+            raise ValueError(f"uncertainty must have shape {spread.shape}, got {np.shape(uncertainty)}")
+        f.create_dataset("uncertainty", data=spread if uncertainty is None else np.asarray(uncertainty, np.float64))
         ds = f.create_dataset("points", data=points)
         ds.attrs["names"] = list(self.names)
         ds.attrs["rate_hz"] = self.rate_hz

@@ -17,6 +17,18 @@ from gaitcap.tracking.chain import Subtree, subtrees
 TrackerName = Literal["condensation", "ipf", "factored-ipf"]
 
 
+def _check_patterns(v: dict[str, float]) -> dict[str, float]:
+    """{regular expression: positive number}: raises ValueError naming a bad pattern or value."""
+    for pattern, value in v.items():
+        try:
+            re.compile(pattern)
+        except re.error as e:
+            raise ValueError(f"'{pattern}' is not a valid regular expression ({e})") from e
+        if not (np.isfinite(value) and value > 0):
+            raise ValueError(f"'{pattern}': must be a positive number")
+    return v
+
+
 class Layer(Strict):
     step_deg: float = Field(gt=0, le=30)
     step_m: float = Field(gt=0, le=0.5)
@@ -57,6 +69,55 @@ class CondensationConfig(Strict):
 class QualityConfig(Strict):
     min_fit: float = Field(default=0.55, le=1)
     min_silhouette_fraction: float = Field(default=0.002, ge=0, lt=1)
+
+
+class VerdictConfig(Strict):
+    """Thresholds of a run's verdict (gaitcap.quality.judge)."""
+
+    min_ok_fraction: float = Field(default=0.1, ge=0, le=1)
+    max_flagged_fraction: float = Field(default=0.5, ge=0, le=1)
+    max_crossed_fraction: float = Field(default=0.1, gt=0, le=1)
+    crossed_margin_m: float = Field(default=0.02, ge=0)
+    max_floor_offset_m: float = Field(default=0.1, gt=0)
+    segment_ratio: tuple[float, float] = (0.75, 1.33)
+    min_image_height_px: float = Field(default=60.0, ge=0)
+
+    @field_validator("segment_ratio")
+    @classmethod
+    def _check_ratio(cls, v: tuple[float, float]) -> tuple[float, float]:
+        if not (0 < v[0] <= 1 <= v[1]):
+            raise ValueError("segment_ratio must satisfy 0 < low <= 1 <= high")
+        return v
+
+
+class UncertaintyCoefficients(Strict):
+    """log u = intercept + log_residual log r + fit (1 - fit) + crossed_run c + floor |z| + crossed_frame x
+    (gaitcap.quality.calibrated_uncertainty)."""
+
+    intercept: float = -2.01
+    log_residual: float = Field(default=0.22, ge=0)
+    fit: float = Field(default=1.85, ge=0)
+    crossed_run: float = Field(default=0.67, ge=0)
+    floor: float = Field(default=2.57, ge=0)
+    crossed_frame: float = Field(default=0.52, ge=0)
+
+
+class UncertaintyConfig(Strict):
+    cutoff_hz: float = Field(default=6.0, gt=0)
+    min_residual_m: float = Field(default=0.001, gt=0)
+    min_m: float = Field(default=0.005, ge=0)
+    coefficients: UncertaintyCoefficients = Field(default_factory=UncertaintyCoefficients)
+    #: point name (regular expression) -> multiplier of its uncertainty; points not matched: 1
+    point_scale: dict[str, float] = Field(default_factory=dict)
+
+    @field_validator("point_scale")
+    @classmethod
+    def _check_scale(cls, v: dict[str, float]) -> dict[str, float]:
+        return _check_patterns(v)
+
+    def scales(self, names: tuple[str, ...]) -> np.ndarray:
+        """The multiplier of each point (P,): the first pattern matching its name, else 1."""
+        return np.array([next((f for p, f in self.point_scale.items() if re.fullmatch(p, n)), 1.0) for n in names])
 
 
 class InitConfig(Strict):
@@ -196,6 +257,8 @@ class TrackingConfig(Strict):
     ipf: IPFConfig
     condensation: CondensationConfig
     quality: QualityConfig = Field(default_factory=QualityConfig)
+    verdict: VerdictConfig = Field(default_factory=VerdictConfig)
+    uncertainty: UncertaintyConfig = Field(default_factory=UncertaintyConfig)
     init: InitConfig = Field(default_factory=InitConfig)
     smoothing: SmoothingConfig = Field(default_factory=SmoothingConfig)
     shape: ShapeConfig = Field(default_factory=ShapeConfig)
@@ -205,14 +268,7 @@ class TrackingConfig(Strict):
     @field_validator("intervals", "prior")
     @classmethod
     def _check_patterns(cls, v: dict[str, float]) -> dict[str, float]:
-        for pattern, width in v.items():
-            try:
-                re.compile(pattern)
-            except re.error as e:
-                raise ValueError(f"'{pattern}' is not a valid regular expression ({e})") from e
-            if not (np.isfinite(width) and width > 0):
-                raise ValueError(f"'{pattern}': must be a positive number")
-        return v
+        return _check_patterns(v)
 
     def check(self, model: BodyModel) -> None:
         """Every check that needs the body model (DOF and segment names), at once: raises

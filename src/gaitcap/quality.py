@@ -1,0 +1,259 @@
+"""A run's verdict and its calibrated per-point uncertainty, computed after tracking from what the
+tracker recorded (``trajectories.h5``: raw points, fit, quality flags; the calibration).
+
+Signals of the whole run (:func:`run_signals`), each a physical check that a correct fit of a
+walking person passes:
+
+- the fraction of frames flagged (fit below ``quality.min_fit``, subject out of view...);
+- the fraction of tracked frames whose ankles *cross*: the left ankle on the right of the right
+  ankle along the hips' axis. A walking person's feet keep their sides (the truth of every suite
+  walk keeps them 5 cm apart or more); crossed ankles are the mark of legs swapped below the hips;
+- the lowest foot point's height above the floor, median over the frames: one foot stands on the
+  floor in every frame of a walk (z = 0 in the calibration's world frame); a model floating above
+  it, or sunk into it, has collapsed onto something else;
+- thigh and shank lengths against the usual proportions for the subject's height (the body
+  model's own: 0.245 H and 0.246 H);
+- the subject's height in each camera's image (pixels): a small figure leaves the limbs a few
+  pixels wide.
+
+:func:`judge` turns them into ``ok`` / ``doubtful`` / ``failed`` with the reasons, by the
+thresholds of ``tracking.yaml``'s ``verdict`` section.
+
+:func:`calibrated_uncertainty`: per frame and point, a standard-deviation-like radius (metres) that
+grows with what varies with the error (docs/validation.md, scripts/bench_uncertainty.py):
+
+    u = s_p exp(c0 + c_res * log(r) + c_fit * (1 - fit) + c_cross * crossed_run + c_floor * |floor|
+            + c_crossed * crossed_frame)
+
+times the point's ``point_scale`` (errors grow down the kinematic chain: hips < knees < ankles),
+where r is the point's residual from its own zero-lag low-pass trajectory (the tracker's jitter,
+metres), fit the frame's fit, crossed_run the run's crossed-ankle fraction, |floor| the run's foot
+height off the floor (metres) and crossed_frame 1 when this frame's ankles cross. The coefficients
+are fitted on the validation suite by regressing log |error| on these terms, then c0 is moved so
+that 95 % of the lower-limb errors fall within 2 u, and each point's scale so that 95 % of its own
+errors do.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Literal
+
+import numpy as np
+
+from gaitcap.io.track_h5 import QUALITY_OK, QUALITY_POOR_FIT
+from gaitcap.tracking.smoothing import lowpass
+
+if TYPE_CHECKING:
+    from gaitcap.camera import CameraRig
+    from gaitcap.tracking.config import UncertaintyConfig, VerdictConfig
+
+log = logging.getLogger(__name__)
+
+Verdict = Literal["ok", "doubtful", "failed"]  # gaitcap.track_summary.VERDICTS
+FEET = ("heel_l", "heel_r", "toe_l", "toe_r")
+#: segment -> (proximal point, distal point), both sides checked
+SEGMENTS = {"thigh": ("hip", "knee"), "shank": ("knee", "ankle")}
+#: the body model's proportions (gaitcap/configs/body.yaml): segment length / height
+USUAL_LENGTH = {"thigh": 0.245, "shank": 0.246}
+
+
+@dataclass(frozen=True)
+class RunSignals:
+    """What :func:`run_signals` measured on one run.
+
+    Attributes:
+        n_frames: frames of the run.
+        n_tracked: frames with a pose (fit good or poor; not out of view or not initialised).
+        n_ok: frames not flagged.
+        n_crossed: tracked frames whose ankles cross.
+        floor_m: median over the tracked frames of the lowest foot point's height (metres; NaN
+            without frames or feet).
+        segment_ratios: ``thigh_l`` ... ``shank_r`` -> median length / usual length for the height.
+        image_height_px: camera -> median height of the tracked body in its image (pixels).
+        crossed: (T,) bool, the frames whose ankles cross.
+        body_problems: the shape calibration's lengths outside ``shape.ranges`` (its body was
+            rejected and the shipped proportions tracked; gaitcap.body.measures.outside_ranges).
+    """
+
+    n_frames: int
+    n_tracked: int
+    n_ok: int
+    n_crossed: int
+    floor_m: float
+    segment_ratios: dict[str, float] = field(default_factory=dict)
+    image_height_px: dict[str, float] = field(default_factory=dict)
+    crossed: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    body_problems: tuple[str, ...] = ()
+
+    @property
+    def crossed_fraction(self) -> float:
+        return self.n_crossed / self.n_tracked if self.n_tracked else 0.0
+
+    @property
+    def flagged_fraction(self) -> float:
+        return 1.0 - self.n_ok / self.n_frames if self.n_frames else 1.0
+
+
+@dataclass(frozen=True)
+class RunVerdict:
+    """``verdict`` and ``verdict_reasons`` of ``track.json``."""
+
+    verdict: Verdict
+    reasons: tuple[str, ...] = ()
+
+    def to_dict(self) -> dict[str, object]:
+        return {"verdict": self.verdict, "verdict_reasons": list(self.reasons)}
+
+
+def _check_shapes(points: np.ndarray, names: tuple[str, ...], quality: np.ndarray) -> None:
+    if points.ndim != 3 or points.shape[1:] != (len(names), 3):
+        raise ValueError(f"points must have shape (T, {len(names)}, 3), got {points.shape}")
+    if quality.shape != (points.shape[0],):
+        raise ValueError(f"quality must have shape ({points.shape[0]},), got {quality.shape}")
+
+
+def crossed_ankles(points: np.ndarray, names: tuple[str, ...], margin_m: float = 0.0) -> np.ndarray:
+    """(T,) bool: frames whose left ankle lies more than ``margin_m`` on the right of the right
+    ankle along the hips' axis (horizontal plane), from points (T, P, 3). False where a point is
+    missing."""
+    idx = {n: names.index(n) for n in ("hip_l", "hip_r", "ankle_l", "ankle_r")}
+    hips = points[:, idx["hip_l"], :2] - points[:, idx["hip_r"], :2]
+    ankles = points[:, idx["ankle_l"], :2] - points[:, idx["ankle_r"], :2]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        lateral = np.sum(hips * ankles, axis=1) / np.linalg.norm(hips, axis=1)
+    return np.nan_to_num(lateral, nan=np.inf) < -margin_m
+
+
+def _floor_height(points: np.ndarray, names: tuple[str, ...]) -> float:
+    feet = [names.index(n) for n in FEET if n in names]
+    if not feet or not len(points):
+        return float("nan")
+    lowest = np.min(points[:, feet, 2], axis=1)
+    lowest = lowest[np.isfinite(lowest)]
+    return float(np.median(lowest)) if len(lowest) else float("nan")
+
+
+def _segment_ratios(points: np.ndarray, names: tuple[str, ...], height_m: float) -> dict[str, float]:
+    out = {}
+    for seg, (a, b) in SEGMENTS.items():
+        for side in ("_l", "_r"):
+            if a + side in names and b + side in names and len(points):
+                length = np.linalg.norm(points[:, names.index(a + side)] - points[:, names.index(b + side)], axis=1)
+                length = length[np.isfinite(length)]
+                if len(length):
+                    out[seg + side] = float(np.median(length) / (USUAL_LENGTH[seg] * height_m))
+    return out
+
+
+def _image_heights(points: np.ndarray, rig: CameraRig | None) -> dict[str, float]:
+    if rig is None or not len(points):
+        return {}
+    out = {}
+    for cam in rig:
+        v = cam.project(points)[..., 1]  # (T, P)
+        v = v[np.isfinite(v).any(axis=1)]
+        if len(v):
+            out[cam.name] = float(np.median(np.nanmax(v, axis=1) - np.nanmin(v, axis=1)))
+    return out
+
+
+def run_signals(points: np.ndarray, names: tuple[str, ...], quality: np.ndarray, height_m: float,
+                rig: CameraRig | None = None, crossed_margin_m: float = 0.0) -> RunSignals:  # fmt: skip
+    """The run-level signals (see the module docstring) of the tracker's raw points (T, P, 3)
+    (``points_unfiltered``), per-frame quality (T,) and the subject's height (metres); the image
+    heights need the cameras ``rig``; ankles count as crossed beyond ``crossed_margin_m`` (metres)."""
+    points, quality = np.asarray(points, float), np.asarray(quality)
+    _check_shapes(points, names, quality)
+    tracked = (quality == QUALITY_OK) | (quality == QUALITY_POOR_FIT)
+    pts = points[tracked]
+    crossed = crossed_ankles(points, names, crossed_margin_m) & tracked
+    return RunSignals(
+        n_frames=len(quality), n_tracked=int(tracked.sum()), n_ok=int(np.sum(quality == QUALITY_OK)),
+        n_crossed=int(crossed.sum()), floor_m=_floor_height(pts, names),
+        segment_ratios=_segment_ratios(pts, names, height_m), image_height_px=_image_heights(pts, rig),
+        crossed=crossed,
+    )  # fmt: skip
+
+
+def judge(signals: RunSignals, cfg: VerdictConfig) -> RunVerdict:
+    """The verdict of a run from its signals: ``failed`` when too few frames fit
+    (``cfg.min_ok_fraction``), else ``doubtful`` when any check fails, else ``ok``."""
+    s, n = signals, signals.n_frames
+    if s.n_ok < cfg.min_ok_fraction * n or s.n_ok == 0:
+        count = f"only {s.n_ok} of {n} frames fit" if s.n_ok else f"none of the {n} frames fits"
+        return RunVerdict("failed", (f"{count} the silhouettes (fit below quality.min_fit, or subject not found)",))
+    reasons = []
+    if s.flagged_fraction > cfg.max_flagged_fraction:
+        reasons.append(f"a poor fit for {n - s.n_ok} of {n} frames")
+    if s.n_tracked and s.crossed_fraction >= cfg.max_crossed_fraction:
+        reasons.append(f"the ankles cross in {s.n_crossed} of {s.n_tracked} frames: a suspected leg swap")
+    if np.isfinite(s.floor_m) and abs(s.floor_m) > cfg.max_floor_offset_m:
+        where = "above" if s.floor_m > 0 else "below"
+        reasons.append(f"the feet stay {100 * abs(s.floor_m):.0f} cm {where} the floor: the model is not standing "
+                       "on it")  # fmt: skip
+    low, high = cfg.segment_ratio
+    odd = {k: v for k, v in s.segment_ratios.items() if not low <= v <= high}
+    if odd:
+        listed = ", ".join(f"{k} {v:.2f}" for k, v in odd.items())
+        reasons.append(f"a body outside anthropometric ranges (segment length / usual length for the height: {listed})")
+    if s.body_problems:
+        reasons.append("the shape calibration gave a body outside anthropometric ranges (" + "; ".join(s.body_problems)
+                       + "): tracked with body.yaml's proportions")  # fmt: skip
+    small = {k: v for k, v in s.image_height_px.items() if v < cfg.min_image_height_px}
+    if small:
+        listed = ", ".join(f"{v:.0f} px in {k}" for k, v in small.items())
+        reasons.append(f"the subject is too small in the image ({listed})")
+    return RunVerdict("doubtful" if reasons else "ok", tuple(reasons))
+
+
+def point_residuals(points: np.ndarray, rate_hz: float, cutoff_hz: float) -> np.ndarray:
+    """(T, P) distance (metres) of each raw point (T, P, 3) from its zero-lag low-pass trajectory:
+    the tracker's frame-to-frame jitter. NaN where a point is missing; a run of frames too short
+    for the filter gives 0."""
+    if cutoff_hz >= rate_hz / 2:
+        cutoff_hz = 0.4 * rate_hz
+    smooth = lowpass(points, rate_hz, cutoff_hz)
+    return np.linalg.norm(points - smooth, axis=2)
+
+
+def calibrated_uncertainty(points: np.ndarray, names: tuple[str, ...], fit: np.ndarray, signals: RunSignals,
+                           rate_hz: float, cfg: UncertaintyConfig) -> np.ndarray:  # fmt: skip
+    """Per-point uncertainty (T, P), metres, from the raw points (T, P, 3), the per-frame fit (T,)
+    and the run's signals (see the module docstring); NaN where a point or the fit is missing.
+    Bounded below by ``cfg.min_m``."""
+    points, fit = np.asarray(points, float), np.asarray(fit, float)
+    T, P = points.shape[:2]
+    if fit.shape != (T,) or signals.crossed.shape != (T,):
+        raise ValueError(f"fit and the signals' crossed frames must have shape ({T},)")
+    c = cfg.coefficients
+    res = np.maximum(point_residuals(points, rate_hz, cfg.cutoff_hz), cfg.min_residual_m)
+    floor = abs(signals.floor_m) if np.isfinite(signals.floor_m) else 0.0
+    frame = (c.intercept + c.fit * (1.0 - fit) + c.crossed_run * signals.crossed_fraction + c.floor * floor
+             + c.crossed_frame * signals.crossed)  # (T,)  # fmt: skip
+    with np.errstate(invalid="ignore"):
+        u = np.exp(frame[:, None] + c.log_residual * np.log(res)) * cfg.scales(names)
+    return np.maximum(u, cfg.min_m)
+
+
+@dataclass(frozen=True)
+class Assessment:
+    """:func:`assess`'s result: the run's signals, its verdict and the per-point uncertainty (T, P), metres."""
+
+    signals: RunSignals
+    verdict: RunVerdict
+    uncertainty: np.ndarray
+
+
+def assess(points: np.ndarray, names: tuple[str, ...], fit: np.ndarray, quality: np.ndarray, height_m: float,
+           rate_hz: float, verdict_cfg: VerdictConfig, uncertainty_cfg: UncertaintyConfig,
+           rig: CameraRig | None = None, body_problems: tuple[str, ...] = ()) -> Assessment:  # fmt: skip
+    """Signals, verdict and calibrated uncertainty of one run from the tracker's raw points
+    (T, P, 3), fit (T,) and quality (T,) (``points_unfiltered``, ``fit``, ``quality`` of
+    trajectories.h5); ``body_problems``: see :class:`RunSignals`."""
+    signals = replace(run_signals(points, names, quality, height_m, rig, verdict_cfg.crossed_margin_m),
+                      body_problems=body_problems)  # fmt: skip
+    verdict = judge(signals, verdict_cfg)
+    u = calibrated_uncertainty(points, names, fit, signals, rate_hz, uncertainty_cfg)
+    return Assessment(signals, verdict, u)

@@ -1,0 +1,213 @@
+"""The run's verdict (each rule: a run built to trip it, one that must not) and the calibrated
+uncertainty's invariants (gaitcap.quality)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import yaml
+
+from gaitcap.body.model import load_body_model
+from gaitcap.camera import Camera, CameraRig
+from gaitcap.config import load_yaml_model
+from gaitcap.errors import ConfigError
+from gaitcap.io.track_h5 import QUALITY_OK, QUALITY_OUT_OF_VIEW, QUALITY_POOR_FIT
+from gaitcap.quality import assess, calibrated_uncertainty, crossed_ankles, judge, run_signals
+from gaitcap.tracking.config import TrackingConfig, UncertaintyConfig, VerdictConfig, load_tracking_config
+
+HEIGHT = 1.7
+T = 50
+RATE = 25.0
+
+
+@pytest.fixture(scope="module")
+def walk() -> tuple[np.ndarray, tuple[str, ...]]:
+    """A plausible walk of the body model: (T, P, 3) points and names; the legs swing in opposition
+    while the pelvis moves forward at 1.2 m/s, the feet near the floor."""
+    model = load_body_model(height_m=HEIGHT)
+    Q = np.repeat(model.neutral_pose()[None], T, axis=0)
+    phase = 2 * np.pi * np.arange(T) / 25.0
+    Q[:, model.dof_index("pelvis_tx")] = 1.2 * np.arange(T) / RATE
+    Q[:, model.dof_index("hip_flexion_l")] = np.radians(20) * np.sin(phase)
+    Q[:, model.dof_index("hip_flexion_r")] = -np.radians(20) * np.sin(phase)
+    return model.forward(Q), model.point_names
+
+
+def _judge(points, names, quality=None, height=HEIGHT, rig=None, cfg: VerdictConfig | None = None):
+    cfg = cfg or VerdictConfig()
+    quality = np.zeros(len(points), np.uint8) if quality is None else quality
+    return judge(run_signals(points, names, quality, height, rig, cfg.crossed_margin_m), cfg)
+
+
+def test_a_plausible_walk_is_ok(walk):
+    points, names = walk
+    v = _judge(points, names)
+    assert v.verdict == "ok" and v.reasons == ()
+    assert v.to_dict() == {"verdict": "ok", "verdict_reasons": []}
+
+
+def test_poor_fit_for_most_frames_is_doubtful_and_nearly_all_failed(walk):
+    points, names = walk
+    q = np.zeros(T, np.uint8)
+    q[: int(0.4 * T)] = QUALITY_POOR_FIT
+    assert _judge(points, names, q).verdict == "ok"  # 40 % flagged: under max_flagged_fraction 0.5
+    q[: int(0.6 * T)] = QUALITY_POOR_FIT
+    v = _judge(points, names, q)
+    assert v.verdict == "doubtful" and v.reasons == (f"a poor fit for 30 of {T} frames",)
+    q[:] = QUALITY_POOR_FIT
+    q[:3] = QUALITY_OK  # 3 of 50 unflagged: under min_ok_fraction 0.1
+    v = _judge(points, names, q)
+    assert v.verdict == "failed" and "only 3 of 50 frames" in v.reasons[0]
+    q[:] = QUALITY_OUT_OF_VIEW
+    v = _judge(points, names, q)
+    assert v.verdict == "failed" and v.reasons[0].startswith("none of the 50 frames fits")
+
+
+def _cross(points: np.ndarray, names, frames: slice, by_m: float) -> np.ndarray:
+    """The ankles moved so that the left one lies ``by_m`` to the right of the right one."""
+    out = points.copy()
+    hips = out[:, names.index("hip_l")] - out[:, names.index("hip_r")]
+    lateral = hips / np.linalg.norm(hips, axis=1, keepdims=True)
+    mid = 0.5 * (out[:, names.index("ankle_l")] + out[:, names.index("ankle_r")])
+    out[frames, names.index("ankle_l")] = mid[frames] - lateral[frames] * by_m / 2
+    out[frames, names.index("ankle_r")] = mid[frames] + lateral[frames] * by_m / 2
+    return out
+
+
+def test_crossed_ankles_are_a_suspected_leg_swap(walk):
+    points, names = walk
+    crossed = _cross(points, names, slice(0, 15), 0.08)  # 30 % of the frames, by 8 cm
+    assert crossed_ankles(crossed, names, 0.02).sum() == 15
+    v = _judge(crossed, names)
+    assert v.verdict == "doubtful" and v.reasons == ("the ankles cross in 15 of 50 frames: a suspected leg swap",)
+    # crossed by less than the margin (the points' jitter), or in fewer frames than the threshold: ok
+    assert _judge(_cross(points, names, slice(None), 0.01), names).verdict == "ok"
+    assert _judge(_cross(points, names, slice(0, 4), 0.08), names).verdict == "ok"
+
+
+def test_a_model_off_the_floor_is_doubtful(walk):
+    points, names = walk
+    v = _judge(points + [0, 0, 0.25], names)
+    assert v.verdict == "doubtful" and "the feet stay 25 cm above the floor" in v.reasons[0]
+    assert "below the floor" in _judge(points - [0, 0, 0.2], names).reasons[0]
+    assert _judge(points + [0, 0, 0.05], names).verdict == "ok"  # within max_floor_offset_m 0.1
+
+
+def test_a_body_outside_anthropometric_ranges_is_doubtful(walk):
+    points, names = walk
+    # the same body said to be 2.5 m tall: its legs are 0.68 of the usual length for that height
+    v = _judge(points, names, height=2.5)
+    assert v.verdict == "doubtful" and "a body outside anthropometric ranges" in v.reasons[0]
+    assert "thigh_l 0.68" in v.reasons[0]
+    assert _judge(points, names, height=1.9).verdict == "ok"  # 0.89: within [0.75, 1.33]
+
+
+def _camera_at(distance_m: float) -> CameraRig:
+    return CameraRig([Camera.look_at("cam1", (2.0, -distance_m, 1.0), (2.0, 0.0, 1.0))])
+
+
+def test_a_subject_too_small_in_the_image_is_doubtful(walk):
+    points, names = walk
+    far = _judge(points, names, rig=_camera_at(20.0))  # 1.6 m at 20 m with f = 600 px: about 50 px
+    assert far.verdict == "doubtful" and "too small in the image" in far.reasons[0] and "cam1" in far.reasons[0]
+    assert _judge(points, names, rig=_camera_at(5.0)).verdict == "ok"
+
+
+def test_every_failed_check_is_named(walk):
+    points, names = walk
+    v = _judge(_cross(points, names, slice(0, 25), 0.08) + [0, 0, 0.3], names, height=2.6)
+    assert v.verdict == "doubtful" and len(v.reasons) == 3
+
+
+# ----------------------------------------------------------------------------------- uncertainty
+def _uncertainty(points, names, fit=None, quality=None, cfg: UncertaintyConfig | None = None) -> np.ndarray:
+    fit = np.full(len(points), 0.8) if fit is None else fit
+    quality = np.zeros(len(points), np.uint8) if quality is None else quality
+    vcfg = VerdictConfig()
+    signals = run_signals(points, names, quality, HEIGHT, None, vcfg.crossed_margin_m)
+    return calibrated_uncertainty(points, names, fit, signals, RATE, cfg or UncertaintyConfig())
+
+
+def test_uncertainty_shape_and_bounds(walk):
+    points, names = walk
+    cfg = UncertaintyConfig(min_m=0.01)
+    u = _uncertainty(points, names, cfg=cfg)
+    assert u.shape == (T, len(names)) and np.all(np.isfinite(u)) and np.all(u >= 0.01)
+    holed = points.copy()
+    holed[10:15] = np.nan  # frames without a pose: no uncertainty either
+    u = _uncertainty(holed, names)
+    assert np.all(np.isnan(u[10:15])) and np.all(np.isfinite(u[:10]))
+    with pytest.raises(ValueError, match="shape"):
+        _uncertainty(points, names, fit=np.ones(T - 1))
+
+
+def test_uncertainty_grows_with_what_goes_wrong(walk):
+    points, names = walk
+    base = _uncertainty(points, names)
+    # a worse fit: larger everywhere
+    assert np.all(_uncertainty(points, names, fit=np.full(T, 0.5)) > base)
+    # jitter on one point: larger for that point, the others unchanged
+    rng = np.random.default_rng(0)
+    shaken = points.copy()
+    k = names.index("knee_l")
+    shaken[:, k] += rng.normal(0, 0.02, size=(T, 3))
+    u = _uncertainty(shaken, names)
+    assert np.median(u[:, k]) > 1.5 * np.median(base[:, k])
+    others = [i for i in range(len(names)) if i != k]
+    np.testing.assert_allclose(u[:, others], base[:, others])
+    # crossed ankles: larger, most in the crossed frames
+    crossed = _uncertainty(_cross(points, names, slice(0, 15), 0.08), names)
+    a = names.index("hip_l")
+    assert np.all(crossed[15:, a] > base[15:, a]) and np.all(crossed[:15, a] > crossed[15:, a].max())
+    # off the floor: larger
+    assert np.all(_uncertainty(points + [0, 0, 0.3], names) > base)
+
+
+def test_point_scale_multiplies_its_points_only(walk):
+    points, names = walk
+    base = _uncertainty(points, names, cfg=UncertaintyConfig(min_m=0.0))
+    u = _uncertainty(points, names, cfg=UncertaintyConfig(min_m=0.0, point_scale={"knee_[lr]": 2.0}))
+    k = [names.index("knee_l"), names.index("knee_r")]
+    np.testing.assert_allclose(u[:, k], 2 * base[:, k])
+    others = [i for i in range(len(names)) if i not in k]
+    np.testing.assert_allclose(u[:, others], base[:, others])
+
+
+def test_assess_returns_the_three(walk):
+    points, names = walk
+    cfg = load_tracking_config()
+    a = assess(points, names, np.full(T, 0.8), np.zeros(T, np.uint8), HEIGHT, RATE, cfg.verdict, cfg.uncertainty)
+    assert a.verdict.verdict == "ok" and a.signals.n_frames == T and a.uncertainty.shape == (T, len(names))
+
+
+# --------------------------------------------------------------------------------------- config
+def test_verdict_and_uncertainty_config_reject_bad_values(tmp_path):
+    cfg = load_tracking_config()
+    assert cfg.verdict.max_crossed_fraction == 0.1 and cfg.uncertainty.scales(("knee_l",))[0] == 0.76
+    doc = cfg.model_dump()
+    for section, key, value, message in (("verdict", "max_flagged_fracton", 0.5, "max_flagged_fracton"),
+                                         ("verdict", "segment_ratio", [1.1, 1.3], "segment_ratio"),
+                                         ("uncertainty", "point_scale", {"(": 1.0}, "regular expression")):  # fmt: skip
+        bad = {**doc, section: {**doc[section], key: value}}
+        path = tmp_path / "tracking.yaml"
+        path.write_text(yaml.safe_dump(bad))
+        with pytest.raises(ConfigError, match=message.replace("(", r"\(")):
+            load_yaml_model(TrackingConfig, path)
+
+
+def test_a_rejected_shape_calibration_is_named_and_doubtful(walk):
+    """A calibrated body outside shape.ranges was replaced by the shipped proportions: the run is not
+    accepted silently, the reason carries the calibration's own sentence."""
+    from dataclasses import replace
+
+    from gaitcap.quality import judge, run_signals
+    from gaitcap.tracking.config import load_tracking_config
+
+    points, names = walk
+    cfg = load_tracking_config().verdict
+    signals = run_signals(points, names, np.zeros(len(points), np.uint8), 1.9)
+    assert judge(signals, cfg).verdict == "ok"
+    problem = "leg 0.600 m is 0.316 of the height, outside 0.40-0.56"
+    v = judge(replace(signals, body_problems=(problem,)), cfg)
+    assert v.verdict == "doubtful" and v.reasons == (
+        f"the shape calibration gave a body outside anthropometric ranges ({problem}): tracked with body.yaml's proportions",)
