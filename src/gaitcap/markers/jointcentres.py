@@ -286,7 +286,7 @@ class _Evaluator:
             return self._shift(rule.shift)  # type: ignore[arg-type]
         if kind == "chord":
             c: ChordRule = rule.chord  # type: ignore[assignment]
-            return chord_point(self.get(c.proximal), self.get(c.wand), self.get(c.marker), c.distance_m)
+            return chord_point(self.get(c.proximal), self.get(c.wand), self.get(c.marker), self._chord_distance(name, c))
         if kind == "lerp":
             r: LerpRule = rule.lerp  # type: ignore[assignment]
             a, b = self.get(r.start), self.get(r.end)
@@ -299,6 +299,22 @@ class _Evaluator:
         else:
             mid_psis = 0.5 * (self.get(r.lpsi) + self.get(r.rpsi))  # type: ignore[arg-type]
         return harrington_hjc(self.get(r.lasi), self.get(r.rasi), mid_psis, r.side)
+
+    def _chord_distance(self, name: str, c: ChordRule) -> float:
+        """Half the subject's joint width plus the marker radius when the file has the width
+        (PROCESSING, mm), else the rule's typical ``distance_m`` (logged either way)."""
+        measured: dict[str, float] = self.markers.meta.get("anthropometry_mm") or {}
+        if c.width is None or c.width not in measured:
+            if c.width is not None:
+                log.info("%s: %s: no %s in the file, typical chord distance %.4f m", self.source, name, c.width,
+                         c.distance_m)  # fmt: skip
+            return c.distance_m
+        radius = measured["MarkerDiameter"] / 2000.0 if "MarkerDiameter" in measured else c.marker_radius_m
+        distance = measured[c.width] / 2000.0 + radius
+        log.info("%s: %s: the file's %s %g mm + marker radius %.1f mm (%s) -> chord distance %.4f m",
+                 self.source, name, c.width, measured[c.width], radius * 1000,
+                 "MarkerDiameter / 2" if "MarkerDiameter" in measured else "typical", distance)  # fmt: skip
+        return distance
 
     def _cluster(self, r: ClusterRule) -> np.ndarray:
         static_cluster = self.static_mean(r.markers)

@@ -154,12 +154,19 @@ class ChordRule(Strict):
     wand, with J - marker perpendicular to proximal - J (J on the circle of diameter
     marker-proximal). Knee: proximal = hip centre, wand = THI, marker = KNE; ankle: proximal =
     knee centre, wand = TIB, marker = ANK.
+
+    With ``width`` (a Plug-in-Gait measurement such as ``LKneeWidth``) the distance is the
+    subject's own when the file carries it (C3D PROCESSING, mm): width / 2 + the marker radius
+    (PROCESSING ``MarkerDiameter`` / 2, else ``marker_radius_m``); ``distance_m`` (a typical
+    width) otherwise.
     """
 
     proximal: str
     wand: str
     marker: str
     distance_m: float = Field(gt=0.0, le=0.2)
+    width: str | None = None
+    marker_radius_m: float = Field(default=0.007, ge=0.0, le=0.03)
 
     def references(self) -> list[str]:
         return [self.proximal, self.wand, self.marker]
