@@ -15,8 +15,12 @@ from gaitcap.io import gait_outputs
 from gaitcap.io.atomic import write_text_atomic
 from gaitcap.io.c3d_export import write_c3d
 from gaitcap.io.trajectories_h5 import read_trajectory
-from gaitcap.report.html import render_report
-from gaitcap.trajectory import Trajectory
+from gaitcap.report.fit import FitRecord, Verdict, angle_bands, load_fit_record, read_verdict, select_frames
+from gaitcap.report.html import FitView, render_report
+from gaitcap.report.plots import FLEXION_ANGLES
+from gaitcap.report.sheet import contact_sheet
+from gaitcap.track_summary import read_track_json
+from gaitcap.trajectory import SIDES, Trajectory, side_suffix
 
 log = logging.getLogger("gaitcap.report")
 
@@ -31,6 +35,7 @@ class ReportResult:
     analysis: GaitAnalysis
     out_dir: Path
     files: tuple[Path, ...]
+    verdict: Verdict | None = None
 
 
 def resolve_input(source: Path) -> Path:
@@ -73,16 +78,50 @@ def with_pelvis_markers(joints: Trajectory, markers: Trajectory) -> Trajectory:
     return replace(joints, names=joints.names + names, points=np.concatenate([joints.points, extra], axis=1))
 
 
+def _fit_record(path: Path, traj: Trajectory) -> FitRecord | None:
+    """The tracker's per-frame record of a trajectories.h5 ``path`` (None for another source, or a
+    record that does not match the trajectory's frames)."""
+    if path.suffix.lower() not in (".h5", ".hdf5"):
+        return None
+    fit = load_fit_record(path)
+    if fit is not None and fit.record.n_frames != traj.n_frames:
+        log.warning("%s: the tracker's record has %d frames, the trajectory %d: the fit is not shown",
+                    path, fit.record.n_frames, traj.n_frames)  # fmt: skip
+        return None
+    return fit
+
+
+def fit_view(path: Path, analysis: GaitAnalysis, session: Path | None = None) -> tuple[FitView, list[int]]:
+    """What report.html shows of the tracking run behind ``path`` (its verdict, fit, contact sheet
+    and angle bands), and the contact sheet's frames."""
+    traj = analysis.trajectory
+    is_h5 = path.suffix.lower() in (".h5", ".hdf5")
+    verdict = read_verdict(read_track_json(path.parent)) if is_h5 else None
+    names = tuple(f"{n}{side_suffix(s)}" for n in FLEXION_ANGLES for s in SIDES)
+    bands = angle_bands(traj, analysis.direction, names)
+    fit = _fit_record(path, traj)
+    if fit is None:
+        return FitView(verdict, bands=bands, flagged=~np.all(np.isfinite(traj.points), axis=(1, 2))), []
+    frames = select_frames(fit, analysis.events, traj.t0_s)
+    sheet = contact_sheet(fit, frames, session)
+    if sheet.omitted:
+        log.warning("%s", sheet.omitted)
+    return FitView(verdict, fit, sheet, bands, fit.flagged), [f.index for f in frames]
+
+
 def run_report(
     source: Path,
     out_dir: Path | None = None,
     options: GaitOptions | None = None,
     mapping: str | Path | None = None,
     subject: str | None = None,
+    session: Path | None = None,
 ) -> ReportResult:
     """Analyse ``source`` and write ``events.csv``, ``parameters.json``/``.csv``, ``strides.csv``,
     ``angles.csv``, ``cycles.h5``, ``trajectories.c3d`` and ``report.html`` into ``out_dir``
-    (default: ``<source folder>/gait``); ``mapping``/``subject`` for a .c3d/.trc source."""
+    (default: ``<source folder>/gait``); ``mapping``/``subject`` for a .c3d/.trc source. For a
+    tracking run, report.html also shows the verdict of its track.json and how the model fits its
+    videos (``session``: the session folder, when not where the run recorded it)."""
     path = resolve_input(Path(source))
     traj = load_trajectory(path, mapping, subject)
     out = Path(out_dir) if out_dir is not None else (Path(source) if Path(source).is_dir() else path.parent) / "gait"
@@ -99,6 +138,7 @@ def run_report(
     gait_outputs.write_angles_csv(files["angles"], traj, a.angles)
     gait_outputs.write_cycles_h5(files["cycles"], a)
     write_c3d(files["c3d"], traj.with_events(a.events))
-    write_text_atomic(files["html"], render_report(a, title=f"Gait report — {path.name}"))
+    view, sheet_frames = fit_view(path, a, session)
+    write_text_atomic(files["html"], render_report(a, f"Gait report — {path.name}", view, sheet_frames))
     log.info("wrote %d files to %s", len(files), out)
-    return ReportResult(a, out, tuple(files.values()))
+    return ReportResult(a, out, tuple(files.values()), view.verdict)
