@@ -11,6 +11,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import cv2
+import h5py
 import numpy as np
 import pytest
 from click.testing import CliRunner
@@ -18,7 +19,7 @@ from gait_walker import Walker
 
 from gaitcap.cli.main import cli
 from gaitcap.gait.analysis import analyse
-from gaitcap.io.track_h5 import QUALITY_OK, QUALITY_POOR_FIT, TrackRecord
+from gaitcap.io.track_h5 import QUALITY_POOR_FIT, TrackRecord
 from gaitcap.io.trajectories_h5 import write_trajectory
 from gaitcap.report.fit import (MAX_ATTENTION_FRAMES, UNCERTAIN_MM, FitRecord, angle_bands, load_fit_record,
                                 read_verdict, select_frames)  # fmt: skip
@@ -190,3 +191,19 @@ def test_report_without_the_videos_omits_the_sheet_and_says_why(tracked_copy):
     assert "How well the model fits" in html  # the fit plot needs no video
     res = CliRunner().invoke(cli, ["report", str(root / "run"), "--session", str(root / "nowhere"), "-o", str(root / "g3")])
     assert "the session folder is not found" in (root / "g3" / "report.html").read_text()
+
+
+def test_a_run_that_lost_the_subject_still_gets_its_fit_report(tracked_copy):
+    _, root = tracked_copy
+    lost = root / "lost"
+    shutil.copytree(root / "run", lost)
+    with h5py.File(lost / "trajectories.h5", "r+") as f:
+        f["points"][...] = np.nan
+        f["quality"][...] = QUALITY_POOR_FIT
+    res = CliRunner().invoke(cli, ["report", str(lost), "--session", str(root / "session")])
+    assert res.exit_code == 1
+    assert "verdict: doubtful" in res.output and "the tracking's fit is shown in" in res.output
+    html = (lost / "gait" / "report.html").read_text()
+    assert "No gait analysis." in html and "Verdict: doubtful" in html
+    assert sum(mime == "image/jpeg" for mime, _ in _decoded_images(html)) >= 2
+    assert not (lost / "gait" / "parameters.json").exists()

@@ -17,6 +17,7 @@ from gaitcap.gait.parameters import OVERALL_KEYS, SIDE_KEYS, STATUS_IMPLAUSIBLE,
 from gaitcap.report import plots
 from gaitcap.report.fit import UNCERTAIN_MM, FitRecord, Verdict
 from gaitcap.report.sheet import ContactSheet, SheetRow
+from gaitcap.trajectory import GaitEvent, Trajectory
 
 _CSS = """
 body{font-family:system-ui,Arial,sans-serif;margin:24px;color:#222;max-width:1200px}
@@ -96,8 +97,8 @@ def _sheet_cell(row: SheetRow, fit: FitRecord, rate_hz: float) -> str:
             f"<br>{html.escape('; '.join(row.frame.reasons))}</div></div>")  # fmt: skip
 
 
-def fit_section(view: FitView, analysis: GaitAnalysis, sheet_frames: list[int]) -> str:
-    """The tracking fit: a summary line, the fit/uncertainty plot and the contact sheet."""
+def fit_section(view: FitView, traj: Trajectory, events: list[GaitEvent], sheet_frames: list[int]) -> str:
+    """The tracking fit: a summary line, the fit/uncertainty plot (``events`` marked) and the contact sheet."""
     fit = view.fit
     if fit is None:
         return ""
@@ -108,8 +109,7 @@ def fit_section(view: FitView, analysis: GaitAnalysis, sheet_frames: list[int]) 
         f"<p>{rec.n_frames} frames tracked: {n_flag} flagged by the tracker (fit below {fit.min_fit:g}, subject out "
         f"of view or not found), {n_unc} more with a mean lower-limb uncertainty above {UNCERTAIN_MM:g} mm; median "
         f"fit {np.nanmedian(rec.fit):.2f}.</p>",
-        _img(plots.fit_timeline(fit, analysis.trajectory.times(), sheet_frames, analysis.events),
-             "fit and uncertainty"),
+        _img(plots.fit_timeline(fit, traj.times(), sheet_frames, events), "fit and uncertainty"),
     ]  # fmt: skip
     sheet = view.sheet
     if sheet is None:
@@ -124,8 +124,7 @@ def fit_section(view: FitView, analysis: GaitAnalysis, sheet_frames: list[int]) 
         "green, trunk and head blue. The detected gait events, and more frames where the tracker flagged the fit "
         f"or the uncertainty is high (framed in red). σ: mean lower-limb uncertainty.</p>"
     )
-    rate = analysis.trajectory.rate_hz
-    parts.append("<div class='sheet'>" + "".join(_sheet_cell(r, fit, rate) for r in sheet.rows) + "</div>")
+    parts.append("<div class='sheet'>" + "".join(_sheet_cell(r, fit, traj.rate_hz) for r in sheet.rows) + "</div>")
     return "\n".join(parts)
 
 
@@ -157,6 +156,25 @@ def parameter_table(analysis: GaitAnalysis) -> str:
     return "<table>" + "".join(rows) + "</table>"
 
 
+def _head(title: str, view: FitView) -> list[str]:
+    parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>",
+             f"<style>{_CSS}</style></head><body><h1>{html.escape(title)}</h1>"]  # fmt: skip
+    if view.verdict is not None:
+        parts.append(verdict_banner(view.verdict))
+    return parts
+
+
+def render_fit_report(traj: Trajectory, view: FitView, problem: str, title: str = "Gait report",
+                      sheet_frames: list[int] | None = None) -> str:  # fmt: skip
+    """The report of a tracking run whose gait analysis could not run (``problem`` says why): the
+    verdict and how the model fits the videos."""
+    parts = _head(title, view)
+    parts.append(f"<div class='warn'><b>No gait analysis.</b> {html.escape(problem)}</div>")
+    parts.append(fit_section(view, traj, [], sheet_frames or []))
+    parts.append("</body></html>")
+    return "\n".join(parts)
+
+
 def render_report(analysis: GaitAnalysis, title: str = "Gait report", view: FitView | None = None,
                   sheet_frames: list[int] | None = None) -> str:  # fmt: skip
     """The whole report as one HTML string; ``view`` adds the tracking's verdict and fit, with the
@@ -164,10 +182,7 @@ def render_report(analysis: GaitAnalysis, title: str = "Gait report", view: FitV
     p, traj = analysis.parameters, analysis.trajectory
     info = p.info
     view = view or FitView()
-    parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>",
-             f"<style>{_CSS}</style></head><body><h1>{html.escape(title)}</h1>"]  # fmt: skip
-    if view.verdict is not None:
-        parts.append(verdict_banner(view.verdict))
+    parts = _head(title, view)
     parts.append(
         f"<p class='note'>Source: {html.escape(str(traj.meta.get('source', '')))} — {traj.n_frames} frames at "
         f"{traj.rate_hz:g} Hz ({traj.n_frames / traj.rate_hz:.2f} s). Walking direction "
@@ -182,7 +197,7 @@ def render_report(analysis: GaitAnalysis, title: str = "Gait report", view: FitV
         parts.append(f"<div class='warn'><b>Implausible values withheld.</b> {html.escape(p.reason)}</div>")
     elif p.reason:
         parts.append(f"<div class='warn'>{html.escape(p.reason)}</div>")
-    parts.append(fit_section(view, analysis, sheet_frames or []))
+    parts.append(fit_section(view, traj, analysis.events, sheet_frames or []))
     parts.append("<h2>Spatio-temporal parameters</h2>" + parameter_table(analysis))
     parts.append(
         "<p class='note'>Mean ± SD (n). Symmetry index 100·(L−R)/((L+R)/2). Step values belong to the foot "

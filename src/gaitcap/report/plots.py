@@ -147,7 +147,7 @@ def fit_timeline(fit: FitRecord, times: np.ndarray, sheet: list[int], events: li
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8, loc="upper right", ncol=4)
     a1.plot(times[sheet], np.full(len(sheet), 1.02), "v", color="0.3", ms=5, clip_on=False)
-    a1.set_ylim(0, 1.05)
+    a1.set_ylim(min(0.0, float(np.nanmin(rec.fit, initial=0.0)) - 0.05), 1.05)  # a fit below 0: more XOR than |S|
     a1.set_ylabel("fit (1 − XOR/|S|)")
     a2.set_ylabel("mm")
     a2.set_ylim(bottom=0)
