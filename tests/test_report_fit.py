@@ -21,8 +21,8 @@ from gaitcap.cli.main import cli
 from gaitcap.gait.analysis import analyse
 from gaitcap.io.track_h5 import QUALITY_POOR_FIT, TrackRecord
 from gaitcap.io.trajectories_h5 import write_trajectory
-from gaitcap.report.fit import (MAX_ATTENTION_FRAMES, UNCERTAIN_MM, FitRecord, angle_bands, load_fit_record,
-                                read_verdict, select_frames)  # fmt: skip
+from gaitcap.report.fit import (MAX_ATTENTION_FRAMES, UNCERTAIN_MM, FitRecord, angle_bands, attention_frames,
+                                load_fit_record, read_verdict, select_frames)  # fmt: skip
 from gaitcap.report.sheet import draw_model, project_model, tracked_model
 from gaitcap.session import Session
 from gaitcap.trajectory import GaitEvent
@@ -207,3 +207,14 @@ def test_a_run_that_lost_the_subject_still_gets_its_fit_report(tracked_copy):
     assert "No gait analysis." in html and "Verdict: doubtful" in html
     assert sum(mime == "image/jpeg" for mime, _ in _decoded_images(html)) >= 2
     assert not (lost / "gait" / "parameters.json").exists()
+
+
+def test_every_flagged_run_gets_its_worst_frame_before_a_long_run_fills_the_sheet():
+    rec = _record(T=300)
+    rec.quality[20:220] = QUALITY_POOR_FIT
+    rec.fit[20:220] = 0.1  # a long, very poor run
+    rec.fit[120] = 0.05
+    rec.quality[260:263] = QUALITY_POOR_FIT
+    rec.fit[260:263] = [0.5, 0.4, 0.5]  # a short, milder one
+    picked = attention_frames(FitRecord(Path("."), rec), spacing=10)
+    assert {120, 261} <= set(picked) and len(picked) == MAX_ATTENTION_FRAMES

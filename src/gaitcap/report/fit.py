@@ -172,10 +172,11 @@ def regular_frames(events: list[GaitEvent], rate_hz: float, t0_s: float, n_frame
 def attention_frames(fit: FitRecord, spacing: int) -> dict[int, str]:
     """Frame -> label of the frames that need a look: in each run of flagged or uncertain frames,
     its worst frame (lowest fit, else highest uncertainty) and one every ``spacing`` frames; at most
-    :data:`MAX_ATTENTION_FRAMES`, the worst runs first."""
+    :data:`MAX_ATTENTION_FRAMES`: every run's worst frame first (flagged runs before uncertain ones,
+    the worst first), then the others."""
     unc = fit.lower_limb_uncertainty_mm()
     fit_values = np.nan_to_num(fit.record.fit, nan=0.0)
-    picks: list[tuple[float, int, str]] = []  # (severity, frame, label)
+    picks: list[tuple[bool, float, int, str]] = []  # (a run's worst, severity, frame, label)
     for mask, kind in ((fit.flagged, "flagged"), (fit.uncertain & ~fit.flagged, "uncertain")):
         for a, b in runs(mask):
             if kind == "flagged":
@@ -185,9 +186,9 @@ def attention_frames(fit: FitRecord, spacing: int) -> dict[int, str]:
                 worst = a + int(np.nanargmax(unc[a:b]))
                 severity = float(unc[worst]) / 1000.0
             frames = sorted({worst, *range(a + spacing // 2, b, max(spacing, 1))})
-            picks += [(severity - 1e-3 * abs(t - worst), t, _attention_label(fit, t, kind)) for t in frames]
-    picks.sort(key=lambda p: -p[0])
-    return {t: label for _, t, label in picks[:MAX_ATTENTION_FRAMES]}
+            picks += [(t == worst, severity - 1e-3 * abs(t - worst), t, _attention_label(fit, t, kind)) for t in frames]
+    picks.sort(key=lambda p: (not p[0], -p[1]))
+    return {t: label for _, _, t, label in picks[:MAX_ATTENTION_FRAMES]}
 
 
 def _attention_label(fit: FitRecord, t: int, kind: str) -> str:
@@ -197,8 +198,8 @@ def _attention_label(fit: FitRecord, t: int, kind: str) -> str:
 
 
 def select_frames(fit: FitRecord, events: list[GaitEvent], t0_s: float = 0.0) -> list[SheetFrame]:
-    """The contact sheet's frames, in time order (see the module docstring). Attention frames are
-    spaced half as far apart as the events (a quarter of the median stride time between them)."""
+    """The contact sheet's frames, in time order (see the module docstring). Within a run of
+    attention frames they are half as far apart as the events (an eighth of a stride)."""
     T, rate = fit.record.n_frames, fit.record.rate_hz
     regular = regular_frames(events, rate, t0_s, T)
     spacing = max(1, int(np.median(np.diff(sorted(regular)))) // 2) if len(regular) > 1 else max(1, T // 16)
