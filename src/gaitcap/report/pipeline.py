@@ -102,7 +102,7 @@ def fit_view(path: Path, traj: Trajectory, events: list[GaitEvent], direction: W
     bands = angle_bands(traj, direction, names) if direction is not None else None
     fit = _fit_record(path, traj)
     if fit is None:
-        return FitView(verdict, bands=bands, flagged=~np.all(np.isfinite(traj.points), axis=(1, 2))), []
+        return FitView(verdict, bands=bands), []
     frames = select_frames(fit, events, traj.t0_s)
     sheet = contact_sheet(fit, frames, session)
     if sheet.omitted:
