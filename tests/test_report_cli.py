@@ -44,7 +44,7 @@ def test_report_on_a_tracking_folder_writes_every_output(tmp_path) -> None:
     with h5py.File(gait / "cycles.h5") as f:
         assert f["left/knee_flexion"].shape[1] == 101 and f["left/knee_flexion"].shape[0] == p["left"]["n_strides"]
     html = (gait / "report.html").read_text()
-    assert html.count("data:image/png;base64,") == 3 and "http" not in html.replace("http-equiv", "")
+    assert html.count("data:image/png;base64,") == 4 and "http" not in html.replace("http-equiv", "")
 
 
 def test_report_with_less_than_one_cycle_exits_3_and_says_why(tmp_path) -> None:

@@ -32,7 +32,7 @@ from gaitcap.body.model import load_body_model
 from gaitcap.errors import OutputError, TrackingError
 from gaitcap.io.atomic import write_text_atomic
 from gaitcap.io.track_h5 import (QUALITY_NOT_INITIALISED, QUALITY_OK, QUALITY_OUT_OF_VIEW, QUALITY_POOR_FIT,
-                                 TrackWriter)  # fmt: skip
+                                 TrackWriter, proportions_attrs)  # fmt: skip
 from gaitcap.io.trc import write_trc
 from gaitcap.prefetch import Prefetched
 from gaitcap.quality import assess
@@ -319,8 +319,8 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
             filt, start, settled, shape_note, body_problems = _calibrate_shape(filt, likelihood, views, cfg, first,
                                                                                stages)  # fmt: skip
     attrs = {"config": yaml.safe_dump(cfg.model_dump(), sort_keys=False), "tracker": cfg.tracker,
-             "height_m": float(height), "height_source": height_source, "session": str(session),
-             "shape": shape_note}  # fmt: skip
+             "height_m": float(height), "height_source": height_source, "session": str(session.resolve()),
+             "shape": shape_note, **proportions_attrs(filt.model)}  # fmt: skip
     writer = TrackWriter(out / "trajectories.h5", model.point_names, model.dof_names, videos.fps, attrs)
     timing = FrameTiming()
     try:

@@ -20,7 +20,7 @@ Writing videos (overlays, synthetic sessions) is not this module's job.
 from __future__ import annotations
 
 import logging
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from contextlib import ExitStack
 from dataclasses import dataclass
 from pathlib import Path
@@ -235,18 +235,27 @@ def sample_frames(path: str | Path, n: int, scale: float = 1.0) -> np.ndarray:
     if count <= 0:  # the container does not say: count by decoding once
         with VideoReader(path) as video:
             count = sum(1 for _ in video)
-    out: list[np.ndarray] = []
+    indices = sample_indices(count, n)
+    frames = read_frames(path, indices)
+    if len(frames) < len(indices):
+        log.warning("%s: frame %d of %d declared does not decode", path, indices[len(frames)], count)
+    if not frames:
+        raise InputError(f"{path}: no frame could be read for the background estimate")
+    return np.stack([_rescale(frame, scale) for frame in frames.values()])
+
+
+def read_frames(path: str | Path, indices: Iterable[int]) -> dict[int, np.ndarray]:
+    """The frames ``indices`` of a video, in increasing order: index -> (H, W, 3) uint8 BGR. Stops
+    at the first that does not decode (past the end): the later ones are left out."""
+    out: dict[int, np.ndarray] = {}
     with VideoReader(path) as video:
-        for index in sample_indices(count, n):
-            video.seek(int(index))
+        for index in sorted({int(i) for i in indices}):
+            video.seek(index)
             frame = video.read()
             if frame is None:
-                log.warning("%s: frame %d of %d declared does not decode", path, index, count)
                 break
-            out.append(_rescale(frame, scale))
-    if not out:
-        raise InputError(f"{path}: no frame could be read for the background estimate")
-    return np.stack(out)
+            out[index] = frame
+    return out
 
 
 def _rescale(frame: np.ndarray, scale: float) -> np.ndarray:

@@ -23,14 +23,21 @@ EXIT_IMPLAUSIBLE = 4
               help="Output folder (default: SOURCE/gait, or gait/ beside a file).")
 @click.option("--config", "config", type=click.Path(path_type=Path), default=None,
               help="YAML file of gait options (see gaitcap.gait.options.GaitOptions).")
+@click.option("--session", "session", type=click.Path(path_type=Path), default=None,
+              help="The session folder of a tracking run (videos, calibration), for the contact sheet, when it is "
+                   "no longer where track.json says.")  # fmt: skip
 @mapping_option
 @subject_option
 @handle_errors
-def command(source: Path, out_dir: Path | None, config: Path | None, mapping: str | None, subject: str | None) -> None:
+def command(source: Path, out_dir: Path | None, config: Path | None, session: Path | None, mapping: str | None,
+            subject: str | None) -> None:  # fmt: skip
     """Gait events, spatio-temporal parameters, joint angles and report.html from trajectories.
 
     SOURCE is a tracking output folder holding trajectories.h5, a trajectories.h5 file, or a
-    marker-based .c3d/.trc file (its joint centres are computed from the markers).
+    marker-based .c3d/.trc file (its joint centres are computed from the markers). For a tracking
+    run, report.html opens with the run's verdict (track.json) and shows how the model fits the
+    videos: the fit and uncertainty per frame and a contact sheet of video frames with the tracked
+    model drawn over them (omitted, with the reason, when the session's videos cannot be read).
 
     Exit codes: 0 done; 1 error; 2 usage; 3 the analysis ran but found less than one complete gait
     cycle ("not enough steps": parameters.json has status not_enough_steps, the reason, and the
@@ -40,6 +47,7 @@ def command(source: Path, out_dir: Path | None, config: Path | None, mapping: st
     \b
     Example:
         gaitcap report OUT
+        gaitcap report OUT --session sessions/walk01
         gaitcap report walk.c3d -o walk_report
         gaitcap report walk.c3d --mapping my_lab.yaml
     """
@@ -47,7 +55,9 @@ def command(source: Path, out_dir: Path | None, config: Path | None, mapping: st
     from gaitcap.report.pipeline import run_report
 
     options = load_yaml_model(GaitOptions, config) if config is not None else None
-    result = run_report(source, out_dir, options, mapping, subject)
+    result = run_report(source, out_dir, options, mapping, subject, session)
+    if result.verdict is not None:
+        click.echo(result.verdict.line())
     p = result.analysis.parameters
     click.echo(f"{len(result.analysis.events)} events, {p.overall['n_strides']} complete cycles -> {result.out_dir}")
     o = p.overall

@@ -10,7 +10,9 @@ What is read:
   100 Hz), so frame i is at ``t0_s + i / rate``, the axis C3D EVENT:TIMES use;
 - events from the EVENT group: contexts Left/Right, labels Foot Strike/Foot Off (a subject
   prefix such as ``A22:Foot Strike`` is ignored);
-- subject height from PROCESSING:Height (``meta["height_m"]``);
+- subject height from PROCESSING:Height (``meta["height_m"]``), and Plug-in-Gait's knee and ankle
+  widths and marker diameter (LKneeWidth, RKneeWidth, LAnkleWidth, RAnkleWidth, MarkerDiameter,
+  mm: ``meta["anthropometry_mm"]``, those present);
 - the file's up axis from POINT:Y_SCREEN (``meta["up_axis"]``, e.g. ``"+Z"`` -> ``"z"``);
 - model angles (POINT:ANGLES channels, degrees) through :func:`read_c3d_angles`.
 
@@ -154,6 +156,29 @@ def _height_m(c3d: Any) -> float | None:
     return h / 1000.0 if h > 3.0 else h  # Vicon stores millimetres; a value above 3 cannot be metres
 
 
+#: Plug-in-Gait subject measurements read from PROCESSING (millimetres) and their plausible range
+ANTHROPOMETRY_MM: dict[str, tuple[float, float]] = {
+    "LKneeWidth": (40.0, 250.0), "RKneeWidth": (40.0, 250.0),
+    "LAnkleWidth": (30.0, 200.0), "RAnkleWidth": (30.0, 200.0),
+    "MarkerDiameter": (3.0, 40.0),
+}  # fmt: skip
+
+
+def _anthropometry_mm(c3d: Any, source: Path) -> dict[str, float]:
+    """The subject's Plug-in-Gait measurements in PROCESSING (mm), those present and plausible."""
+    out: dict[str, float] = {}
+    for key, (low, high) in ANTHROPOMETRY_MM.items():
+        value = np.atleast_1d(_param(c3d, "PROCESSING", key, []))
+        if value.size == 0 or not np.isfinite(float(value[0])) or float(value[0]) == 0.0:
+            continue
+        if low <= float(value[0]) <= high:
+            out[key] = float(value[0])
+        else:
+            log.warning("%s: PROCESSING:%s = %g is not a plausible width in mm (%g-%g); not used",
+                        source, key, float(value[0]), low, high)  # fmt: skip
+    return out
+
+
 def _up_axis(c3d: Any) -> str | None:
     screen = _strings(_param(c3d, "POINT", "Y_SCREEN"))
     if screen and screen[0].upper() in ("+X", "+Y", "+Z"):
@@ -173,7 +198,8 @@ def read_c3d_markers(path: str | Path) -> Trajectory:
 
     Returns a :class:`Trajectory` whose names are the marker labels (model angle/force/moment/
     power channels left out), with the file's events and ``meta`` keys ``source``, ``format``,
-    ``units``, ``up_axis`` (from POINT:Y_SCREEN, or None) and ``height_m`` (or None).
+    ``units``, ``up_axis`` (from POINT:Y_SCREEN, or None), ``height_m`` (or None) and
+    ``anthropometry_mm`` (PROCESSING's knee/ankle widths and marker diameter present, mm).
     """
     path = Path(path)
     c3d = _open(path)
@@ -188,8 +214,8 @@ def read_c3d_markers(path: str | Path) -> Trajectory:
     units = (_strings(_param(c3d, "POINT", "UNITS")) or ["mm"])[0]
     scale = metres_per_unit(units, str(path))
     rate, t0 = _time_axis(c3d)
-    meta = {"source": str(path), "format": "c3d", "units": units,
-            "up_axis": _up_axis(c3d), "height_m": _height_m(c3d)}  # fmt: skip
+    meta = {"source": str(path), "format": "c3d", "units": units, "up_axis": _up_axis(c3d),
+            "height_m": _height_m(c3d), "anthropometry_mm": _anthropometry_mm(c3d, path)}  # fmt: skip
     return Trajectory(
         names=tuple(labels[i] for i in keep),
         points=_points(c3d, labels, keep) * scale,

@@ -11,21 +11,31 @@ never NaN; ``/times`` (T,); ``/uncertainty`` (T, P) metres, calibrated after tra
 spread of the tracker's particles; ``/quality`` (T,) uint8 (0 ok,
 1 poor fit, 2 subject out of view, 3 not initialised); ``/poses`` (T, D) attr ``dof_names``;
 ``/likelihood`` (T,); ``/fit`` (T,); root attrs ``gaitcap_version``, ``config`` (YAML),
-``tracker``, ``height_m``, ``height_source``, ``filter``.
+``tracker``, ``height_m``, ``height_source``, ``session`` (the session folder, absolute), ``shape``
+(a note), ``body_scales`` and ``body_shifts`` (JSON ``{segment: [x, y, z]}``: the proportions of the
+tracked body model, so that its capsules can be drawn again; absent in runs before they were
+recorded), ``filter``.
+
+:func:`read_track_record` reads what the tracker recorded per frame (the report draws and plots it).
 """
 
 from __future__ import annotations
 
 import contextlib
+import json
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import h5py
 import numpy as np
 
 from gaitcap import __version__
-from gaitcap.errors import OutputError
+from gaitcap.errors import InputError, OutputError
 from gaitcap.io.atomic import atomic_path
+
+if TYPE_CHECKING:
+    from gaitcap.body.model import BodyModel
 
 QUALITY_OK, QUALITY_POOR_FIT, QUALITY_OUT_OF_VIEW, QUALITY_NOT_INITIALISED = 0, 1, 2, 3
 QUALITY_NAMES = {QUALITY_OK: "ok", QUALITY_POOR_FIT: "poor_fit", QUALITY_OUT_OF_VIEW: "out_of_view",
@@ -101,3 +111,79 @@ class TrackWriter:
         with contextlib.suppress(Exception):
             self._f.close()
         self._stack.__exit__(type(exc), exc, exc.__traceback__)
+
+
+def proportions_attrs(model: BodyModel) -> dict[str, str]:
+    """The root attributes ``body_scales`` and ``body_shifts`` of ``model`` (JSON)."""
+    scales, shifts = model.proportions()
+    return {"body_scales": json.dumps(scales), "body_shifts": json.dumps(shifts)}
+
+
+@dataclass(frozen=True)
+class TrackRecord:
+    """What the tracker recorded per frame, beside the points (T frames, P points, D DOF).
+
+    Attributes:
+        names: point names (P,).
+        rate_hz: frame rate.
+        points: the tracker's raw estimate (T, P, 3) metres (``/points_unfiltered``; NaN where no
+            pose was estimated: subject out of view or not found).
+        uncertainty: per-point uncertainty (T, P) metres.
+        poses: the body model's pose (T, D); ``dof_names`` (D,).
+        fit: silhouette fit (T,), 0..1.
+        quality: per-frame flag (T,) uint8, see ``QUALITY_NAMES``.
+        attrs: the file's root attributes (config YAML, height_m, session, shape, ...).
+    """
+
+    names: tuple[str, ...]
+    rate_hz: float
+    points: np.ndarray
+    uncertainty: np.ndarray
+    poses: np.ndarray
+    dof_names: tuple[str, ...]
+    fit: np.ndarray
+    quality: np.ndarray
+    attrs: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.fit)
+
+    def proportions(self) -> tuple[dict[str, list[float]], dict[str, list[float]]] | None:
+        """The tracked model's (scales, shifts), or None when the run did not record them."""
+        if "body_scales" not in self.attrs or "body_shifts" not in self.attrs:
+            return None
+        return json.loads(self.attrs["body_scales"]), json.loads(self.attrs["body_shifts"])
+
+
+_RECORD_DATASETS = ("points_unfiltered", "uncertainty", "poses", "fit", "quality")
+
+
+def _str(v: Any) -> Any:
+    return v.decode() if isinstance(v, bytes) else v
+
+
+def read_track_record(path: str | Path) -> TrackRecord | None:
+    """The per-frame record of a tracker's ``trajectories.h5``, or None for a file without one
+    (a trajectory written by another tool).
+
+    Raises:
+        InputError: not a readable HDF5 file, or datasets of inconsistent lengths (named).
+    """
+    path = Path(path)
+    try:
+        with h5py.File(path, "r") as f:
+            if not all(k in f for k in _RECORD_DATASETS) or "points" not in f:
+                return None
+            data = {k: f[k][()] for k in _RECORD_DATASETS}
+            names = tuple(_str(n) for n in f["points"].attrs["names"])
+            rate = float(f["points"].attrs["rate_hz"])
+            dofs = tuple(_str(n) for n in f["poses"].attrs.get("dof_names", ()))
+            attrs = {k: _str(v) for k, v in f.attrs.items()}
+    except OSError as e:
+        raise InputError(f"{path}: not a readable HDF5 file ({e})") from e
+    lengths = {k: len(v) for k, v in data.items()}
+    if len(set(lengths.values())) != 1:
+        raise InputError(f"{path}: per-frame datasets of different lengths: {lengths}")
+    return TrackRecord(names, rate, data["points_unfiltered"], data["uncertainty"], data["poses"], dofs,
+                       data["fit"], data["quality"], attrs)  # fmt: skip

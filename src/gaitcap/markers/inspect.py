@@ -31,8 +31,8 @@ def _used_markers(resolution: Resolution, markers: Trajectory) -> set[str]:
     used: set[str] = set()
     for name, rule in resolution.mapping.definitions():
         if name not in resolution.unresolved:
-            chosen = rule.chosen(resolution.have)
-            used.update(a for alts in chosen.alternatives() for a in alts if markers.has(a))
+            for chosen in rule.usable(resolution.have):
+                used.update(a for alts in chosen.alternatives() for a in alts if markers.has(a))
     return used
 
 
@@ -51,6 +51,10 @@ def describe_file(path: str | Path, mapping: Mapping | str | Path | None = None,
     for name in main.mapping.points:
         tag = " (optional)" if name in main.mapping.optional else ""
         lines.append(f"  {name:<11} {explain_point(main, name)}{tag}")
+    for segment, names in main.mapping.segments.items():
+        present = [n for n in names if raw.has(n)]
+        if len(present) > 1:
+            lines.append(f"  segment {segment}: {', '.join(present)} fill each other's gaps")
     unused = [n for n in raw.names if n not in _used_markers(main, raw)]
     if unused:
         lines.append(f"markers not used: {', '.join(unused)}")

@@ -7,11 +7,13 @@ z = 0) and returns shape (T, 3); NaN propagates (a frame missing an input gives 
 from __future__ import annotations
 
 import logging
+from dataclasses import replace
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from gaitcap.errors import InputError
+from gaitcap.timeseries import finite_runs
 from gaitcap.markers.mapping import (
     ChordRule,
     ClusterRule,
@@ -147,6 +149,91 @@ def chord_point(proximal: np.ndarray, wand: np.ndarray, marker: np.ndarray, dist
     return marker + distance * (cos_t * a + np.sqrt(1.0 - cos_t**2) * b)
 
 
+def _carry(point_ref: np.ndarray, donors_ref: np.ndarray, donors: np.ndarray) -> np.ndarray:
+    """A marker seen in a reference frame, carried through a gap by the motion of its donors.
+
+    Donors (markers of the same rigid body) seen in the reference frame and in every gap frame
+    are used: three or more carry the point rigidly (Kabsch, :func:`rigid_cluster_point`), one
+    or two by their mean translation (the rotation since the reference frame is not followed).
+
+    Args:
+        point_ref: the marker in the reference frame, shape (3,).
+        donors_ref: the donors in the reference frame, shape (D, 3), NaN where missing.
+        donors: the donors over the gap, shape (G, D, 3).
+    Returns:
+        shape (G, 3); NaN when no donor qualifies.
+    """
+    keep = np.isfinite(donors_ref).all(axis=1) & np.isfinite(donors).all(axis=(0, 2))
+    if keep.sum() >= 3:
+        return rigid_cluster_point(donors_ref[keep], point_ref, donors[:, keep])
+    if keep.any():
+        return point_ref + donors[:, keep].mean(axis=1) - donors_ref[keep].mean(axis=0)
+    return np.full((donors.shape[0], 3), np.nan)
+
+
+def fill_from_donors(target: np.ndarray, donors: np.ndarray) -> np.ndarray:
+    """Fill a marker's gaps from other markers of its rigid body (a pattern fill).
+
+    Each gap is filled by carrying the marker from the frame before it and from the frame after
+    it (:func:`_carry`); inside the trial the two are blended linearly across the gap (weight 1
+    next to each edge), so the filled samples meet the seen ones at both ends; a gap at the
+    start or end of the trial follows its one edge.
+
+    Args:
+        target: the marker, shape (T, 3), NaN in gaps.
+        donors: the other markers of its body, shape (T, D, 3), NaN where missing.
+    Returns:
+        shape (T, 3): a copy with the gaps filled where a donor allows.
+    """
+    out = np.array(target, dtype=np.float64, copy=True)
+    seen = np.isfinite(out).all(axis=1)
+    if seen.all() or not seen.any():
+        return out
+    n = len(out)
+    for start, stop in finite_runs(~seen):
+        gap = donors[start:stop]
+        edges = [(ref, _carry(target[ref], donors[ref], gap)) for ref in (start - 1, stop) if 0 <= ref < n]
+        if len(edges) == 2:
+            w = ((stop - np.arange(start, stop)) / (stop - start + 1))[:, None]
+            a, b = edges[0][1], edges[1][1]
+            both = np.isfinite(a).all(axis=1) & np.isfinite(b).all(axis=1)
+            fill = np.where(np.isfinite(a).all(axis=1)[:, None], a, b)
+            fill[both] = (w * a + (1.0 - w) * b)[both]
+        else:
+            fill = edges[0][1]
+        out[start:stop] = fill
+    return out
+
+
+def fill_segment_gaps(markers: Trajectory, segments: dict[str, list[str]]) -> Trajectory:
+    """Fill the gaps of each segment's markers from the segment's other markers
+    (:func:`fill_from_donors`; donors are always the markers as read, never filled ones).
+
+    Args:
+        markers: marker trajectory (T, M, 3), metres.
+        segments: segment name -> its markers (those absent from the file are ignored).
+    Returns:
+        the trajectory with the gaps filled (the same object when nothing was filled).
+    """
+    source = markers.meta.get("source", "motion")
+    points = markers.points.copy()
+    filled_any = False
+    for segment, names in segments.items():
+        present = [markers.names.index(n) for n in dict.fromkeys(names) if markers.has(n)]
+        for i in present:
+            donors = [j for j in present if j != i]
+            if not donors:
+                continue
+            before = np.isfinite(points[:, i]).all(axis=1)
+            points[:, i] = fill_from_donors(markers.points[:, i], markers.points[:, donors])
+            count = int((np.isfinite(points[:, i]).all(axis=1) & ~before).sum())
+            if count:
+                filled_any = True
+                log.info("%s: %s: %d frame(s) filled from the other %s markers (%s)", source, markers.names[i],
+                         count, segment, ", ".join(markers.names[j] for j in donors))  # fmt: skip
+    return replace(markers, points=points) if filled_any else markers
+
+
 class _Evaluator:
     """Evaluates a mapping's definitions in order over a marker trajectory."""
 
@@ -199,7 +286,7 @@ class _Evaluator:
             return self._shift(rule.shift)  # type: ignore[arg-type]
         if kind == "chord":
             c: ChordRule = rule.chord  # type: ignore[assignment]
-            return chord_point(self.get(c.proximal), self.get(c.wand), self.get(c.marker), c.distance_m)
+            return chord_point(self.get(c.proximal), self.get(c.wand), self.get(c.marker), self._chord_distance(name, c))
         if kind == "lerp":
             r: LerpRule = rule.lerp  # type: ignore[assignment]
             a, b = self.get(r.start), self.get(r.end)
@@ -212,6 +299,22 @@ class _Evaluator:
         else:
             mid_psis = 0.5 * (self.get(r.lpsi) + self.get(r.rpsi))  # type: ignore[arg-type]
         return harrington_hjc(self.get(r.lasi), self.get(r.rasi), mid_psis, r.side)
+
+    def _chord_distance(self, name: str, c: ChordRule) -> float:
+        """Half the subject's joint width plus the marker radius when the file has the width
+        (PROCESSING, mm), else the rule's typical ``distance_m`` (logged either way)."""
+        measured: dict[str, float] = self.markers.meta.get("anthropometry_mm") or {}
+        if c.width is None or c.width not in measured:
+            if c.width is not None:
+                log.info("%s: %s: no %s in the file, typical chord distance %.4f m", self.source, name, c.width,
+                         c.distance_m)  # fmt: skip
+            return c.distance_m
+        radius = measured["MarkerDiameter"] / 2000.0 if "MarkerDiameter" in measured else c.marker_radius_m
+        distance = measured[c.width] / 2000.0 + radius
+        log.info("%s: %s: the file's %s %g mm + marker radius %.1f mm (%s) -> chord distance %.4f m",
+                 self.source, name, c.width, measured[c.width], radius * 1000,
+                 "MarkerDiameter / 2" if "MarkerDiameter" in measured else "typical", distance)  # fmt: skip
+        return distance
 
     def _cluster(self, r: ClusterRule) -> np.ndarray:
         static_cluster = self.static_mean(r.markers)
@@ -238,6 +341,24 @@ class _Evaluator:
         return shift_point(self.get(r.point), self.get(r.direction[0]), self.get(r.direction[1]), distance, *ortho)
 
 
+def _evaluate_alternatives(ev: _Evaluator, name: str, rules: list[Rule], n_frames: int) -> np.ndarray:
+    """A definition's value, shape (T, 3): its first usable rule, each frame where that gives
+    NaN taken from the next rule that has it there (a lab's joint centres with gaps, say)."""
+    value = np.broadcast_to(np.asarray(ev.evaluate(name, rules[0]), dtype=np.float64), (n_frames, 3)).copy()
+    for rule in rules[1:]:
+        gap = ~np.isfinite(value).all(axis=1)
+        if not gap.any():
+            break
+        other = np.broadcast_to(np.asarray(ev.evaluate(name, rule), dtype=np.float64), (n_frames, 3))
+        take = gap & np.isfinite(other).all(axis=1)
+        if take.any():
+            value[take] = other[take]
+            have = set(ev.markers.names) | set(ev.values)
+            log.info("%s: %s: %d frame(s) from %s where %s has none", ev.source, name, int(take.sum()),
+                     rule.describe(have), rules[0].describe(have).split(", gaps:")[0])  # fmt: skip
+    return value
+
+
 def apply_mapping(
     mapping: Mapping,
     markers: Trajectory,
@@ -261,12 +382,11 @@ def apply_mapping(
     missing = resolution.missing_required()
     if missing:
         raise InputError(f"{source}: mapping {mapping.name!r} needs markers missing from the file: {', '.join(missing)}")
-    ev = _Evaluator(markers, static, source)
+    ev = _Evaluator(fill_segment_gaps(markers, mapping.segments), static, source)
     for name, rule in mapping.definitions():
         if name in resolution.unresolved:
             continue
-        value = np.asarray(ev.evaluate(name, rule.chosen(resolution.have)), dtype=np.float64)
-        ev.values[name] = np.broadcast_to(value, (markers.n_frames, 3)).copy()
+        ev.values[name] = _evaluate_alternatives(ev, name, rule.usable(resolution.have), markers.n_frames)
     names = tuple(resolution.output_points())
     points = np.stack([ev.values[n] for n in names], axis=1)
     meta = {**markers.meta, "mapping": mapping.name}

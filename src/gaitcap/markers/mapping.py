@@ -13,13 +13,18 @@ A rule refers to markers of the file or to helper/output points defined *above* 
 Rules: ``marker``, ``mean``, ``harrington``, ``cluster``, ``sole``, ``shift``, ``lerp`` (see the
 classes below), and ``first``: a list of rules, the first one whose markers are all present is
 used (so one mapping covers a marker set's variants: SACR or LPSI/RPSI, with or without heels,
-the lab's own joint centres when the file has them)::
+the lab's own joint centres when the file has them); in the frames where it gives nothing (its
+markers have a gap there), the next usable one fills in::
 
     hip_l:
       first:
         - marker: LHJC                                     # the lab's own hip centre
         - harrington: {side: left, lasi: LASI, rasi: RASI, lpsi: LPSI, rpsi: RPSI}
         - harrington: {side: left, lasi: LASI, rasi: RASI, sacral: SACR}
+
+``segments`` lists groups of markers on one rigid body (``pelvis: [LASI, RASI, LPSI, RPSI,
+SACR]``) whose gaps are filled from each other before the rules run (see
+:func:`gaitcap.markers.jointcentres.fill_segment_gaps`).
 
 Output points listed under ``optional`` are left out when their markers are missing (arms of a
 full-body set in a lower-body file); every other output point is required for the mapping to fit.
@@ -149,12 +154,19 @@ class ChordRule(Strict):
     wand, with J - marker perpendicular to proximal - J (J on the circle of diameter
     marker-proximal). Knee: proximal = hip centre, wand = THI, marker = KNE; ankle: proximal =
     knee centre, wand = TIB, marker = ANK.
+
+    With ``width`` (a Plug-in-Gait measurement such as ``LKneeWidth``) the distance is the
+    subject's own when the file carries it (C3D PROCESSING, mm): width / 2 + the marker radius
+    (PROCESSING ``MarkerDiameter`` / 2, else ``marker_radius_m``); ``distance_m`` (a typical
+    width) otherwise.
     """
 
     proximal: str
     wand: str
     marker: str
     distance_m: float = Field(gt=0.0, le=0.2)
+    width: str | None = None
+    marker_radius_m: float = Field(default=0.007, ge=0.0, le=0.03)
 
     def references(self) -> list[str]:
         return [self.proximal, self.wand, self.marker]
@@ -218,18 +230,25 @@ class Rule(Strict):
 
     def chosen(self, have: set[str]) -> Rule:
         """The rule evaluated given the names in ``have``: the first usable alternative of ``first``."""
+        return self.usable(have)[0]
+
+    def usable(self, have: set[str]) -> list[Rule]:
+        """The alternatives that can be evaluated given ``have``, in order (``[self]`` for a rule
+        other than ``first``; ``[first[0]]`` when none can). Frames where one gives NaN take the
+        next one's value (:func:`gaitcap.markers.jointcentres.apply_mapping`)."""
         if self.first is None:
-            return self
-        for rule in self.first:
-            if not rule.missing(have):
-                return rule.chosen(have)
-        return self.first[0]
+            return [self]
+        out = [r for rule in self.first if not rule.missing(have) for r in rule.usable(have)]
+        return out or [self.first[0]]
 
     def describe(self, have: set[str]) -> str:
-        """One line: the rule kind used and the names it reads, e.g. ``harrington(LASI, RASI, SACR)``."""
-        rule = self.chosen(have)
-        names = [next((a for a in alts if a in have), alts[0]) for alts in rule.alternatives()]
-        return f"{rule.kind}({', '.join(dict.fromkeys(names))})"
+        """One line: the rule kind used and the names it reads, e.g. ``harrington(LASI, RASI, SACR)``,
+        then the rules that fill its gaps (``marker(LFEP), gaps: harrington(LASI, RASI, SACR)``)."""
+        texts = []
+        for rule in self.usable(have):
+            names = [next((a for a in alts if a in have), alts[0]) for alts in rule.alternatives()]
+            texts.append(f"{rule.kind}({', '.join(dict.fromkeys(names))})")
+        return texts[0] + (f", gaps: {', '.join(texts[1:])}" if len(texts) > 1 else "")
 
 
 class GrfSpec(Strict):
@@ -242,7 +261,12 @@ class GrfSpec(Strict):
 
 
 class Mapping(Strict):
-    """A marker set -> gaitcap points mapping (see the module docstring)."""
+    """A marker set -> gaitcap points mapping (see the module docstring).
+
+    ``segments`` name groups of markers fixed to one rigid body that rotates little over a gap
+    (the pelvis, the head): a marker's gaps are filled from the others of its group before the
+    rules are evaluated (:func:`gaitcap.markers.jointcentres.fill_segment_gaps`).
+    """
 
     name: str
     description: str = ""
@@ -254,6 +278,16 @@ class Mapping(Strict):
     optional: list[str] = Field(
         default_factory=list, description="output points left out when their markers are missing"
     )
+    segments: dict[str, list[str]] = Field(
+        default_factory=dict, description="markers of one rigid body, filling each other's gaps"
+    )
+
+    @model_validator(mode="after")
+    def _segments(self) -> Mapping:
+        small = [k for k, v in self.segments.items() if len(set(v)) < 2]
+        if small:
+            raise ValueError(f"segment(s) {small}: a segment needs at least two markers")
+        return self
 
     @model_validator(mode="after")
     def _names_and_order(self) -> Mapping:

@@ -6,12 +6,18 @@ from __future__ import annotations
 import base64
 import html
 import math
+from dataclasses import dataclass
 from typing import Any
+
+import numpy as np
 
 from gaitcap import __version__
 from gaitcap.gait.analysis import GaitAnalysis
 from gaitcap.gait.parameters import OVERALL_KEYS, SIDE_KEYS, STATUS_IMPLAUSIBLE, STATUS_NOT_ENOUGH_STEPS
 from gaitcap.report import plots
+from gaitcap.report.fit import UNCERTAIN_MM, FitRecord, Verdict
+from gaitcap.report.sheet import ContactSheet, SheetRow
+from gaitcap.trajectory import GaitEvent, Trajectory
 
 _CSS = """
 body{font-family:system-ui,Arial,sans-serif;margin:24px;color:#222;max-width:1200px}
@@ -20,6 +26,12 @@ table{border-collapse:collapse;font-size:13px} td,th{border:1px solid #ccc;paddi
 th{background:#f3f3f3} td:first-child,th:first-child{text-align:left}
 .warn{background:#fff3cd;border:1px solid #e0c060;padding:10px;margin:12px 0}
 .note{color:#555;font-size:13px} img{max-width:100%}
+.verdict{padding:12px 16px;margin:12px 0;border-radius:4px;font-size:15px;border:2px solid}
+.verdict ul{margin:6px 0 0 0} .v-ok{background:#e6f4ea;border-color:#2e7d32}
+.v-doubtful{background:#fff3cd;border-color:#c99a06} .v-failed{background:#fdecea;border-color:#c62828}
+.sheet{display:flex;flex-wrap:wrap;gap:8px} .cell{border:2px solid #ddd;padding:3px;background:#fafafa}
+.cell.att{border-color:#d62728;background:#fdecea} .cell img{height:240px;width:auto;margin-right:2px}
+.cap{font-size:12px;color:#333;max-width:420px}
 """
 
 _LABELS = {
@@ -48,8 +60,82 @@ def _fmt(values: dict[str, Any], key: str) -> str:
     return f"{s} <span class='note'>(n={n})</span>"
 
 
-def _img(png: bytes, alt: str) -> str:
-    return f"<img alt='{html.escape(alt)}' src='data:image/png;base64,{base64.b64encode(png).decode()}'>"
+def _img(data: bytes, alt: str, mime: str = "image/png") -> str:
+    return f"<img alt='{html.escape(alt)}' src='data:{mime};base64,{base64.b64encode(data).decode()}'>"
+
+
+@dataclass(frozen=True)
+class FitView:
+    """What the report shows of the tracking, when the source is a tracking run (every part
+    optional): the verdict of ``track.json``, the per-frame record, the contact sheet, the angle
+    bands (angle -> (T,) SD degrees) and the frames whose angles are missing (T,) bool."""
+
+    verdict: Verdict | None = None
+    fit: FitRecord | None = None
+    sheet: ContactSheet | None = None
+    bands: dict[str, np.ndarray] | None = None
+    flagged: np.ndarray | None = None
+
+
+def verdict_banner(verdict: Verdict) -> str:
+    """The banner at the top: the verdict and its reasons."""
+    kind = verdict.verdict if verdict.verdict in ("ok", "doubtful", "failed") else "doubtful"
+    text = {"ok": "the tracking looks reliable", "doubtful": "check the fit below before using these results",
+            "failed": "the tracking failed: these results must not be used"}.get(verdict.verdict, "")  # fmt: skip
+    reasons = "".join(f"<li>{html.escape(r)}</li>" for r in verdict.reasons)
+    return (f"<div class='verdict v-{kind}'><b>Verdict: {html.escape(verdict.verdict)}</b>"
+            f"{' — ' + text if text else ''}{f'<ul>{reasons}</ul>' if reasons else ''}</div>")  # fmt: skip
+
+
+def _sheet_cell(row: SheetRow, fit: FitRecord, rate_hz: float) -> str:
+    t = row.frame.index
+    unc = fit.lower_limb_uncertainty_mm()[t]
+    stats = f"fit {fit.record.fit[t]:.2f}" + (f" · σ {unc:.0f} mm" if math.isfinite(unc) else "")
+    imgs = "".join(_img(data, f"frame {t}, {cam}", "image/jpeg") for cam, data in row.images)
+    cls = "cell att" if row.frame.attention else "cell"
+    return (f"<div class='{cls}'><div>{imgs}</div><div class='cap'><b>#{t}</b> · {t / rate_hz:.2f} s · {stats}"
+            f"<br>{html.escape('; '.join(row.frame.reasons))}</div></div>")  # fmt: skip
+
+
+def fit_section(view: FitView, traj: Trajectory, events: list[GaitEvent], sheet_frames: list[int]) -> str:
+    """The tracking fit: a summary line, the fit/uncertainty plot (``events`` marked) and the contact sheet."""
+    fit = view.fit
+    if fit is None:
+        return ""
+    rec = fit.record
+    n_flag, n_unc = int(fit.flagged.sum()), int((fit.uncertain & ~fit.flagged).sum())
+    parts = [
+        "<h2>How well the model fits the videos</h2>",
+        f"<p>{rec.n_frames} frames tracked: {n_flag} flagged by the tracker (fit below {fit.min_fit:g}, subject out "
+        f"of view or not found), {n_unc} more with a mean lower-limb uncertainty above {UNCERTAIN_MM:g} mm; median "
+        f"fit {np.nanmedian(rec.fit):.2f}.</p>",
+        _img(plots.fit_timeline(fit, traj.times(), sheet_frames, events), "fit and uncertainty"),
+    ]  # fmt: skip
+    sheet = view.sheet
+    if sheet is None:
+        return "\n".join(parts)
+    parts.append("<h2>Contact sheet</h2>")
+    if not sheet.rows:
+        parts.append(f"<p class='note'>{html.escape(sheet.omitted)}</p>")
+        return "\n".join(parts)
+    cams = ", ".join(cam for cam, _ in sheet.rows[0].images)
+    parts.append(
+        f"<p class='note'>{html.escape(sheet.note)} Cameras left to right: {html.escape(cams)}. Left side red, right "
+        "green, trunk and head blue. The detected gait events, and more frames where the tracker flagged the fit "
+        f"or the uncertainty is high (framed in red). σ: mean lower-limb uncertainty.</p>"
+    )
+    parts.append("<div class='sheet'>" + "".join(_sheet_cell(r, fit, traj.rate_hz) for r in sheet.rows) + "</div>")
+    return "\n".join(parts)
+
+
+def angle_time_section(analysis: GaitAnalysis, view: FitView) -> str:
+    """Hip, knee and ankle flexion over time with their uncertainty bands, and what the band is."""
+    note = ("Band: ± 2 SD of the angle when every point is displaced at random, independently, by its reported "
+            "uncertainty (an RMS 3D distance; 32 seeded draws through the same angle computation). Errors shared by "
+            "several points or frames, such as a leg swap, are not in it." if view.bands is not None else
+            "No band: this trajectory carries no per-point uncertainty.")  # fmt: skip
+    img = _img(plots.angle_time_curves(analysis, view.bands, view.flagged), "flexion angles over time")
+    return f"<h2>Flexion angles over time</h2>{img}<p class='note'>{note}</p>"
 
 
 def parameter_table(analysis: GaitAnalysis) -> str:
@@ -70,12 +156,33 @@ def parameter_table(analysis: GaitAnalysis) -> str:
     return "<table>" + "".join(rows) + "</table>"
 
 
-def render_report(analysis: GaitAnalysis, title: str = "Gait report") -> str:
-    """The whole report as one HTML string."""
-    p, traj = analysis.parameters, analysis.trajectory
-    info = p.info
+def _head(title: str, view: FitView) -> list[str]:
     parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>",
              f"<style>{_CSS}</style></head><body><h1>{html.escape(title)}</h1>"]  # fmt: skip
+    if view.verdict is not None:
+        parts.append(verdict_banner(view.verdict))
+    return parts
+
+
+def render_fit_report(traj: Trajectory, view: FitView, problem: str, title: str = "Gait report",
+                      sheet_frames: list[int] | None = None) -> str:  # fmt: skip
+    """The report of a tracking run whose gait analysis could not run (``problem`` says why): the
+    verdict and how the model fits the videos."""
+    parts = _head(title, view)
+    parts.append(f"<div class='warn'><b>No gait analysis.</b> {html.escape(problem)}</div>")
+    parts.append(fit_section(view, traj, [], sheet_frames or []))
+    parts.append("</body></html>")
+    return "\n".join(parts)
+
+
+def render_report(analysis: GaitAnalysis, title: str = "Gait report", view: FitView | None = None,
+                  sheet_frames: list[int] | None = None) -> str:  # fmt: skip
+    """The whole report as one HTML string; ``view`` adds the tracking's verdict and fit, with the
+    frames ``sheet_frames`` of its contact sheet marked on the fit plot."""
+    p, traj = analysis.parameters, analysis.trajectory
+    info = p.info
+    view = view or FitView()
+    parts = _head(title, view)
     parts.append(
         f"<p class='note'>Source: {html.escape(str(traj.meta.get('source', '')))} — {traj.n_frames} frames at "
         f"{traj.rate_hz:g} Hz ({traj.n_frames / traj.rate_hz:.2f} s). Walking direction "
@@ -90,6 +197,7 @@ def render_report(analysis: GaitAnalysis, title: str = "Gait report") -> str:
         parts.append(f"<div class='warn'><b>Implausible values withheld.</b> {html.escape(p.reason)}</div>")
     elif p.reason:
         parts.append(f"<div class='warn'>{html.escape(p.reason)}</div>")
+    parts.append(fit_section(view, traj, analysis.events, sheet_frames or []))
     parts.append("<h2>Spatio-temporal parameters</h2>" + parameter_table(analysis))
     parts.append(
         "<p class='note'>Mean ± SD (n). Symmetry index 100·(L−R)/((L+R)/2). Step values belong to the foot "
@@ -106,6 +214,7 @@ def render_report(analysis: GaitAnalysis, title: str = "Gait report") -> str:
                " Without ASIS/PSIS markers pelvic tilt is not anatomical (see the docs).")
             + " Hip rotation comes from the knee's flexion plane: reliable only while the knee is flexed.</p>"
         )
+    parts.append(angle_time_section(analysis, view))
     parts.append("<h2>Foot trajectories</h2>" + _img(plots.foot_trajectories(analysis), "foot trajectories"))
     parts.append("</body></html>")
     return "\n".join(parts)

@@ -10,13 +10,18 @@ import numpy as np
 
 from gaitcap.errors import InputError
 from gaitcap.gait.analysis import GaitAnalysis, analyse
+from gaitcap.gait.events import WalkingDirection
 from gaitcap.gait.options import GaitOptions
 from gaitcap.io import gait_outputs
 from gaitcap.io.atomic import write_text_atomic
 from gaitcap.io.c3d_export import write_c3d
 from gaitcap.io.trajectories_h5 import read_trajectory
-from gaitcap.report.html import render_report
-from gaitcap.trajectory import Trajectory
+from gaitcap.report.fit import FitRecord, Verdict, angle_bands, load_fit_record, read_verdict, select_frames
+from gaitcap.report.html import FitView, render_fit_report, render_report
+from gaitcap.report.plots import FLEXION_ANGLES
+from gaitcap.report.sheet import contact_sheet
+from gaitcap.track_summary import read_track_json
+from gaitcap.trajectory import SIDES, GaitEvent, Trajectory, side_suffix
 
 log = logging.getLogger("gaitcap.report")
 
@@ -31,6 +36,7 @@ class ReportResult:
     analysis: GaitAnalysis
     out_dir: Path
     files: tuple[Path, ...]
+    verdict: Verdict | None = None
 
 
 def resolve_input(source: Path) -> Path:
@@ -73,20 +79,69 @@ def with_pelvis_markers(joints: Trajectory, markers: Trajectory) -> Trajectory:
     return replace(joints, names=joints.names + names, points=np.concatenate([joints.points, extra], axis=1))
 
 
+def _fit_record(path: Path, traj: Trajectory) -> FitRecord | None:
+    """The tracker's per-frame record of a trajectories.h5 ``path`` (None for another source, or a
+    record that does not match the trajectory's frames)."""
+    if path.suffix.lower() not in (".h5", ".hdf5"):
+        return None
+    fit = load_fit_record(path)
+    if fit is not None and fit.record.n_frames != traj.n_frames:
+        log.warning("%s: the tracker's record has %d frames, the trajectory %d: the fit is not shown",
+                    path, fit.record.n_frames, traj.n_frames)  # fmt: skip
+        return None
+    return fit
+
+
+def fit_view(path: Path, traj: Trajectory, events: list[GaitEvent], direction: WalkingDirection | None = None,
+             session: Path | None = None) -> tuple[FitView, list[int]]:  # fmt: skip
+    """What report.html shows of the tracking run behind ``path`` (its verdict, fit, contact sheet,
+    and, given the walking ``direction``, the angle bands), and the contact sheet's frames."""
+    is_h5 = path.suffix.lower() in (".h5", ".hdf5")
+    verdict = read_verdict(read_track_json(path.parent)) if is_h5 else None
+    names = tuple(f"{n}{side_suffix(s)}" for n in FLEXION_ANGLES for s in SIDES)
+    bands = angle_bands(traj, direction, names) if direction is not None else None
+    fit = _fit_record(path, traj)
+    if fit is None:
+        return FitView(verdict, bands=bands), []
+    frames = select_frames(fit, events, traj.t0_s)
+    sheet = contact_sheet(fit, frames, session)
+    if sheet.omitted:
+        log.warning("%s", sheet.omitted)
+    return FitView(verdict, fit, sheet, bands, fit.flagged), [f.index for f in frames]
+
+
+def _fit_only(path: Path, traj: Trajectory, html_path: Path, session: Path | None, error: InputError) -> InputError:
+    """When the gait analysis of a tracking run fails (a run that lost the subject): write a
+    report.html of its verdict and fit, and return the error to raise, saying so (the same error
+    when ``path`` is not a tracking run)."""
+    view, frames = fit_view(path, traj, [], None, session)
+    if view.fit is None:
+        return error
+    write_text_atomic(html_path, render_fit_report(traj, view, str(error), f"Gait report — {path.name}", frames))
+    verdict = f"; {view.verdict.line()}" if view.verdict is not None else ""
+    return InputError(f"{error}{verdict}; the tracking's fit is shown in {html_path}")
+
+
 def run_report(
     source: Path,
     out_dir: Path | None = None,
     options: GaitOptions | None = None,
     mapping: str | Path | None = None,
     subject: str | None = None,
+    session: Path | None = None,
 ) -> ReportResult:
     """Analyse ``source`` and write ``events.csv``, ``parameters.json``/``.csv``, ``strides.csv``,
     ``angles.csv``, ``cycles.h5``, ``trajectories.c3d`` and ``report.html`` into ``out_dir``
-    (default: ``<source folder>/gait``); ``mapping``/``subject`` for a .c3d/.trc source."""
+    (default: ``<source folder>/gait``); ``mapping``/``subject`` for a .c3d/.trc source. For a
+    tracking run, report.html also shows the verdict of its track.json and how the model fits its
+    videos (``session``: the session folder, when not where the run recorded it)."""
     path = resolve_input(Path(source))
     traj = load_trajectory(path, mapping, subject)
     out = Path(out_dir) if out_dir is not None else (Path(source) if Path(source).is_dir() else path.parent) / "gait"
-    a = analyse(traj, options)
+    try:
+        a = analyse(traj, options)
+    except InputError as e:
+        raise _fit_only(path, traj, out / "report.html", session, e) from e
     files = {
         "events": out / "events.csv", "parameters_json": out / "parameters.json",
         "parameters_csv": out / "parameters.csv", "strides": out / "strides.csv",
@@ -99,6 +154,7 @@ def run_report(
     gait_outputs.write_angles_csv(files["angles"], traj, a.angles)
     gait_outputs.write_cycles_h5(files["cycles"], a)
     write_c3d(files["c3d"], traj.with_events(a.events))
-    write_text_atomic(files["html"], render_report(a, title=f"Gait report — {path.name}"))
+    view, sheet_frames = fit_view(path, traj, a.events, a.direction, session)
+    write_text_atomic(files["html"], render_report(a, f"Gait report — {path.name}", view, sheet_frames))
     log.info("wrote %d files to %s", len(files), out)
-    return ReportResult(a, out, tuple(files.values()))
+    return ReportResult(a, out, tuple(files.values()), view.verdict)

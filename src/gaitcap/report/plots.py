@@ -16,9 +16,12 @@ import numpy as np  # noqa: E402
 from gaitcap.gait.analysis import GaitAnalysis  # noqa: E402
 from gaitcap.gait.angles import ANGLE_NAMES  # noqa: E402
 from gaitcap.gait.events import heel_track, pelvis_track, toe_track  # noqa: E402
-from gaitcap.trajectory import SIDES  # noqa: E402
+from gaitcap.evaluation.metrics import runs  # noqa: E402
+from gaitcap.report.fit import UNCERTAIN_MM, FitRecord  # noqa: E402
+from gaitcap.trajectory import SIDES, side_suffix  # noqa: E402
 
 COLOURS = {"left": "#d62728", "right": "#2ca02c"}
+FLEXION_ANGLES = ("hip_flexion", "knee_flexion", "ankle_dorsiflexion")
 ANGLE_TITLES = {
     "pelvis_tilt": "Pelvic tilt (+ anterior)",
     "pelvis_obliquity": "Pelvic obliquity (+ up)",
@@ -114,4 +117,64 @@ def event_timeline(analysis: GaitAnalysis) -> bytes:
     ax.set_xlabel("time (s)")
     ax.set_title("Event timeline (bars: stance of complete cycles; | foot strike, x foot off; o recorded events)")
     ax.grid(axis="x", alpha=0.3)
+    return _png(fig)
+
+
+def _shade(ax: plt.Axes, t: np.ndarray, mask: np.ndarray, colour: str, label: str) -> None:
+    """Shade the frames of ``mask`` (T,) over their frame's duration, one legend entry."""
+    half = 0.5 * float(np.median(np.diff(t))) if len(t) > 1 else 0.5
+    for k, (a, b) in enumerate(runs(mask)):
+        ax.axvspan(t[a] - half, t[b - 1] + half, color=colour, alpha=0.25, lw=0, label=label if k == 0 else None)
+
+
+def fit_timeline(fit: FitRecord, times: np.ndarray, sheet: list[int], events: list | None = None) -> bytes:
+    """The silhouette fit and the lower-limb uncertainty per frame over ``times`` (T,) seconds, the
+    flagged (red) and uncertain (orange) frames shaded, the contact sheet's frames ticked, foot
+    strikes as dotted lines."""
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(12, 4.6), sharex=True, layout="constrained")
+    rec = fit.record
+    a1.plot(times, rec.fit, color="k", lw=1.4, marker=".", ms=4, label="fit")
+    a1.axhline(fit.min_fit, color="#d62728", ls="--", lw=1, label=f"min_fit {fit.min_fit:g}")
+    a2.plot(times, fit.lower_limb_uncertainty_mm(), color="#1f77b4", lw=1.4, marker=".", ms=4,
+            label="lower-limb uncertainty (mean)")  # fmt: skip
+    a2.axhline(UNCERTAIN_MM, color="#ff7f0e", ls="--", lw=1, label=f"{UNCERTAIN_MM:g} mm")
+    for ax in (a1, a2):
+        _shade(ax, times, fit.flagged, "#d62728", "flagged")
+        _shade(ax, times, fit.uncertain & ~fit.flagged, "#ff7f0e", "uncertain")
+        for e in events or []:
+            if e.event == "foot_strike":
+                ax.axvline(e.time_s, color=COLOURS[e.side], ls=":", lw=1)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8, loc="upper right", ncol=4)
+    a1.plot(times[sheet], np.full(len(sheet), 1.02), "v", color="0.3", ms=5, clip_on=False)
+    a1.set_ylim(min(0.0, float(np.nanmin(rec.fit, initial=0.0)) - 0.05), 1.05)  # a fit below 0: more XOR than |S|
+    a1.set_ylabel("fit (1 − XOR/|S|)")
+    a2.set_ylabel("mm")
+    a2.set_ylim(bottom=0)
+    a2.set_xlabel("time (s)")
+    a1.set_title("Silhouette fit and uncertainty per frame (▼ frames on the contact sheet; dotted: foot strikes)")
+    return _png(fig)
+
+
+def angle_time_curves(analysis: GaitAnalysis, bands: dict[str, np.ndarray] | None, flagged: np.ndarray | None) -> bytes:
+    """Hip, knee and ankle flexion per frame and side over time, with a band of ±2 ``bands`` (T,)
+    degrees per angle (when given) and the flagged frames (T,) bool shaded."""
+    t = analysis.trajectory.times()
+    fig, axes = plt.subplots(3, 1, figsize=(12, 7.5), sharex=True, layout="constrained")
+    for ax, name in zip(axes, FLEXION_ANGLES, strict=True):
+        for side in SIDES:
+            key, c = f"{name}{side_suffix(side)}", COLOURS[side]
+            y = analysis.angles[key]
+            ax.plot(t, y, color=c, lw=1.6, label=side)
+            if bands is not None and key in bands:
+                ax.fill_between(t, y - 2 * bands[key], y + 2 * bands[key], color=c, alpha=0.2, lw=0)
+        if flagged is not None and flagged.any():
+            _shade(ax, t, flagged, "0.5", "flagged (no angle)")
+        ax.set_title(ANGLE_TITLES[name], fontsize=10)
+        ax.set_ylabel("degrees")
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=8, loc="upper right", ncol=3)
+    axes[-1].set_xlabel("time (s)")
+    band = " (bands: ± 2 SD from the per-point uncertainty)" if bands is not None else ""
+    fig.suptitle(f"Flexion angles over time{band}")
     return _png(fig)
