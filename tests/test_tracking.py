@@ -678,6 +678,7 @@ def test_track_with_shape_calibration_records_it(embedded_session, tmp_path):
     data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
     data["shape"].update(enabled=True, frames=6, samples=2, steps=[0.08, 0.04], retrack=True)  # a re-tracked round
     data["shape"]["parameters"] = {"thigh_length": ["thigh_l.z", "thigh_r.z"]}
+    data["shape"]["limits"] = {"thigh_length": [0.85, 1.15]}  # limits name parameters only
     data["factored_ipf"].update(particles=60, root_particles=150)
     config = tmp_path / "tracking.yaml"
     config.write_text(yaml.safe_dump(data))
@@ -701,6 +702,7 @@ def test_calibrated_body_outside_the_ranges_is_rejected(embedded_session, tmp_pa
     data["shape"].update(enabled=True, frames=4, samples=2, steps=[0.08], random_candidates=0, repeats=1,
                          ranges={"leg": [0.1, 0.2]})  # fmt: skip
     data["shape"]["parameters"] = {"thigh_length": ["thigh_l.z", "thigh_r.z"]}
+    data["shape"]["limits"] = {"thigh_length": [0.85, 1.15]}  # limits name parameters only
     data["factored_ipf"].update(particles=60, root_particles=150)
     config = tmp_path / "tracking.yaml"
     config.write_text(yaml.safe_dump(data))
@@ -1075,3 +1077,17 @@ def test_track_json_records_the_stage_times(tracked_session):
     assert all(v >= 0 for v in stages.values())
     # the main thread's stages follow one another: together they take (nearly) the whole run
     assert 0.8 * summary.seconds <= sum(stages[k] for k in main_thread) <= summary.seconds + 0.01
+
+
+def test_shape_limits_must_name_parameters_and_hold_one(tmp_path):
+    data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
+    data["shape"]["limits"]["thigh_lenght"] = [0.9, 1.1]
+    config = tmp_path / "tracking.yaml"
+    config.write_text(yaml.safe_dump(data))
+    with pytest.raises(ConfigError, match=r"shape\.limits: thigh_lenght not in shape\.parameters"):
+        load_tracking_config(config, model=load_body_model())
+    del data["shape"]["limits"]["thigh_lenght"]
+    data["shape"]["limits"]["thigh_length"] = [1.05, 1.2]
+    config.write_text(yaml.safe_dump(data))
+    with pytest.raises(ConfigError, match=r"thigh_length: a range must satisfy 0 < low <= 1 <= high"):
+        load_tracking_config(config, model=load_body_model())
