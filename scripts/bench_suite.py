@@ -107,12 +107,12 @@ def longest_run(runs: list) -> int:
 
 
 def measure(session: Path, truth: Path, truth_masks: Path, run: Path, reuse: bool = False,
-            silhouettes_only: bool = False) -> dict:  # fmt: skip
+            silhouettes_only: bool = False, config: Path | None = None) -> dict:  # fmt: skip
     """Track, evaluate and score one session (``reuse``: the row of an earlier run, if it finished)."""
     row_file = run / "suite_row.json"
     if reuse and row_file.exists() and not silhouettes_only:
         return json.loads(row_file.read_text())
-    row = _measure(session, truth, truth_masks, run, silhouettes_only)
+    row = _measure(session, truth, truth_masks, run, silhouettes_only, config)
     if silhouettes_only:
         return row
     run.mkdir(parents=True, exist_ok=True)
@@ -129,12 +129,13 @@ def silhouette_row(masks: Path, truth_masks: Path) -> dict:
 
 
 def _measure(session: Path, truth: Path, truth_masks: Path, run: Path,
-             silhouettes_only: bool = False) -> dict:  # fmt: skip
+             silhouettes_only: bool = False, config: Path | None = None) -> dict:  # fmt: skip
     if silhouettes_only:
         gaitcap("silhouettes", str(session), "-o", str(run), "--force", check=False)
         return {"status": "silhouettes only", **silhouette_row(run / "silhouettes.h5", truth_masks)}
     t0 = time.perf_counter()
-    tr = gaitcap("track", str(session), "-o", str(run), "--force", "--save-masks", check=False)
+    extra = ["-c", str(config)] if config else []
+    tr = gaitcap("track", str(session), "-o", str(run), "--force", "--save-masks", *extra, check=False)
     row: dict = {"seconds": time.perf_counter() - t0, "status": "ok"}
     row.update(silhouette_row(run / "silhouettes.h5", truth_masks))
     if tr.returncode != 0:
@@ -151,10 +152,16 @@ def _measure(session: Path, truth: Path, truth_masks: Path, run: Path,
     swaps = d.get("left_right_swaps") or {}
     events = d.get("events") or {}
     params = (d.get("parameters") or {}).get("values") or {}
+    sides = (d.get("parameters") or {}).get("sides") or {}
 
     def pct(name: str) -> float | None:
+        """|difference| % of a parameter: the overall value, else the mean over the sides (a truth
+        may state stride length per side only, as the external sessions' parameters.json do)."""
         v = params.get(name) or {}
-        return abs(v["diff_pct"]) if v.get("diff_pct") is not None else None
+        if v.get("diff_pct") is not None:
+            return abs(v["diff_pct"])
+        per_side = [abs(s[name]["diff_pct"]) for s in sides.values() if (s.get(name) or {}).get("diff_pct") is not None]
+        return float(np.mean(per_side)) if per_side else None
 
     row.update(
         lower_mm=lower, knee_deg=float(np.mean(knees)) if knees else None, swap_frames=swaps.get("n_frames"),
@@ -277,6 +284,8 @@ def main() -> None:
     ap.add_argument("--only-external", action="store_true")
     ap.add_argument("--reuse", action="store_true", help="re-use the rows of runs that finished before (same code!)")
     ap.add_argument("--silhouettes-only", action="store_true", help="only the silhouettes' IoU (no tracking): a minute")
+    ap.add_argument("--config", type=Path, help="tracking configuration YAML given to every `gaitcap track`")
+    ap.add_argument("--only", nargs="+", metavar="NAME", help="only these sessions (names as in the tables)")
     ap.add_argument("--tables", type=Path, help="print the tables of an earlier run's suite.json and stop")
     args = ap.parse_args()
     if args.tables:
@@ -286,11 +295,13 @@ def main() -> None:
     todo = [] if args.only_external else own_sessions(args)
     if not args.no_external and (SHARED / "external_sessions").is_dir():
         todo += external_sessions()
+    if args.only:
+        todo = [s for s in todo if s["name"] in args.only]
     rows = []
     for i, s in enumerate(todo):
         r = {k: v for k, v in s.items() if k not in ("session", "truth", "masks")}
         r.update(measure(s["session"], s["truth"], s["masks"], args.work / ("sil_runs" if args.silhouettes_only else "runs") / s["name"], args.reuse,
-                         args.silhouettes_only))
+                         args.silhouettes_only, args.config))
         rows.append(r)
         print(f"[{i + 1}/{len(todo)}] {s['name']}: lower {fmt(r.get('lower_mm'))} mm, knee {fmt(r.get('knee_deg'))} deg, "
               f"IoU {fmt(r.get('iou'))}, {r.get('seconds', 0):.0f} s", file=sys.stderr, flush=True)  # fmt: skip

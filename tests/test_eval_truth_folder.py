@@ -177,3 +177,6 @@ def test_track_save_masks_streams_the_silhouettes(embedded_session, tmp_path):
     run_track(ses, tmp_path / "out", config=config, progress=False, max_frames=4, save_masks=True, force=True)
     assert read_masks(h5, cams[0]).shape == (4, 480, 640)
     assert not list((tmp_path / "out").glob(".*.part*"))
+    # again without --save-masks: the older run's silhouettes go, eval must not score them as this run's
+    run_track(ses, tmp_path / "out", config=config, progress=False, max_frames=3, force=True)
+    assert not h5.exists()

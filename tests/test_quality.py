@@ -193,3 +193,21 @@ def test_verdict_and_uncertainty_config_reject_bad_values(tmp_path):
         path.write_text(yaml.safe_dump(bad))
         with pytest.raises(ConfigError, match=message.replace("(", r"\(")):
             load_yaml_model(TrackingConfig, path)
+
+
+def test_a_rejected_shape_calibration_is_named_and_doubtful(walk):
+    """A calibrated body outside shape.ranges was replaced by the shipped proportions: the run is not
+    accepted silently, the reason carries the calibration's own sentence."""
+    from dataclasses import replace
+
+    from gaitcap.quality import judge, run_signals
+    from gaitcap.tracking.config import load_tracking_config
+
+    points, names = walk
+    cfg = load_tracking_config().verdict
+    signals = run_signals(points, names, np.zeros(len(points), np.uint8), 1.9)
+    assert judge(signals, cfg).verdict == "ok"
+    problem = "leg 0.600 m is 0.316 of the height, outside 0.40-0.56"
+    v = judge(replace(signals, body_problems=(problem,)), cfg)
+    assert v.verdict == "doubtful" and v.reasons == (
+        f"the shape calibration gave a body outside anthropometric ranges ({problem}): tracked with body.yaml's proportions",)

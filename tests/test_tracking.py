@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 import yaml
 
+from gaitcap.body.measures import model_lengths
 from gaitcap.body.model import load_body_model
 from gaitcap.errors import ConfigError, OutputError
 from gaitcap.io.calibration_toml import read_calibration
@@ -677,6 +678,7 @@ def test_track_with_shape_calibration_records_it(embedded_session, tmp_path):
     data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
     data["shape"].update(enabled=True, frames=6, samples=2, steps=[0.08, 0.04], retrack=True)  # a re-tracked round
     data["shape"]["parameters"] = {"thigh_length": ["thigh_l.z", "thigh_r.z"]}
+    data["shape"]["limits"] = {"thigh_length": [0.85, 1.15]}  # limits name parameters only
     data["factored_ipf"].update(particles=60, root_particles=150)
     config = tmp_path / "tracking.yaml"
     config.write_text(yaml.safe_dump(data))
@@ -685,6 +687,31 @@ def test_track_with_shape_calibration_records_it(embedded_session, tmp_path):
     with h5py.File(tmp_path / "out" / "trajectories.h5") as f:
         note = f.attrs["shape"]
     assert note.startswith("thigh_length x") and "mean fit" in note
+    body = json.loads((tmp_path / "out" / "track.json").read_text())["body"]
+    assert body["shape"] == note and body["height_source"] == "session.yaml"
+    factor = float(note.split(" x")[1].split(";")[0])
+    shipped = model_lengths(load_body_model(height_m=body["height_m"]))
+    assert body["segment_lengths_m"]["thigh"] == pytest.approx(shipped["thigh"] * factor, abs=1e-4)
+    assert body["segment_lengths_m"]["shank"] == pytest.approx(shipped["shank"], abs=1e-4)
+
+
+def test_calibrated_body_outside_the_ranges_is_rejected(embedded_session, tmp_path, caplog):
+    """A calibrated body whose leg is outside shape.ranges (here a range no body meets) is not
+    tracked: the shipped proportions are, the log warns and track.json says why."""
+    data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
+    data["shape"].update(enabled=True, frames=4, samples=2, steps=[0.08], random_candidates=0, repeats=1,
+                         ranges={"leg": [0.1, 0.2]})  # fmt: skip
+    data["shape"]["parameters"] = {"thigh_length": ["thigh_l.z", "thigh_r.z"]}
+    data["shape"]["limits"] = {"thigh_length": [0.85, 1.15]}  # limits name parameters only
+    data["factored_ipf"].update(particles=60, root_particles=150)
+    config = tmp_path / "tracking.yaml"
+    config.write_text(yaml.safe_dump(data))
+    run_track(embedded_session.session, tmp_path / "out", config=config, progress=False, max_frames=5)
+    body = json.loads((tmp_path / "out" / "track.json").read_text())["body"]
+    assert body["shape"].startswith("rejected (leg ") and "outside 0.10-0.20" in body["shape"]
+    shipped = model_lengths(load_body_model(height_m=body["height_m"]))
+    assert body["segment_lengths_m"]["leg"] == pytest.approx(shipped["leg"], abs=1e-4)
+    assert "shape calibration rejected" in caplog.text
 
 
 def test_kernel_threads_are_set_capped_and_restored(tmp_path):
@@ -1050,3 +1077,17 @@ def test_track_json_records_the_stage_times(tracked_session):
     assert all(v >= 0 for v in stages.values())
     # the main thread's stages follow one another: together they take (nearly) the whole run
     assert 0.8 * summary.seconds <= sum(stages[k] for k in main_thread) <= summary.seconds + 0.01
+
+
+def test_shape_limits_must_name_parameters_and_hold_one(tmp_path):
+    data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
+    data["shape"]["limits"]["thigh_lenght"] = [0.9, 1.1]
+    config = tmp_path / "tracking.yaml"
+    config.write_text(yaml.safe_dump(data))
+    with pytest.raises(ConfigError, match=r"shape\.limits: thigh_lenght not in shape\.parameters"):
+        load_tracking_config(config, model=load_body_model())
+    del data["shape"]["limits"]["thigh_lenght"]
+    data["shape"]["limits"]["thigh_length"] = [1.05, 1.2]
+    config.write_text(yaml.safe_dump(data))
+    with pytest.raises(ConfigError, match=r"thigh_length: a range must satisfy 0 < low <= 1 <= high"):
+        load_tracking_config(config, model=load_body_model())

@@ -27,6 +27,7 @@ import yaml
 from tqdm import tqdm
 
 from gaitcap import __version__
+from gaitcap.body.measures import model_lengths, outside_ranges
 from gaitcap.body.model import load_body_model
 from gaitcap.errors import OutputError, TrackingError
 from gaitcap.io.atomic import write_text_atomic
@@ -102,13 +103,16 @@ def _check_out(out: Path, force: bool) -> None:
         raise OutputError(f"{out}: exists and is not a folder")
 
 
-def _prepare_out(out: Path) -> None:
-    """Create the output folder; a previous run in it is no longer finished."""
+def _prepare_out(out: Path, save_masks: bool = False) -> None:
+    """Create the output folder; a previous run in it is no longer finished, and its silhouettes,
+    unless this run saves its own, are removed (``gaitcap eval`` would score them as this run's)."""
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as e:
         raise OutputError(f"{out}: cannot create the output folder ({e.strerror})") from e
     (out / "track.json").unlink(missing_ok=True)  # the old run is no longer finished
+    if not save_masks:
+        (out / SILHOUETTES_FILE).unlink(missing_ok=True)
     for stale in out.glob(".*.part*"):  # temporary files of a run that was killed
         stale.unlink(missing_ok=True)
 
@@ -153,7 +157,7 @@ def run_track(
         with stages.timed("first_frames"):
             first = _first_observations(session, stream, cfg)
         check_silhouettes_meet(views, first, ses.root / CALIBRATION_FILE)
-        _prepare_out(out)  # only once the inputs are known good: bad input creates nothing
+        _prepare_out(out, save_masks)  # only once the inputs are known good: bad input creates nothing
         if saver is not None:
             saver.open()
         summary = _track_session(session, out, ses, videos, cfg, views, likelihood, first, stream, height_m, n_frames,
@@ -309,10 +313,11 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
         log.warning("subject height not given: estimated %.2f m from the silhouettes (give --height for accuracy)", height)
     model = load_body_model(height_m=height)
     filt = _new_tracker(cfg, model, likelihood)
-    start, settled, shape_note = None, False, "off"
+    start, settled, shape_note, body_problems = None, False, "off", []
     if cfg.shape.enabled:
         with stages.timed("shape"):
-            filt, start, settled, shape_note = _calibrate_shape(filt, likelihood, views, cfg, first, stages)
+            filt, start, settled, shape_note, body_problems = _calibrate_shape(filt, likelihood, views, cfg, first,
+                                                                               stages)  # fmt: skip
     attrs = {"config": yaml.safe_dump(cfg.model_dump(), sort_keys=False), "tracker": cfg.tracker,
              "height_m": float(height), "height_source": height_source, "session": str(session.resolve()),
              "shape": shape_note, **proportions_attrs(filt.model)}  # fmt: skip
@@ -332,7 +337,7 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
         points, note = _finish_points(raw, quality, videos.fps, cfg)
         with stages.timed("verdict"):
             judged = assess(raw, model.point_names, writer.read_fit(), quality, height, videos.fps, cfg.verdict,
-                            cfg.uncertainty, rig=videos.rig)  # fmt: skip
+                            cfg.uncertainty, rig=videos.rig, body_problems=tuple(body_problems))  # fmt: skip
         writer.finish(points, note, uncertainty=judged.uncertainty)
     except BaseException as e:
         writer.abort(e)
@@ -349,7 +354,10 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
                            message=f"{cfg.tracker}: {tracked} frames, {n_flagged} flagged, "
                                    f"{1000 * timing.tracking_s / max(tracked, 1):.0f} ms/frame tracking, "
                                    f"{tracked / seconds:.1f} frames/s end to end", stages=stages,
-                           verdict=judged.verdict.verdict, verdict_reasons=list(judged.verdict.reasons))  # fmt: skip
+                           verdict=judged.verdict.verdict, verdict_reasons=list(judged.verdict.reasons),
+                           body={"height_m": round(float(height), 4), "height_source": height_source,
+                                 "shape": shape_note,
+                                 "segment_lengths_m": {k: round(v, 4) for k, v in model_lengths(filt.model).items()}})  # fmt: skip
     write_track_json(summary)
     return summary
 
@@ -369,8 +377,9 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
 
     Returns the tracker to use (with the calibrated model), the pose of the first frame under it
     (None: initialise as usual), whether that pose's leg assignment was settled over the first
-    ``init.leg_frames`` frames with that model (:func:`~gaitcap.tracking.init.settle_legs`) and a
-    note for the output's attributes. Skipped, with a warning, when the subject is not in every
+    ``init.leg_frames`` frames with that model (:func:`~gaitcap.tracking.init.settle_legs`), a
+    note for the output's attributes and the calibrated body's lengths outside ``shape.ranges``
+    (then the shipped proportions are tracked). Skipped, with a warning, when the subject is not in every
     view of the first frame or the window is too short. With ``shape.repeats`` > 1 the calibrations
     run side by side, the k-th with the random streams of seed + k x ``_REPEAT_SEED_STEP``, and their factors are
     averaged (:func:`~gaitcap.tracking.shape.average_shapes`).
@@ -379,14 +388,14 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
     if not in_view or len(first) < 2:
         log.warning("shape calibration skipped: the subject is not in every view of the first %d frames; "
                     "tracking with the proportions of body.yaml", len(first))  # fmt: skip
-        return filt, None, False, "skipped: subject not in view in the first frames"
+        return filt, None, False, "skipped: subject not in view in the first frames", []
     try:
         with (stages or Stages()).timed("initialisation"):
             init = initialise(filt, likelihood, views, first[: cfg.init.frames], cfg.init.heading_step_deg,
                               cfg.init.refine_passes, cfg.init.widen, leg_frames=cfg.init.leg_frames)  # fmt: skip
     except TrackingError as e:
         log.warning("shape calibration skipped: %s", e)
-        return filt, None, False, f"skipped: {e}"
+        return filt, None, False, f"skipped: {e}", []
     filt.start(init.q, fresh=not init.legs_settled)
     poses = [filt.step(o).q for o in first]
     refit_cfg = cfg.model_copy(deep=True)
@@ -399,13 +408,35 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
         return [tracker.step(o).q for o in first]
 
     setup = partial(numba.set_num_threads, _thread_count(cfg.threads))
+    result = _search_shape(filt.model, likelihood, refit_cfg, first, poses, cfg, retrack, setup)
+    factors = ", ".join(f"{k} x{v:.3f}" for k, v in result.factors.items())
+    log.info("shape: %s (mean fit %.3f -> %.3f)", factors, result.fit_before, result.fit_after)
+    problems = outside_ranges(model_lengths(result.model), result.model.height_m, cfg.shape.ranges)
+    if problems:  # a body no person has: the silhouettes misled the fit
+        log.warning("shape calibration rejected, tracking with the proportions of body.yaml: %s", "; ".join(problems))
+        factors = f"rejected ({'; '.join(problems)}): {factors}"
+        result = ShapeResult(model=filt.model, start=poses[0], factors={k: 1.0 for k in result.factors},
+                             fit_before=result.fit_before, fit_after=result.fit_before)  # fmt: skip
+    tracker = _new_tracker(cfg, result.model, likelihood)
+    start = result.start
+    settled = cfg.init.leg_frames > 1
+    if settled:  # which leg is which, again, with the calibrated model
+        start = settle_legs(tracker, first[: cfg.init.leg_frames], start)
+    note = f"{factors}; mean fit {result.fit_before:.4f} -> {result.fit_after:.4f} on {len(first)} frames"
+    return tracker, start, settled, note, problems
+
+
+def _search_shape(model, likelihood, refit_cfg: TrackingConfig, first: list[Observation], poses, cfg: TrackingConfig,
+                  retrack, setup) -> ShapeResult:  # fmt: skip
+    """The coordinate and random search that re-fits every candidate (``shape.method: search``),
+    ``shape.repeats`` times side by side with their own random streams, the factors averaged."""
 
     def calibrate(k: int, workers: int) -> ShapeResult:  # the k-th calibration, its own random streams
         return calibrate_shape(
-            filt.model, lambda m: FactoredIPF(m, likelihood, refit_cfg, np.random.default_rng(cfg.seed)), first,
+            model, lambda m: FactoredIPF(m, likelihood, refit_cfg, np.random.default_rng(cfg.seed)), first,
             poses, cfg.shape.parameters, cfg.shape.steps, cfg.shape.bounds, cfg.shape.samples,
             cfg.seed + _REPEAT_SEED_STEP * k, cfg.shape.max_moves, cfg.shape.planted, cfg.shape.random_candidates,
-            cfg.shape.random_sigma, retrack if cfg.shape.retrack else None, workers, setup,
+            cfg.shape.random_sigma, retrack if cfg.shape.retrack else None, workers, setup, cfg.shape.limits_of(),
         )  # fmt: skip
 
     concurrent = (cfg.shape.workers > 1 or cfg.shape.repeats > 1) and _concurrent_kernels()
@@ -416,16 +447,8 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
             results = list(pool.map(lambda k: calibrate(k, 1), range(cfg.shape.repeats)))
         for r in results:
             log.info("shape, one calibration: %s", ", ".join(f"{k} x{v:.3f}" for k, v in r.factors.items()))
-        result = average_shapes(filt.model, cfg.shape.parameters, results)
-    factors = ", ".join(f"{k} x{v:.3f}" for k, v in result.factors.items())
-    log.info("shape: %s (mean fit %.3f -> %.3f)", factors, result.fit_before, result.fit_after)
-    tracker = _new_tracker(cfg, result.model, likelihood)
-    start = result.start
-    settled = cfg.init.leg_frames > 1
-    if settled:  # which leg is which, again, with the calibrated model
-        start = settle_legs(tracker, first[: cfg.init.leg_frames], start)
-    note = f"{factors}; mean fit {result.fit_before:.4f} -> {result.fit_after:.4f} on {len(first)} frames"
-    return tracker, start, settled, note
+        result = average_shapes(model, cfg.shape.parameters, results)
+    return result
 
 
 def _concurrent_kernels() -> bool:

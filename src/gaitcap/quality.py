@@ -37,7 +37,7 @@ errors do.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Literal
 
 import numpy as np
@@ -73,6 +73,8 @@ class RunSignals:
         segment_ratios: ``thigh_l`` ... ``shank_r`` -> median length / usual length for the height.
         image_height_px: camera -> median height of the tracked body in its image (pixels).
         crossed: (T,) bool, the frames whose ankles cross.
+        body_problems: the shape calibration's lengths outside ``shape.ranges`` (its body was
+            rejected and the shipped proportions tracked; gaitcap.body.measures.outside_ranges).
     """
 
     n_frames: int
@@ -83,6 +85,7 @@ class RunSignals:
     segment_ratios: dict[str, float] = field(default_factory=dict)
     image_height_px: dict[str, float] = field(default_factory=dict)
     crossed: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    body_problems: tuple[str, ...] = ()
 
     @property
     def crossed_fraction(self) -> float:
@@ -195,6 +198,9 @@ def judge(signals: RunSignals, cfg: VerdictConfig) -> RunVerdict:
     if odd:
         listed = ", ".join(f"{k} {v:.2f}" for k, v in odd.items())
         reasons.append(f"a body outside anthropometric ranges (segment length / usual length for the height: {listed})")
+    if s.body_problems:
+        reasons.append("the shape calibration gave a body outside anthropometric ranges (" + "; ".join(s.body_problems)
+                       + "): tracked with body.yaml's proportions")  # fmt: skip
     small = {k: v for k, v in s.image_height_px.items() if v < cfg.min_image_height_px}
     if small:
         listed = ", ".join(f"{v:.0f} px in {k}" for k, v in small.items())
@@ -242,11 +248,12 @@ class Assessment:
 
 def assess(points: np.ndarray, names: tuple[str, ...], fit: np.ndarray, quality: np.ndarray, height_m: float,
            rate_hz: float, verdict_cfg: VerdictConfig, uncertainty_cfg: UncertaintyConfig,
-           rig: CameraRig | None = None) -> Assessment:  # fmt: skip
+           rig: CameraRig | None = None, body_problems: tuple[str, ...] = ()) -> Assessment:  # fmt: skip
     """Signals, verdict and calibrated uncertainty of one run from the tracker's raw points
     (T, P, 3), fit (T,) and quality (T,) (``points_unfiltered``, ``fit``, ``quality`` of
-    trajectories.h5)."""
-    signals = run_signals(points, names, quality, height_m, rig, verdict_cfg.crossed_margin_m)
+    trajectories.h5); ``body_problems``: see :class:`RunSignals`."""
+    signals = replace(run_signals(points, names, quality, height_m, rig, verdict_cfg.crossed_margin_m),
+                      body_problems=body_problems)  # fmt: skip
     verdict = judge(signals, verdict_cfg)
     u = calibrated_uncertainty(points, names, fit, signals, rate_hz, uncertainty_cfg)
     return Assessment(signals, verdict, u)

@@ -9,7 +9,9 @@ folder that the next run redoes.
  "session": "sessions/walk01", "message": "",
  "verdict": "doubtful", "verdict_reasons": ["the ankles cross in 14 of 56 frames: a suspected leg swap"],
  "stages_s": {"setup": 0.2, "kernels": 0.1, "first_frames": 1.1, "initialisation": 0.9, "shape": 5.7,
-              "tracking": 3.6, "writing": 0.3}}
+              "tracking": 3.6, "writing": 0.3},
+ "body": {"height_m": 1.7, "height_source": "session.yaml", "shape": "pelvis_height x0.960, ...",
+          "segment_lengths_m": {"thigh": 0.41, "shank": 0.42, "leg": 0.83, ...}}}
 ```
 
 :class:`TrackSummary` is the contract between ``gaitcap.pipeline.run_track`` (one session) and
@@ -56,6 +58,8 @@ class TrackSummary:
             empty when not measured): see ``gaitcap.pipeline.Stages``.
         verdict: ``"ok"``, ``"doubtful"`` or ``"failed"`` (gaitcap.quality.judge); None: not judged.
         verdict_reasons: short sentences naming what was wrong.
+        body: the tracked body: height, how it was obtained, the shape calibration's note and the
+            model's segment lengths (``gaitcap.body.measures``); empty for a failed run.
     """
 
     session: Path
@@ -68,6 +72,7 @@ class TrackSummary:
     stages: dict[str, float] = field(default_factory=dict)
     verdict: str | None = None
     verdict_reasons: list[str] = field(default_factory=list)
+    body: dict[str, Any] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         """The ``track.json`` document."""
@@ -81,6 +86,7 @@ class TrackSummary:
             "message": self.message,
             **({"verdict": self.verdict, "verdict_reasons": list(self.verdict_reasons)} if self.verdict else {}),
             **({"stages_s": {k: round(float(v), 3) for k, v in self.stages.items()}} if self.stages else {}),
+            **({"body": self.body} if self.body else {}),
         }
 
 

@@ -66,7 +66,9 @@ def command(
         EVAL_FILE, TruthReference, format_evaluation, out_masks, read_tracked, read_truth_reference, read_verdict,
         tracked_path, write_evaluation,
     )  # fmt: skip
+    from gaitcap.evaluation.compare import compare_lengths
     from gaitcap.evaluation.silhouettes import silhouette_iou
+    from gaitcap.track_summary import read_track_json
 
     if (truth is None) == (reference is None):
         raise click.UsageError("give exactly one of --truth and --reference")
@@ -83,6 +85,9 @@ def command(
         ev.notes += notes
     elif ref.masks is not None:
         ev.notes.append("silhouettes not compared: OUT holds no silhouettes.h5 (track with --save-masks)")
+    body = (read_track_json(out if out.is_dir() else out.parent) or {}).get("body") or {}
+    if body.get("segment_lengths_m"):
+        ev.segment_lengths = compare_lengths(body["segment_lengths_m"], ref.trajectory)
     ev.verdict, ev.verdict_reasons = read_verdict(out)
     ev.failures = check_thresholds(ev, Thresholds(max_mpjpe_mm, max_angle_rmse_deg, max_event_error_frames))
     target = output or (out / EVAL_FILE if out.is_dir() else out.parent / EVAL_FILE)

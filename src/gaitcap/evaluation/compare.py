@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from gaitcap.body.measures import segment_lengths
 from gaitcap.errors import InputError
 from gaitcap.evaluation.metrics import (
     angle_rmse_deg,
@@ -150,6 +151,8 @@ class Evaluation:
     events_baseline: dict[str, Any] | None
     parameters: dict[str, Any]
     silhouettes: dict[str, dict[str, Any]] | None = None
+    #: the tracked body's segment lengths against the reference's (:func:`compare_lengths`)
+    segment_lengths: dict[str, dict[str, float]] | None = None
     notes: list[str] = field(default_factory=list)
     failures: list[str] = field(default_factory=list)
     #: the run's own verdict and its reasons (OUT's track.json), when it has one
@@ -189,11 +192,21 @@ class Evaluation:
             "events_method_baseline": self.events_baseline,
             "parameters": self.parameters,
             "silhouette_iou": self.silhouettes,
+            "segment_lengths": self.segment_lengths,
             "notes": self.notes,
             "thresholds_failed": self.failures,
             "passed": not self.failures,
         }  # fmt: skip
         return _clean(doc)
+
+
+def compare_lengths(tracked_m: dict[str, float], reference: Trajectory) -> dict[str, dict[str, float]]:
+    """The tracked body's segment lengths (metres, ``track.json``'s ``body.segment_lengths_m``)
+    against those measured on the reference's joint centres (:mod:`gaitcap.body.measures`):
+    name -> {tracked_m, reference_m, diff_pct}, for the lengths both have."""
+    ref = segment_lengths(reference.names, reference.points)
+    return {k: {"tracked_m": float(tracked_m[k]), "reference_m": ref[k], "diff_pct": 100.0 * (tracked_m[k] / ref[k] - 1)}
+            for k in tracked_m if k in ref and ref[k] > 0}  # fmt: skip
 
 
 def _clean(obj: Any) -> Any:

@@ -175,6 +175,15 @@ def _silhouette_lines(ev: Evaluation) -> list[str]:
     return lines
 
 
+def _length_lines(ev: Evaluation) -> list[str]:
+    if not ev.segment_lengths:
+        return []
+    lines = [f"{'segment lengths (m)':<22}{'tracked':>8}{'ref':>8}{'diff %':>8}"]
+    for name, d in ev.segment_lengths.items():
+        lines.append(f"  {name:<20}{d['tracked_m']:>8.3f}{d['reference_m']:>8.3f}{d['diff_pct']:>+8.1f}")
+    return lines
+
+
 def read_verdict(path: str | Path) -> tuple[str | None, list[str]]:
     """(verdict, reasons) of the tracking output ``path`` (folder or its trajectories.h5) from its
     track.json; (None, []) when it has none."""
@@ -190,7 +199,8 @@ def format_evaluation(ev: Evaluation) -> str:
             f"{compared} of {ev.n_frames} frames compared at {ev.rate_hz:g} Hz ({ev.n_flagged} flagged in OUT, "
             f"{ev.n_reference_missing} missing in the reference), {len(ev.points)} points",
             f"verdict of the run: {format_verdict(ev.verdict, ev.verdict_reasons)}"]  # fmt: skip
-    sections = [head, _positions_lines(ev), _angle_lines(ev), _event_lines(ev), _parameter_lines(ev), _silhouette_lines(ev)]
+    sections = [head, _positions_lines(ev), _angle_lines(ev), _event_lines(ev), _parameter_lines(ev), _silhouette_lines(ev),
+                _length_lines(ev)]
     if ev.notes:
         sections.append(["notes:", *(f"  {n}" for n in ev.notes)])
     if ev.failures:

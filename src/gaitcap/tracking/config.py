@@ -145,6 +145,11 @@ def parse_target(target: str, parameter: str = "") -> tuple[str, int, float]:
 
 class ShapeConfig(Strict):
     enabled: bool = False
+    #: per-parameter (low, high) range of the factor, overriding ``bounds``
+    limits: dict[str, tuple[float, float]] = Field(default_factory=dict)
+    #: accepted (low, high) ratio of each calibrated length to the height (gaitcap.body.measures
+    #: names); a calibrated body outside them is rejected and the shipped proportions are tracked
+    ranges: dict[str, tuple[float, float]] = Field(default_factory=dict)
     frames: int = Field(default=25, ge=2, le=250)
     samples: int = Field(default=8, ge=1, le=100)
     steps: list[float] = Field(default_factory=lambda: [0.08, 0.04], min_length=1)
@@ -193,6 +198,26 @@ class ShapeConfig(Strict):
             raise ValueError("bounds must satisfy 0 < low <= 1 <= high")
         return v
 
+    @field_validator("limits")
+    @classmethod
+    def _check_limits(cls, v: dict[str, tuple[float, float]]) -> dict[str, tuple[float, float]]:
+        for name, (low, high) in v.items():
+            if not (0 < low <= 1 <= high):
+                raise ValueError(f"{name}: a range must satisfy 0 < low <= 1 <= high")
+        return v
+
+    @field_validator("ranges")
+    @classmethod
+    def _check_ranges(cls, v: dict[str, tuple[float, float]]) -> dict[str, tuple[float, float]]:
+        from gaitcap.body.measures import LENGTHS
+
+        for name, (low, high) in v.items():
+            if name not in LENGTHS:
+                raise ValueError(f"{name}: not a length ({', '.join(LENGTHS)})")
+            if not 0 < low < high < 1:
+                raise ValueError(f"{name}: a range of fractions of the height must satisfy 0 < low < high < 1")
+        return v
+
     @field_validator("parameters")
     @classmethod
     def _check_targets(cls, v: dict[str, list[str]]) -> dict[str, list[str]]:
@@ -201,7 +226,14 @@ class ShapeConfig(Strict):
                 parse_target(t, name)
         return v
 
+    def limits_of(self) -> dict[str, tuple[float, float]]:
+        """Every parameter's factor range: its ``limits`` entry, else ``bounds``."""
+        return {name: self.limits.get(name, self.bounds) for name in self.parameters}
+
     def check_segments(self, model: BodyModel) -> None:
+        unknown = sorted(set(self.limits) - set(self.parameters))
+        if unknown:
+            raise ConfigError(f"tracking config: shape.limits: {', '.join(unknown)} not in shape.parameters")
         known = {s.name for s in model.segments}
         for name, targets in self.parameters.items():
             for t in targets:

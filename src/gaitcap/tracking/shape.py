@@ -112,6 +112,7 @@ def calibrate_shape(
     retrack: Callable[[BodyModel, np.ndarray], list[np.ndarray]] | None = None,
     workers: int = 1,
     worker_setup: Callable[[], object] | None = None,
+    limits: dict[str, tuple[float, float]] | None = None,
 ) -> ShapeResult:
     """Coordinate search, then random search, of the shape ``parameters`` (module docstring).
 
@@ -119,7 +120,9 @@ def calibrate_shape(
     builds the re-fitting tracker (a single factored pass) for a candidate model. ``retrack``
     (model, first frame's pose (D,)) -> the window's poses: called before every round of
     ``steps`` but the first, so that the round starts from poses tracked with the shape so far.
+    ``limits``: a parameter's own (low, high) range, instead of ``bounds``.
     """
+    span = {name: (limits or {}).get(name, bounds) for name in parameters}
     if len(observations) != len(poses) or not observations:
         raise ValueError("calibrate_shape needs one pose per observation")
     with ExitStack() as stack:
@@ -148,7 +151,7 @@ def calibrate_shape(
             """The re-fits (candidate model, start poses) that score the parameters at ``trial``; None
             out of bounds. With ``planted`` and ``both``, from the unmoved and from the planted poses
             (the better counts); without ``both``, from the planted poses only."""
-            if not all(bounds[0] <= f <= bounds[1] for f in trial.values()):
+            if not all(span[k][0] <= f <= span[k][1] for k, f in trial.items()):
                 return None
             candidate = _scaled(model, parameters, trial)
             if not planted:
@@ -196,7 +199,7 @@ def calibrate_shape(
         while i < len(draws):  # (1+1) evolution strategy, ``workers`` candidates scored side by side: those
             # after an accepted one moved from the shape it replaced, so they are scored again from the new
             # one (the same draws): the result is that of one candidate after the other
-            trials = [{k: float(np.clip(f * np.exp(random_sigma * z), *bounds))
+            trials = [{k: float(np.clip(f * np.exp(random_sigma * z), *span[k]))
                        for (k, f), z in zip(factors.items(), zs)} for zs in draws[i : i + workers]]  # fmt: skip
             scored = score_all(trials, both=False)  # every parameter moves: the soles stay on the floor
             for trial, tried in zip(trials, scored):
