@@ -1091,3 +1091,15 @@ def test_shape_limits_must_name_parameters_and_hold_one(tmp_path):
     config.write_text(yaml.safe_dump(data))
     with pytest.raises(ConfigError, match=r"thigh_length: a range must satisfy 0 < low <= 1 <= high"):
         load_tracking_config(config, model=load_body_model())
+
+
+def test_shape_defaults_of_the_schema_are_the_shipped_ones():
+    """A config that leaves a shape key out gets the shipped value (only on/off, the parameters and
+    their ranges are the schema's own: off and empty)."""
+    from gaitcap.tracking.config import ShapeConfig
+
+    shipped = yaml.safe_load(default_config_path("tracking.yaml").read_text())["shape"]
+    schema = ShapeConfig().model_dump()
+    differ = {k: (schema[k], v) for k, v in shipped.items()
+              if k not in ("enabled", "parameters", "limits", "ranges") and schema[k] != (tuple(v) if isinstance(v, list) and isinstance(schema[k], tuple) else v)}  # fmt: skip
+    assert differ == {}

@@ -144,6 +144,9 @@ def parse_target(target: str, parameter: str = "") -> tuple[str, int, float]:
 
 
 class ShapeConfig(Strict):
+    """The shape calibration (tracking/shape.py); defaults as in the shipped tracking.yaml, but off and
+    without parameters unless configured."""
+
     enabled: bool = False
     #: per-parameter (low, high) range of the factor, overriding ``bounds``
     limits: dict[str, tuple[float, float]] = Field(default_factory=dict)
@@ -151,28 +154,28 @@ class ShapeConfig(Strict):
     #: names); a calibrated body outside them is rejected and the shipped proportions are tracked
     ranges: dict[str, tuple[float, float]] = Field(default_factory=dict)
     frames: int = Field(default=25, ge=2, le=250)
-    samples: int = Field(default=8, ge=1, le=100)
-    steps: list[float] = Field(default_factory=lambda: [0.08, 0.04], min_length=1)
-    bounds: tuple[float, float] = (0.7, 1.4)
+    samples: int = Field(default=5, ge=1, le=100)
+    steps: list[float] = Field(default_factory=lambda: [0.06], min_length=1)
+    bounds: tuple[float, float] = (0.7, 1.35)
     parameters: dict[str, list[str]] = Field(default_factory=dict)
     #: particles / root particles of the one-pass re-fit that scores each candidate (the search
     #: compares candidates on a paired random stream, so a small budget is enough)
     refit_particles: tuple[int, int] = (60, 150)
     #: moves of one parameter in one round while the fit keeps improving (pattern search)
-    max_moves: int = Field(default=1, ge=1)
+    max_moves: int = Field(default=3, ge=1)
     #: also score each candidate with the window's poses moved vertically so that its lowest point
     #: stays on the floor (tracking/shape.py); the better of the two counts
-    planted: bool = False
+    planted: bool = True
     #: after the coordinate search, this many random candidates moving every parameter at once
     #: (each factor times exp(sigma z), z ~ N(0, 1)); a better one replaces the current shape
-    random_candidates: int = Field(default=0, ge=0)
+    random_candidates: int = Field(default=10, ge=0)
     random_sigma: float = Field(default=0.04, gt=0.0, lt=0.5)
     #: track the window again with the shape found so far before each round of ``steps`` but the
     #: first (the re-fits of a round start from poses tracked with a wrong shape otherwise)
     retrack: bool = False
     #: threads that score candidates side by side (their re-fits are independent, the result the
     #: same as one after the other); the compiled kernels of each run on ``threads``
-    workers: int = Field(default=1, ge=1, le=64)
+    workers: int = Field(default=2, ge=1, le=64)
     #: calibrations run side by side (one thread each) with their own random streams, their factors
     #: averaged (geometric mean): one calibration's factors are noisy at the same fit
     repeats: int = Field(default=1, ge=1, le=8)
