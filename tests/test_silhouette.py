@@ -315,3 +315,17 @@ def test_soft_silhouette_is_sure_on_the_body_doubtful_on_faint_parts_and_zero_ou
     assert np.all(soft[mask == 0] == 0) and np.all((soft[mask == 1] >= 0.5) & (soft[mask == 1] <= 1))
     assert np.median(soft[30:50, 70:90]) == 1.0  # the torso
     assert 0.5 <= np.median(soft[70:100, 70:90]) < 0.9  # the faint legs: doubtful
+
+
+def test_joint_soft_silhouettes_agree_with_the_masks():
+    rig = grey_body_rig(seed=5)
+    extractors = []
+    for cam, plate in zip(rig.cameras, rig.plates):
+        ex = SilhouetteExtractor(SilhouetteConfig(), name=cam.name)
+        ex.fit_background(plate=plate, samples=np.stack([plate] * 5))
+        extractors.append(ex)
+    hard = JointExtractor(extractors, rig.cameras).process(rig.frames)
+    soft = JointExtractor(extractors, rig.cameras).process_soft(rig.frames)
+    for (mask, _), (mask_s, s, _) in zip(hard, soft):
+        assert np.array_equal(mask, mask_s)
+        assert np.all(s[mask == 0] == 0) and s[mask == 1].min() >= 0.5 and s.max() == 1.0
