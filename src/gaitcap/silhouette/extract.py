@@ -31,8 +31,9 @@ frame's global per-channel brightness ratio to it (lighting drift and jumps):
    dropped, and smaller than ``keep_relative`` of the largest dropped unless near the main
    parts (within ``keep_margin`` of their box's height: a head or a foot cut off at the neck or
    ankle stays); holes up to ``max_hole_fraction`` of their component filled;
-4. background adaptation: ``B <- (1 - a) B + a I / g`` where the (dilated) mask and the shadow
-   are off.
+4. background adaptation: ``B <- (1 - a) B + a I / g`` where the (dilated) mask is off and the
+   pixel does not differ even weakly (shadows included): a part the mask missed does not fade
+   into the background.
 """
 
 from __future__ import annotations
@@ -333,7 +334,7 @@ class SilhouetteExtractor:
                 soft: bool) -> tuple[np.ndarray, np.ndarray | None, FrameQuality]:  # fmt: skip
         raw = _connected_to(evidence.weak & ~shadow, evidence.candidate & ~shadow, self._open_k)
         mask_small, n_comp = self._clean(raw)
-        self._adapt(evidence.image, evidence.gain, mask_small, shadow)
+        self._adapt(evidence.image, evidence.gain, mask_small, evidence.weak | shadow)
         mask = self._to_full(mask_small)
         quality = self._quality(mask, float(shadow.mean()), n_comp)
         self._count += 1
@@ -499,12 +500,15 @@ class SilhouetteExtractor:
                 cv2.drawContours(out, contours, i, 255, thickness=cv2.FILLED)
         return out
 
-    def _adapt(self, img: np.ndarray, gain: np.ndarray, mask: np.ndarray, shadow: np.ndarray) -> None:
+    def _adapt(self, img: np.ndarray, gain: np.ndarray, mask: np.ndarray, changed: np.ndarray) -> None:
+        """Blend the frame into the background where nobody is: off the dilated ``mask`` (h, w) and off
+        ``changed`` (h, w) bool, every pixel that differs even weakly (a missed trouser leg, a shadow),
+        so that what the mask missed does not fade into the background."""
         rate = self.config.background.adapt_rate
         if rate <= 0:
             return
         busy = cv2.dilate(mask, self._adapt_k) > 0
-        still = (~busy & ~shadow).astype(np.uint8)
+        still = (~busy & ~changed).astype(np.uint8)
         target = cv2.multiply(img, _scalar(1.0 / np.maximum(gain, 1e-3)))
         cv2.accumulateWeighted(target, self._bg, rate, mask=still)
 
