@@ -55,6 +55,10 @@ class ForegroundConfig(Strict):
         description="weak foreground where the background is textured and the frame's local correlation with it is "
         "below this (-1: off); texture window and least std from the shadow keys",
     )  # fmt: skip
+    soft_min: float = Field(
+        default=0.75, ge=0, le=1,
+        description="soft silhouette (tracking.soft_silhouettes): value of the least confident pixel inside the mask",
+    )  # fmt: skip
 
 
 class ShadowConfig(Strict):

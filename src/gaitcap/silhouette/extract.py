@@ -19,7 +19,7 @@ frame's global per-channel brightness ratio to it (lighting drift and jumps):
    confident ones (hysteresis: a grey trouser leg over a grey floor joins the body through its
    confident edges, background noise of the same strength stays alone). ``d / t`` is also the
    pixel's foreground strength, from which :meth:`SilhouetteExtractor.finish_soft` makes a soft
-   silhouette (1 confident, 0.5 doubtful, 0 background) for the tracker;
+   silhouette (1 confident, ``soft_min`` doubtful, 0 background) for the tracker;
 2. shadow (Horprasert-style brightness/chromaticity test): a candidate (weak or confident) pixel is a cast shadow
    when its brightness ratio ``r = sum_c I_c / sum_c g_c B_c`` lies in ``[min_ratio, max_ratio]``,
    its normalised rgb chromaticity is within ``max_chroma`` of the background's, and, where the
@@ -324,9 +324,10 @@ class SilhouetteExtractor:
 
         Returns:
             ``(mask, soft, quality)``: ``soft`` (H, W) float32 in [0, 1] is 0 outside ``mask`` and
-            ``0.5 + 0.5 c`` inside, with ``c`` the pixel's confidence: 1 at or above the threshold,
-            0 at or below ``hysteresis`` times it (and for pixels the clean-up filled in), linear
-            in between. The likelihood counts 0.5 as neither silhouette nor background.
+            ``m + (1 - m) c`` inside (``m``: ``foreground.soft_min``), with ``c`` the pixel's
+            confidence: 1 at or above the threshold, 0 at or below ``hysteresis`` times it (and for
+            pixels the clean-up filled in), linear in between. The likelihood counts 0.5 as neither
+            silhouette nor background, 1 as silhouette.
         """
         return self._finish(evidence, shadow, soft=True)
 
@@ -350,7 +351,8 @@ class SilhouetteExtractor:
         else:
             conf = (strength > 1.0).astype(np.float32)
         np.clip(conf, 0.0, 1.0, out=conf)
-        soft = (np.float32(0.5) + np.float32(0.5) * conf) * (mask_small > 0)
+        m = np.float32(self.config.foreground.soft_min)
+        soft = (m + (np.float32(1.0) - m) * conf) * (mask_small > 0)
         full = self._full_size
         if full is not None and (soft.shape[1], soft.shape[0]) != full:
             soft = cv2.resize(soft, full, interpolation=cv2.INTER_LINEAR)
