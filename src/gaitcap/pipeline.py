@@ -151,7 +151,8 @@ def run_track(
     likelihood = SilhouetteLikelihood(views, cfg.beta)
     # the videos are read and the silhouettes extracted in a worker thread, a few frames ahead
     saver = MaskSaver(out / SILHOUETTES_FILE, file_attrs(sil_cfg)) if save_masks else None
-    stream = Prefetched(_observations(ses, rig.names, views, sil_cfg, n_frames, stages, saver), depth=PREFETCH_FRAMES)
+    stream = Prefetched(_observations(ses, rig.names, views, sil_cfg, n_frames, stages, saver, cfg.soft_silhouettes),
+                        depth=PREFETCH_FRAMES)  # fmt: skip
     stages["setup"] = time.perf_counter() - t_start
     with stream, kernel_threads(cfg.threads):
         with stages.timed("first_frames"):
@@ -249,7 +250,8 @@ class MaskSaver:
 
 
 def _observations(ses: Session, cams: tuple[str, ...], views, sil_cfg: SilhouetteConfig,
-                  n_frames: int, stages: Stages, saver: MaskSaver | None = None) -> Iterator[Observation]:  # fmt: skip
+                  n_frames: int, stages: Stages, saver: MaskSaver | None = None,
+                  soft: bool = False) -> Iterator[Observation]:  # fmt: skip
     """The session's observations, frame by frame (run by the prefetch thread): each camera's
     background is fitted first, then each frame's silhouettes are extracted and prepared, with
     the row prefix sums and areas the likelihood reads. The frames' cameras are processed side by
@@ -257,7 +259,9 @@ def _observations(ses: Session, cams: tuple[str, ...], views, sil_cfg: Silhouett
     across the cameras in between (:class:`JointExtractor`); each camera's frames stay in order,
     and an error is raised for the first camera (rig order) that has one, as one after the other.
     The backgrounds are fitted one after the other: side by side, they raise the peak memory for
-    no measurable time. With ``saver`` the full-resolution masks are kept (:class:`MaskSaver`)."""
+    no measurable time. With ``saver`` the full-resolution masks are kept (:class:`MaskSaver`). With
+    ``soft`` the tracker sees each pixel's foreground confidence (:meth:`JointExtractor.process_soft`),
+    otherwise the 0/1 masks."""
     sources = {cam: Source(cam, ses.videos[cam], ses.backgrounds.get(cam)) for cam in cams}
     with stages.timed("background"):
         prepared = {cam: prepare_extractor(sources[cam], sil_cfg) for cam in cams}
@@ -266,10 +270,15 @@ def _observations(ses: Session, cams: tuple[str, ...], views, sil_cfg: Silhouett
         with ThreadPoolExecutor(max_workers=len(cams), thread_name_prefix="gaitcap-camera") as pool:
             joint = JointExtractor([prepared[c][0] for c in cams], [ses.rig[c] for c in cams], map_fn=pool.map)
             for t, images in iter_synchronised({c: ses.videos[c] for c in cams}, 0, n_frames):
-                done = joint.process([images[c] for c in cams])  # (mask, quality) per camera
+                frame = [images[c] for c in cams]
+                if soft:  # (mask, soft, quality) per camera
+                    done, seen = zip(*(((m, q), s) for m, s, q in joint.process_soft(frame)))
+                else:  # (mask, quality) per camera
+                    done = joint.process(frame)
+                    seen = [m for m, _ in done]
                 if saver is not None:
-                    saver.add(t, sources, prepared, done)
-                obs = Observation(list(pool.map(lambda c: views[c].prepare(done[c][0]), range(len(cams)))))
+                    saver.add(t, sources, prepared, list(done))
+                obs = Observation(list(pool.map(lambda c: views[c].prepare(seen[c]), range(len(cams)))))
                 for c in range(len(cams)):
                     obs.prefix(c)
                 obs.areas  # noqa: B018 - cached here, off the tracking thread

@@ -46,6 +46,19 @@ class ForegroundConfig(Strict):
 
     threshold_sigma: float = Field(default=4.0, gt=0, description="foreground when |frame - bg| > k * noise sigma")
     min_diff: float = Field(default=18.0, ge=0, description="and when |frame - bg| exceeds this many grey levels")
+    hysteresis: float = Field(
+        default=0.5, gt=0, le=1,
+        description="weak foreground above this fraction of the threshold, kept where connected to confident pixels (1: off)",
+    )  # fmt: skip
+    texture_ncc: float = Field(
+        default=0.4, ge=-1, le=1,
+        description="weak foreground where the background is textured and the frame's local correlation with it is "
+        "below this (-1: off); texture window and least std from the shadow keys",
+    )  # fmt: skip
+    soft_min: float = Field(
+        default=0.75, ge=0, le=1,
+        description="soft silhouette (tracking.soft_silhouettes): value of the least confident pixel inside the mask",
+    )  # fmt: skip
 
 
 class ShadowConfig(Strict):

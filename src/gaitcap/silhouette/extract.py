@@ -13,9 +13,14 @@ it has decoded (``gaitcap.video``), so the tracker can share its decoding. Typic
 Per pixel, at the working scale (``config.scale``), with ``B`` the background and ``g`` the
 frame's global per-channel brightness ratio to it (lighting drift and jumps):
 
-1. difference: ``d = sqrt(mean_c (I_c - g_c B_c)^2)``; candidate foreground where
-   ``d > max(k * sigma, min_diff)`` (``sigma``: per-pixel noise of the background model);
-2. shadow (Horprasert-style brightness/chromaticity test): a candidate pixel is a cast shadow
+1. difference: ``d = sqrt(mean_c (I_c - g_c B_c)^2)``; confident foreground where
+   ``d > t = max(k * sigma, min_diff)`` (``sigma``: per-pixel noise of the background model), weak
+   foreground where ``d > hysteresis * t``: weak pixels are kept only where they are 8-connected to
+   confident ones (hysteresis: a grey trouser leg over a grey floor joins the body through its
+   confident edges, background noise of the same strength stays alone). ``d / t`` is also the
+   pixel's foreground strength, from which :meth:`SilhouetteExtractor.finish_soft` makes a soft
+   silhouette (1 confident, ``soft_min`` doubtful, 0 background) for the tracker;
+2. shadow (Horprasert-style brightness/chromaticity test): a candidate (weak or confident) pixel is a cast shadow
    when its brightness ratio ``r = sum_c I_c / sum_c g_c B_c`` lies in ``[min_ratio, max_ratio]``,
    its normalised rgb chromaticity is within ``max_chroma`` of the background's, and, where the
    background is textured, the frame's local texture correlates with the background's
@@ -26,8 +31,9 @@ frame's global per-channel brightness ratio to it (lighting drift and jumps):
    dropped, and smaller than ``keep_relative`` of the largest dropped unless near the main
    parts (within ``keep_margin`` of their box's height: a head or a foot cut off at the neck or
    ankle stays); holes up to ``max_hole_fraction`` of their component filled;
-4. background adaptation: ``B <- (1 - a) B + a I / g`` where the (dilated) mask and the shadow
-   are off.
+4. background adaptation: ``B <- (1 - a) B + a I / g`` where the (dilated) mask is off and the
+   pixel does not differ even weakly (shadows included): a part the mask missed does not fade
+   into the background.
 """
 
 from __future__ import annotations
@@ -124,6 +130,30 @@ def _body_components(stats: np.ndarray, min_area: float, relative: float, margin
     return np.flatnonzero((main | near) & (area >= min_area))
 
 
+def _connected_to(weak: np.ndarray, seeds: np.ndarray, open_kernel: np.ndarray | None) -> np.ndarray:
+    """(h, w) uint8 0/255: the 8-connected components of ``weak`` that hold a seed pixel.
+
+    Args:
+        weak: (h, w) bool, the pixels that may belong to the person (``seeds`` included).
+        seeds: (h, w) bool, the confident ones.
+        open_kernel: structuring element of an opening of both first (isolated noise seeds nothing,
+            thin rings and bridges of weak pixels join nothing), or None.
+    """
+    seed = seeds.view(np.uint8)
+    if open_kernel is not None:
+        seed = cv2.morphologyEx(seed, cv2.MORPH_OPEN, open_kernel)
+    if not weak.any():
+        return seed * np.uint8(255)
+    weak = weak.view(np.uint8)
+    if open_kernel is not None:  # no thin rings or bridges of weak pixels
+        weak = cv2.morphologyEx(weak, cv2.MORPH_OPEN, open_kernel)
+    n, labels = cv2.connectedComponents(weak | seed, connectivity=8)
+    hit = np.zeros(n, np.uint8)
+    hit[labels[seed > 0]] = 255
+    hit[0] = 0
+    return hit[labels]
+
+
 def _disk(radius: int) -> np.ndarray:
     return cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * radius + 1, 2 * radius + 1))
 
@@ -136,7 +166,9 @@ class FrameEvidence:
         image: (h, w, 3) float32 frame at working scale.
         gain: (3,) the frame's global per-channel brightness ratio to the background.
         candidate: (h, w) bool, differs from the background by more than the threshold.
-        shadow: (h, w) bool, candidate pixels that pass this camera's cast-shadow test.
+        weak: (h, w) bool, differs by more than ``hysteresis`` times the threshold (includes ``candidate``).
+        strength: (h, w) float32, squared difference / squared threshold (``(d / t)^2``).
+        shadow: (h, w) bool, weak pixels that pass this camera's cast-shadow test.
         darkening: (h, w) bool, candidate or darker than the background (what another camera
             looks up to confirm that a floor point is shadowed).
     """
@@ -144,6 +176,8 @@ class FrameEvidence:
     image: np.ndarray
     gain: np.ndarray
     candidate: np.ndarray
+    weak: np.ndarray
+    strength: np.ndarray
     shadow: np.ndarray
     darkening: np.ndarray
 
@@ -263,9 +297,14 @@ class SilhouetteExtractor:
             g = gain if self.config.background.gain_compensation else global_gain(img, self._bg)
             self._thr2 = self._threshold2(self._global_noise(img, self._bg * g.reshape(1, 1, 3)))
         d2 = self._diff2(img, bg)
-        candidate = d2 > self._thr2
-        shadow = self._shadow(img, bg, candidate) if self.config.shadow.enabled else np.zeros_like(candidate)
-        return FrameEvidence(img, gain, candidate, shadow, candidate | self._darker(img, bg, d2))
+        strength = cv2.divide(d2, self._thr2)
+        candidate = strength > 1.0
+        h = self.config.foreground.hysteresis
+        weak = strength > np.float32(h * h) if h < 1 else candidate
+        if self.config.foreground.texture_ncc > -1:
+            weak = weak | self._texture_changed(img, bg, candidate)
+        shadow = self._shadow(img, bg, weak) if self.config.shadow.enabled else np.zeros_like(candidate)
+        return FrameEvidence(img, gain, candidate, weak, strength, shadow, candidate | self._darker(img, bg, d2))
 
     def finish(self, evidence: FrameEvidence, shadow: np.ndarray) -> tuple[np.ndarray, FrameQuality]:
         """Steps 3-4: clean-up of ``candidate & ~shadow`` and background adaptation.
@@ -277,13 +316,47 @@ class SilhouetteExtractor:
         Returns:
             ``(mask, quality)`` as :meth:`process`.
         """
-        raw = (evidence.candidate & ~shadow).astype(np.uint8) * 255
+        mask, _, quality = self._finish(evidence, shadow, soft=False)
+        return mask, quality
+
+    def finish_soft(self, evidence: FrameEvidence, shadow: np.ndarray) -> tuple[np.ndarray, np.ndarray, FrameQuality]:
+        """As :meth:`finish`, with the soft silhouette too.
+
+        Returns:
+            ``(mask, soft, quality)``: ``soft`` (H, W) float32 in [0, 1] is 0 outside ``mask`` and
+            ``m + (1 - m) c`` inside (``m``: ``foreground.soft_min``), with ``c`` the pixel's
+            confidence: 1 at or above the threshold, 0 at or below ``hysteresis`` times it (and for
+            pixels the clean-up filled in), linear in between. The likelihood counts 0.5 as neither
+            silhouette nor background, 1 as silhouette.
+        """
+        return self._finish(evidence, shadow, soft=True)
+
+    def _finish(self, evidence: FrameEvidence, shadow: np.ndarray,
+                soft: bool) -> tuple[np.ndarray, np.ndarray | None, FrameQuality]:  # fmt: skip
+        raw = _connected_to(evidence.weak & ~shadow, evidence.candidate & ~shadow, self._open_k)
         mask_small, n_comp = self._clean(raw)
-        self._adapt(evidence.image, evidence.gain, mask_small, shadow)
+        self._adapt(evidence.image, evidence.gain, mask_small, evidence.weak | shadow)
         mask = self._to_full(mask_small)
         quality = self._quality(mask, float(shadow.mean()), n_comp)
         self._count += 1
-        return mask, quality
+        if not soft:
+            return mask, None, quality
+        return mask, self._soft(evidence.strength, mask_small, mask), quality
+
+    def _soft(self, strength: np.ndarray, mask_small: np.ndarray, mask: np.ndarray) -> np.ndarray:
+        """(H, W) float32 soft silhouette of :meth:`finish_soft` from the working-scale strength."""
+        h = self.config.foreground.hysteresis
+        if h < 1:
+            conf = (cv2.sqrt(strength) - np.float32(h)) * np.float32(1.0 / (1.0 - h))
+        else:
+            conf = (strength > 1.0).astype(np.float32)
+        np.clip(conf, 0.0, 1.0, out=conf)
+        m = np.float32(self.config.foreground.soft_min)
+        soft = (m + (np.float32(1.0) - m) * conf) * (mask_small > 0)
+        full = self._full_size
+        if full is not None and (soft.shape[1], soft.shape[0]) != full:
+            soft = cv2.resize(soft, full, interpolation=cv2.INTER_LINEAR)
+        return soft * mask
 
     @property
     def work_size(self) -> tuple[int, int]:
@@ -318,10 +391,12 @@ class SilhouetteExtractor:
 
     def _darker(self, img: np.ndarray, bg: np.ndarray, d2: np.ndarray) -> np.ndarray:
         """(h, w) bool: darker than the background (brightness ratio below ``shadow.max_ratio``) by
-        at least half the foreground threshold, whether or not the difference passes it."""
+        at least half the weakest foreground (``hysteresis`` times the threshold), whether or not the
+        difference passes it."""
         ones = np.ones((1, 3), np.float32)
         darker = cv2.transform(img, ones) < np.float32(self.config.shadow.max_ratio) * cv2.transform(bg, ones)
-        return darker & (d2 > np.float32(0.25) * self._thr2)
+        half = 0.5 * self.config.foreground.hysteresis
+        return darker & (d2 > np.float32(half * half) * self._thr2)
 
     def _shadow(self, img: np.ndarray, bg: np.ndarray, candidate: np.ndarray) -> np.ndarray:
         """(h, w) bool: candidate pixels explained as cast shadow on the background.
@@ -350,21 +425,49 @@ class SilhouetteExtractor:
         shadow[y0:y1, x0:x1] = darker & same_colour & self._same_texture(si, sb)
         return shadow
 
+    def _texture_changed(self, img: np.ndarray, bg: np.ndarray, candidate: np.ndarray) -> np.ndarray:
+        """(h, w) bool: the background is textured there and the frame no longer shows its texture
+        (local correlation below ``foreground.texture_ncc``): something stands in front of it. Eroded
+        by half the window: a window that straddles the person's outline changes too. Tested only in
+        the box of the candidates grown by half its height (the rest cannot join the body)."""
+        changed = np.zeros_like(candidate)
+        x, y, w, h = cv2.boundingRect(candidate.view(np.uint8))
+        if w == 0 or h == 0:
+            return changed
+        g = h // 2
+        box = np.s_[max(0, y - g) : y + h + g, max(0, x - g) : x + w + g]
+        ones = np.ones((1, 3), np.float32)
+        ncc, flat = self._texture_ncc(cv2.transform(img[box], ones), cv2.transform(bg[box], ones), min_var=1.0)
+        inside = (~flat & (ncc < np.float32(self.config.foreground.texture_ncc))).view(np.uint8)
+        k = self.config.shadow.texture_window
+        changed[box] = cv2.erode(inside, np.ones((k, k), np.uint8)).view(bool)
+        return changed
+
+    def _texture_ncc(self, si: np.ndarray, sb: np.ndarray, min_var: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """Local normalised cross-correlation of channel sums (h, w) float32 over a box window, and
+        (h, w) bool where the background is flat (local std below ``texture_min_std``: no texture to test).
+        ``min_var`` floors the frame's local variance (a flat patch then correlates with nothing,
+        instead of rounding errors over zero)."""
+        s = self.config.shadow
+        k = (s.texture_window, s.texture_window)
+        mi, mb = cv2.blur(si, k), cv2.blur(sb, k)
+        vi = cv2.blur(si * si, k) - mi * mi
+        if min_var > 0:
+            vi = np.maximum(vi, np.float32(min_var))
+        vb = cv2.blur(sb * sb, k) - mb * mb
+        cov = cv2.blur(si * sb, k) - mi * mb
+        ncc = cov / np.sqrt(np.maximum(vi * vb, 1e-6))
+        flat = vb < (3.0 * s.texture_min_std) ** 2  # channel sums: 3x the grey-level std
+        return ncc, flat
+
     def _same_texture(self, si: np.ndarray, sb: np.ndarray) -> np.ndarray:
         """(h, w) bool: the frame keeps the background's local texture (or there is none).
 
         Normalised cross-correlation of channel sums over a box window; where the background
         is flat (local std below ``texture_min_std``) the test cannot tell and passes.
         """
-        s = self.config.shadow
-        k = (s.texture_window, s.texture_window)
-        mi, mb = cv2.blur(si, k), cv2.blur(sb, k)
-        vi = cv2.blur(si * si, k) - mi * mi
-        vb = cv2.blur(sb * sb, k) - mb * mb
-        cov = cv2.blur(si * sb, k) - mi * mb
-        ncc = cov / np.sqrt(np.maximum(vi * vb, 1e-6))
-        flat = vb < (3.0 * s.texture_min_std) ** 2  # channel sums: 3x the grey-level std
-        return flat | (ncc >= s.min_ncc)
+        ncc, flat = self._texture_ncc(si, sb)
+        return flat | (ncc >= self.config.shadow.min_ncc)
 
     def _clean(self, raw: np.ndarray) -> tuple[np.ndarray, int]:
         """Morphology, component selection and hole filling; (h, w) uint8 0/255 -> same, count."""
@@ -399,12 +502,15 @@ class SilhouetteExtractor:
                 cv2.drawContours(out, contours, i, 255, thickness=cv2.FILLED)
         return out
 
-    def _adapt(self, img: np.ndarray, gain: np.ndarray, mask: np.ndarray, shadow: np.ndarray) -> None:
+    def _adapt(self, img: np.ndarray, gain: np.ndarray, mask: np.ndarray, changed: np.ndarray) -> None:
+        """Blend the frame into the background where nobody is: off the dilated ``mask`` (h, w) and off
+        ``changed`` (h, w) bool, every pixel that differs even weakly (a missed trouser leg, a shadow),
+        so that what the mask missed does not fade into the background."""
         rate = self.config.background.adapt_rate
         if rate <= 0:
             return
         busy = cv2.dilate(mask, self._adapt_k) > 0
-        still = (~busy & ~shadow).astype(np.uint8)
+        still = (~busy & ~changed).astype(np.uint8)
         target = cv2.multiply(img, _scalar(1.0 / np.maximum(gain, 1e-3)))
         cv2.accumulateWeighted(target, self._bg, rate, mask=still)
 

@@ -10,7 +10,7 @@ import numpy as np
 
 from gaitcap.camera import Camera
 from gaitcap.errors import InputError
-from gaitcap.silhouette.extract import FrameQuality, SilhouetteExtractor
+from gaitcap.silhouette.extract import FrameEvidence, FrameQuality, SilhouetteExtractor
 from gaitcap.silhouette.floor import FloorShadowCheck
 
 MapFn = Callable[..., Iterable[Any]]
@@ -47,8 +47,19 @@ class JointExtractor:
 
     def process(self, images: Sequence[np.ndarray]) -> list[tuple[np.ndarray, FrameQuality]]:
         """Masks of one frame: ``images`` (H_c, W_c, 3) uint8 BGR per camera -> (mask, quality) per camera."""
+        evidence, shadows = self._observe(images)
+        return list(self._map(lambda ex, e, s: ex.finish(e, s), self.extractors, evidence, shadows))
+
+    def process_soft(self, images: Sequence[np.ndarray]) -> list[tuple[np.ndarray, np.ndarray, FrameQuality]]:
+        """As :meth:`process`, with each camera's soft silhouette: (mask, soft, quality) per camera
+        (:meth:`SilhouetteExtractor.finish_soft`)."""
+        evidence, shadows = self._observe(images)
+        return list(self._map(lambda ex, e, s: ex.finish_soft(e, s), self.extractors, evidence, shadows))
+
+    def _observe(self, images: Sequence[np.ndarray]) -> tuple[list[FrameEvidence], list[np.ndarray]]:
+        """Every camera's per-pixel evidence and its shadow map after the floor check."""
         evidence = list(self._map(lambda ex, im: ex.observe(im), self.extractors, images))
         shadows = [e.shadow for e in evidence]
         if self.floor is not None:
             shadows = self.floor.relabel(shadows, [e.darkening for e in evidence])
-        return list(self._map(lambda ex, e, s: ex.finish(e, s), self.extractors, evidence, shadows))
+        return evidence, shadows

@@ -254,6 +254,7 @@ class TrackingConfig(Strict):
     tracker: TrackerName = "factored-ipf"
     scale: float = Field(default=0.5, gt=0.05, le=1)
     beta: float = Field(default=40.0, gt=0)
+    soft_silhouettes: bool = False
     intervals: dict[str, float]
     prior: dict[str, float] = Field(default_factory=dict)
     factored_ipf: FactoredIPFConfig

@@ -50,8 +50,13 @@ class TrackingView:
         return cls(camera=camera, scale=scale, K=K, size=(lw, lh), undistort_map=umap)
 
     def prepare(self, mask: np.ndarray) -> np.ndarray:
-        """Full-resolution mask (H, W) (0/1 or 0/255) -> soft silhouette (h, w) float32 in [0, 1]."""
-        m = (np.asarray(mask) > 0).astype(np.float32)
+        """Full-resolution mask (H, W) -> soft silhouette (h, w) float32 in [0, 1]. An integer mask is
+        binary (0/1 or 0/255, any non-zero is silhouette); a float one is a per-pixel confidence in [0, 1]."""
+        mask = np.asarray(mask)
+        if np.issubdtype(mask.dtype, np.floating):
+            m = np.clip(mask, 0.0, 1.0).astype(np.float32, copy=False)
+        else:
+            m = (mask > 0).astype(np.float32)
         if self.undistort_map is not None:
             m = cv2.remap(m, self.undistort_map[0], self.undistort_map[1], cv2.INTER_LINEAR,
                           borderMode=cv2.BORDER_CONSTANT, borderValue=0)
