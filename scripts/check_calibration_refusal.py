@@ -5,7 +5,6 @@ swapped between the first two cameras, rotations transposed, the second camera t
 Usage: PYTHONPATH=src python scripts/check_calibration_refusal.py SESSION [SESSION ...]"""
 import sys, logging, time
 from dataclasses import replace
-from pathlib import Path
 import numpy as np, cv2
 logging.disable(logging.WARNING)
 from gaitcap.session import Session

@@ -21,7 +21,6 @@ from gaitcap.gait.parameters import (
     SIDE_KEYS,
     STATUS_IMPLAUSIBLE,
     STATUS_NOT_ENOUGH_STEPS,
-    STATUS_OK,
     compute_parameters,
 )
 from gaitcap.io.trajectories_h5 import write_trajectory

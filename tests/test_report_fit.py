@@ -22,7 +22,8 @@ from gaitcap.gait.analysis import analyse
 from gaitcap.io.track_h5 import QUALITY_POOR_FIT, TrackRecord
 from gaitcap.io.trajectories_h5 import write_trajectory
 from gaitcap.report.fit import (MAX_ATTENTION_FRAMES, UNCERTAIN_MM, FitRecord, angle_bands, attention_frames,
-                                load_fit_record, read_verdict, select_frames)  # fmt: skip
+                                load_fit_record, select_frames)  # fmt: skip
+from gaitcap.track_summary import read_verdict
 from gaitcap.report.sheet import draw_model, project_model, tracked_model
 from gaitcap.session import Session
 from gaitcap.trajectory import GaitEvent

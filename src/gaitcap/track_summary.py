@@ -90,6 +90,28 @@ class TrackSummary:
         }
 
 
+@dataclass(frozen=True)
+class Verdict:
+    """A run's verdict as ``track.json`` records it (``verdict``, ``verdict_reasons``)."""
+
+    verdict: str
+    reasons: tuple[str, ...] = ()
+
+    def line(self) -> str:
+        """One line for the terminal."""
+        return f"verdict: {self.verdict}" + (f" ({'; '.join(self.reasons)})" if self.reasons else "")
+
+
+def read_verdict(track_json: dict[str, Any] | None) -> Verdict | None:
+    """The verdict of a ``track.json`` document, or None when it has none (runs before verdicts)."""
+    if not track_json or not track_json.get("verdict"):
+        return None
+    reasons = track_json.get("verdict_reasons") or []
+    if isinstance(reasons, str):
+        reasons = [reasons]
+    return Verdict(str(track_json.get("verdict")), tuple(str(r) for r in reasons))
+
+
 def format_verdict(verdict: str | None, reasons: list[str] | tuple[str, ...] = ()) -> str:
     """One line: ``doubtful: reason; reason`` (``not judged`` without a verdict)."""
     if not verdict:

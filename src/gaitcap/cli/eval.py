@@ -63,12 +63,12 @@ def command(
     """
     from gaitcap.evaluation import Thresholds, check_thresholds, evaluate
     from gaitcap.evaluation.report import (
-        EVAL_FILE, TruthReference, format_evaluation, out_masks, read_tracked, read_truth_reference, read_verdict,
+        EVAL_FILE, TruthReference, format_evaluation, out_masks, read_tracked, read_truth_reference,
         tracked_path, write_evaluation,
     )  # fmt: skip
     from gaitcap.evaluation.compare import compare_lengths
     from gaitcap.evaluation.silhouettes import silhouette_iou
-    from gaitcap.track_summary import read_track_json
+    from gaitcap.track_summary import read_track_json, read_verdict
 
     if (truth is None) == (reference is None):
         raise click.UsageError("give exactly one of --truth and --reference")
@@ -85,10 +85,13 @@ def command(
         ev.notes += notes
     elif ref.masks is not None:
         ev.notes.append("silhouettes not compared: OUT holds no silhouettes.h5 (track with --save-masks)")
-    body = (read_track_json(out if out.is_dir() else out.parent) or {}).get("body") or {}
+    record = read_track_json(tracked_path(out).parent) or {}  # the run's track.json
+    body = record.get("body") or {}
     if body.get("segment_lengths_m"):
         ev.segment_lengths = compare_lengths(body["segment_lengths_m"], ref.trajectory)
-    ev.verdict, ev.verdict_reasons = read_verdict(out)
+    verdict = read_verdict(record)
+    if verdict is not None:
+        ev.verdict, ev.verdict_reasons = verdict.verdict, list(verdict.reasons)
     ev.failures = check_thresholds(ev, Thresholds(max_mpjpe_mm, max_angle_rmse_deg, max_event_error_frames))
     target = output or (out / EVAL_FILE if out.is_dir() else out.parent / EVAL_FILE)
     write_evaluation(target, ev, force=force)

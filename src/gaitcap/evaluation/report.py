@@ -17,7 +17,7 @@ from gaitcap.io.silhouettes_h5 import SILHOUETTES_FILE
 from gaitcap.io.trajectories_h5 import read_trajectory
 from gaitcap.io.truth_folder import JOINTS_FILE, is_truth_folder, read_truth_folder
 from gaitcap.synth.truth import read_truth
-from gaitcap.track_summary import format_verdict, read_track_json
+from gaitcap.track_summary import format_verdict
 from gaitcap.trajectory import Trajectory
 
 TRAJECTORIES_FILE = "trajectories.h5"
@@ -182,14 +182,6 @@ def _length_lines(ev: Evaluation) -> list[str]:
     for name, d in ev.segment_lengths.items():
         lines.append(f"  {name:<20}{d['tracked_m']:>8.3f}{d['reference_m']:>8.3f}{d['diff_pct']:>+8.1f}")
     return lines
-
-
-def read_verdict(path: str | Path) -> tuple[str | None, list[str]]:
-    """(verdict, reasons) of the tracking output ``path`` (folder or its trajectories.h5) from its
-    track.json; (None, []) when it has none."""
-    doc = read_track_json(tracked_path(path).parent) or {}
-    verdict = doc.get("verdict")
-    return (verdict if isinstance(verdict, str) else None), [str(r) for r in doc.get("verdict_reasons") or []]
 
 
 def format_evaluation(ev: Evaluation) -> str:

@@ -38,7 +38,7 @@ from gaitcap.evaluation.metrics import runs, wrap_deg
 from gaitcap.gait.angles import joint_angles
 from gaitcap.gait.events import WalkingDirection
 from gaitcap.io.track_h5 import QUALITY_NAMES, QUALITY_OK, TrackRecord, read_track_record
-from gaitcap.track_summary import read_track_json
+from gaitcap.track_summary import Verdict, read_track_json, read_verdict
 from gaitcap.trajectory import LOWER_LIMB, GaitEvent, Trajectory
 
 log = logging.getLogger("gaitcap.report")
@@ -53,31 +53,6 @@ BAND_SEED = 0
 #: at most this many attention frames on the contact sheet, and this many regular ones
 MAX_ATTENTION_FRAMES = 12
 MAX_REGULAR_FRAMES = 16
-VERDICTS = ("ok", "doubtful", "failed")
-
-
-@dataclass(frozen=True)
-class Verdict:
-    """The run's verdict from ``track.json`` (``verdict``, ``verdict_reasons``), when it has one."""
-
-    verdict: str
-    reasons: tuple[str, ...] = ()
-
-    def line(self) -> str:
-        """One line for the terminal."""
-        return f"verdict: {self.verdict}" + (f" ({'; '.join(self.reasons)})" if self.reasons else "")
-
-
-def read_verdict(track_json: dict[str, Any] | None) -> Verdict | None:
-    """The verdict of a ``track.json`` document, or None when it has none (runs before verdicts)."""
-    if not track_json or not track_json.get("verdict"):
-        return None
-    reasons = track_json.get("verdict_reasons") or []
-    if isinstance(reasons, str):
-        reasons = [reasons]
-    return Verdict(str(track_json.get("verdict")), tuple(str(r) for r in reasons))
-
-
 @dataclass(frozen=True)
 class SheetFrame:
     """One frame of the contact sheet: its index and why it was chosen (short labels)."""

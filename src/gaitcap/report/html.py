@@ -15,8 +15,9 @@ from gaitcap import __version__
 from gaitcap.gait.analysis import GaitAnalysis
 from gaitcap.gait.parameters import OVERALL_KEYS, SIDE_KEYS, STATUS_IMPLAUSIBLE, STATUS_NOT_ENOUGH_STEPS
 from gaitcap.report import plots
-from gaitcap.report.fit import UNCERTAIN_MM, FitRecord, Verdict
+from gaitcap.report.fit import UNCERTAIN_MM, FitRecord
 from gaitcap.report.sheet import ContactSheet, SheetRow
+from gaitcap.track_summary import VERDICTS, Verdict
 from gaitcap.trajectory import GaitEvent, Trajectory
 
 _CSS = """
@@ -79,7 +80,7 @@ class FitView:
 
 def verdict_banner(verdict: Verdict) -> str:
     """The banner at the top: the verdict and its reasons."""
-    kind = verdict.verdict if verdict.verdict in ("ok", "doubtful", "failed") else "doubtful"
+    kind = verdict.verdict if verdict.verdict in VERDICTS else "doubtful"
     text = {"ok": "the tracking looks reliable", "doubtful": "check the fit below before using these results",
             "failed": "the tracking failed: these results must not be used"}.get(verdict.verdict, "")  # fmt: skip
     reasons = "".join(f"<li>{html.escape(r)}</li>" for r in verdict.reasons)

@@ -16,11 +16,11 @@ from gaitcap.io import gait_outputs
 from gaitcap.io.atomic import write_text_atomic
 from gaitcap.io.c3d_export import write_c3d
 from gaitcap.io.trajectories_h5 import read_trajectory
-from gaitcap.report.fit import FitRecord, Verdict, angle_bands, load_fit_record, read_verdict, select_frames
+from gaitcap.report.fit import FitRecord, angle_bands, load_fit_record, select_frames
 from gaitcap.report.html import FitView, render_fit_report, render_report
 from gaitcap.report.plots import FLEXION_ANGLES
 from gaitcap.report.sheet import contact_sheet
-from gaitcap.track_summary import read_track_json
+from gaitcap.track_summary import Verdict, read_track_json, read_verdict
 from gaitcap.trajectory import SIDES, GaitEvent, Trajectory, side_suffix
 
 log = logging.getLogger("gaitcap.report")
