@@ -31,6 +31,7 @@ from gaitcap.body.measures import model_lengths, outside_ranges
 from gaitcap.body.model import load_body_model
 from gaitcap.errors import OutputError, TrackingError
 from gaitcap.io.atomic import write_text_atomic
+from gaitcap.io.silhouettes_h5 import SILHOUETTES_FILE, SilhouetteWriter
 from gaitcap.io.track_h5 import (QUALITY_NOT_INITIALISED, QUALITY_OK, QUALITY_OUT_OF_VIEW, QUALITY_POOR_FIT,
                                  TrackWriter, proportions_attrs)  # fmt: skip
 from gaitcap.io.trc import write_trc
@@ -39,7 +40,6 @@ from gaitcap.quality import assess
 from gaitcap.session import CALIBRATION_FILE, Session
 from gaitcap.session_check import check_session_videos, check_silhouettes_meet
 from gaitcap.silhouette.config import SilhouetteConfig
-from gaitcap.io.silhouettes_h5 import SILHOUETTES_FILE, SilhouetteWriter
 from gaitcap.silhouette.joint import JointExtractor
 from gaitcap.silhouette.run import Source, camera_attrs, file_attrs, prepare_extractor, quality_row
 from gaitcap.track_summary import TrackSummary, is_finished, write_track_json
@@ -437,7 +437,7 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
 
 def _search_shape(model, likelihood, refit_cfg: TrackingConfig, first: list[Observation], poses, cfg: TrackingConfig,
                   retrack, setup) -> ShapeResult:  # fmt: skip
-    """The coordinate and random search that re-fits every candidate (``shape.method: search``),
+    """The shape calibration (:func:`~gaitcap.tracking.shape.calibrate_shape`: every candidate re-fitted),
     ``shape.repeats`` times side by side with their own random streams, the factors averaged."""
 
     def calibrate(k: int, workers: int) -> ShapeResult:  # the k-th calibration, its own random streams

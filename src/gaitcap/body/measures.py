@@ -11,7 +11,7 @@ import numpy as np
 
 from gaitcap.body.model import BodyModel
 
-#: length name -> pairs of points whose distances are averaged (left and right alike)
+#: length name -> pairs of points whose distances are pooled (left and right alike) for the median
 SEGMENTS: dict[str, tuple[tuple[str, str], ...]] = {
     "pelvis_width": (("hip_l", "hip_r"),),
     "thigh": (("hip_l", "knee_l"), ("hip_r", "knee_r")),

@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from gaitcap.body.measures import segment_lengths
+from gaitcap.body.measures import length_errors, segment_lengths
 from gaitcap.errors import InputError
 from gaitcap.evaluation.metrics import (
     angle_rmse_deg,
@@ -205,8 +205,8 @@ def compare_lengths(tracked_m: dict[str, float], reference: Trajectory) -> dict[
     against those measured on the reference's joint centres (:mod:`gaitcap.body.measures`):
     name -> {tracked_m, reference_m, diff_pct}, for the lengths both have."""
     ref = segment_lengths(reference.names, reference.points)
-    return {k: {"tracked_m": float(tracked_m[k]), "reference_m": ref[k], "diff_pct": 100.0 * (tracked_m[k] / ref[k] - 1)}
-            for k in tracked_m if k in ref and ref[k] > 0}  # fmt: skip
+    return {k: {"tracked_m": float(tracked_m[k]), "reference_m": ref[k], "diff_pct": 100.0 * e}
+            for k, e in length_errors(tracked_m, ref).items()}  # fmt: skip
 
 
 def _clean(obj: Any) -> Any:

@@ -29,6 +29,13 @@ def _check_patterns(v: dict[str, float]) -> dict[str, float]:
     return v
 
 
+def _check_around_one(v: tuple[float, float], what: str) -> tuple[float, float]:
+    """A (low, high) range of factors that holds 1: raises ValueError naming ``what``."""
+    if not (0 < v[0] <= 1 <= v[1]):
+        raise ValueError(f"{what} must satisfy 0 < low <= 1 <= high")
+    return v
+
+
 class Layer(Strict):
     step_deg: float = Field(gt=0, le=30)
     step_m: float = Field(gt=0, le=0.5)
@@ -85,9 +92,7 @@ class VerdictConfig(Strict):
     @field_validator("segment_ratio")
     @classmethod
     def _check_ratio(cls, v: tuple[float, float]) -> tuple[float, float]:
-        if not (0 < v[0] <= 1 <= v[1]):
-            raise ValueError("segment_ratio must satisfy 0 < low <= 1 <= high")
-        return v
+        return _check_around_one(v, "segment_ratio")
 
 
 class UncertaintyCoefficients(Strict):
@@ -197,16 +202,13 @@ class ShapeConfig(Strict):
     @field_validator("bounds")
     @classmethod
     def _check_bounds(cls, v: tuple[float, float]) -> tuple[float, float]:
-        if not (0 < v[0] <= 1 <= v[1]):
-            raise ValueError("bounds must satisfy 0 < low <= 1 <= high")
-        return v
+        return _check_around_one(v, "bounds")
 
     @field_validator("limits")
     @classmethod
     def _check_limits(cls, v: dict[str, tuple[float, float]]) -> dict[str, tuple[float, float]]:
-        for name, (low, high) in v.items():
-            if not (0 < low <= 1 <= high):
-                raise ValueError(f"{name}: a range must satisfy 0 < low <= 1 <= high")
+        for name, span in v.items():
+            _check_around_one(span, f"{name}: a range")
         return v
 
     @field_validator("ranges")
