@@ -12,7 +12,7 @@ walking person passes:
   floor in every frame of a walk (z = 0 in the calibration's world frame); a model floating above
   it, or sunk into it, has collapsed onto something else;
 - thigh and shank lengths against the usual proportions for the subject's height (the body
-  model's own: 0.245 H and 0.246 H);
+  model's own, body.yaml: 0.245 H and 0.246 H);
 - the subject's height in each camera's image (pixels): a small figure leaves the limbs a few
   pixels wide.
 
@@ -42,6 +42,8 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
+from gaitcap.body.measures import model_lengths, segment_lengths
+from gaitcap.body.model import load_body_model
 from gaitcap.io.track_h5 import QUALITY_OK, QUALITY_POOR_FIT
 from gaitcap.tracking.smoothing import lowpass
 
@@ -53,10 +55,8 @@ log = logging.getLogger(__name__)
 
 Verdict = Literal["ok", "doubtful", "failed"]  # gaitcap.track_summary.VERDICTS
 FEET = ("heel_l", "heel_r", "toe_l", "toe_r")
-#: segment -> (proximal point, distal point), both sides checked
-SEGMENTS = {"thigh": ("hip", "knee"), "shank": ("knee", "ankle")}
-#: the body model's proportions (gaitcap/configs/body.yaml): segment length / height
-USUAL_LENGTH = {"thigh": 0.245, "shank": 0.246}
+#: the lengths (gaitcap.body.measures) checked against the body model's, each side on its own
+SEGMENTS = ("thigh", "shank")
 
 
 @dataclass(frozen=True)
@@ -136,15 +136,15 @@ def _floor_height(points: np.ndarray, names: tuple[str, ...]) -> float:
 
 
 def _segment_ratios(points: np.ndarray, names: tuple[str, ...], height_m: float) -> dict[str, float]:
-    out = {}
-    for seg, (a, b) in SEGMENTS.items():
-        for side in ("_l", "_r"):
-            if a + side in names and b + side in names and len(points):
-                length = np.linalg.norm(points[:, names.index(a + side)] - points[:, names.index(b + side)], axis=1)
-                length = length[np.isfinite(length)]
-                if len(length):
-                    out[seg + side] = float(np.median(length) / (USUAL_LENGTH[seg] * height_m))
-    return out
+    """``thigh_l`` ... ``shank_r`` -> median length (gaitcap.body.measures, each side on its own)
+    over the shipped body model's length at ``height_m`` (its proportions, per metre of height)."""
+    usual = model_lengths(load_body_model(height_m=1.0))
+    per_side = {}
+    for side, other in (("_l", "_r"), ("_r", "_l")):
+        one_side = [n if not n.endswith(other) else "" for n in names]  # the other side's points left out
+        per_side[side] = segment_lengths(one_side, points) if len(points) else {}
+    return {seg + side: per_side[side][seg] / (usual[seg] * height_m) for seg in SEGMENTS for side in ("_l", "_r")
+            if seg in per_side[side]}  # fmt: skip
 
 
 def _image_heights(points: np.ndarray, rig: CameraRig | None) -> dict[str, float]:
