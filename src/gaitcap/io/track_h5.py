@@ -6,7 +6,7 @@ renames the file into place. A run killed before that leaves no ``trajectories.h
 
 Layout: ``/points`` (T, P, 3) metres, NaN where flagged (filtered when smoothing is on), attrs
 ``names``, ``rate_hz``, ``t0_s``; ``/points_unfiltered`` (T, P, 3) the tracker's raw estimate,
-never NaN; ``/times`` (T,); ``/uncertainty`` (T, P) metres, calibrated after tracking
+NaN in frames without a pose (subject out of view or not found); ``/times`` (T,); ``/uncertainty`` (T, P) metres, calibrated after tracking
 (gaitcap.quality; the particles' spread when none is given); ``/spread`` (T, P) metres, the weighted
 spread of the tracker's particles; ``/quality`` (T,) uint8 (0 ok,
 1 poor fit, 2 subject out of view, 3 not initialised); ``/poses`` (T, D) attr ``dof_names``;
