@@ -337,8 +337,8 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
     model = load_body_model(height_m=height)
     filt = _new_tracker(cfg, model, likelihood)
     start, settled, shape_note, body_problems = None, False, "off", []
-    if cfg.shape.enabled:
-        with stages.timed("shape"):
+    if cfg.shape.enabled:  # its serial parts on shape.workers kernel threads: the prefetch thread waits meanwhile
+        with stages.timed("shape"), kernel_threads(max(_thread_count(cfg.threads), cfg.shape.workers)):
             filt, start, settled, shape_note, body_problems = _calibrate_shape(filt, likelihood, views, cfg, head,
                                                                                stages)  # fmt: skip
     attrs = {"config": yaml.safe_dump(cfg.model_dump(), sort_keys=False), "tracker": cfg.tracker,

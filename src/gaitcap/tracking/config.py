@@ -179,7 +179,9 @@ class ShapeConfig(Strict):
     #: first (the re-fits of a round start from poses tracked with a wrong shape otherwise)
     retrack: bool = False
     #: threads that score candidates side by side (their re-fits are independent, the result the
-    #: same as one after the other); the compiled kernels of each run on ``threads``
+    #: same as one after the other); the compiled kernels of each run on ``threads``. The
+    #: calibration's serial parts (initialisation, the window tracked, the legs settled again) run
+    #: their kernels on max(``threads``, this) threads: the prefetch thread has little to do then
     workers: int = Field(default=2, ge=1, le=64)
     #: calibrations run side by side (one thread each) with their own random streams, their factors
     #: averaged (geometric mean): one calibration's factors are noisy at the same fit
