@@ -190,8 +190,8 @@ def _first_observations(session: Path, head: Head[Observation], cfg: TrackingCon
 
 def _import_late() -> None:
     """Import the parts of scipy a run needs later (the trajectories' low-pass, the factored tracker's
-    joint angles) while the prefetch thread fits the backgrounds, rather than at start-up, where
-    they took a third of the imports' time; the modules that use them import them when first called."""
+    joint angles) while the prefetch thread fits the backgrounds, rather than at start-up (a fifth of
+    ``gaitcap track``'s imports); the modules that use them import them when first called."""
     import scipy.signal  # noqa: F401
     import scipy.spatial.transform  # noqa: F401
 
