@@ -11,11 +11,12 @@ the table gives the medians of:
 - wall: the child's wall time, start to exit; fps: frames / wall;
 - start-up: wall minus the run's own seconds (track.json): interpreter, imports, exit;
 - the stages of track.json's ``stages_s`` (gaitcap.pipeline.Stages): setup (configuration,
-  session and video checks), kernels (numba: loaded from the cache, or compiled), first frames
-  (waiting for the frames buffered for initialisation: background fitting and their silhouettes),
-  init (initialisation), shape (shape calibration), tracking (the per-frame loop), writing
-  (read-back, smoothing, CSV/TRC); background (its fitting, in the prefetch thread, overlapping
-  setup, kernels and first frames) is shown apart;
+  session and video checks), kernels (numba: loaded from the cache, or compiled; and the late
+  imports), first frames (waiting for the frames the initialisation looks at: background fitting
+  and their silhouettes; the rest of the shape window is read during the initialisation), init
+  (initialisation), shape (shape calibration), tracking (the per-frame loop), writing (read-back,
+  smoothing, CSV/TRC); background (its fitting, in the prefetch thread, overlapping setup, kernels
+  and first frames) is shown apart;
 - floor: in this process, the same decoding and silhouettes alone (gaitcap.pipeline's
   observation stream: background fitting, decoding, extraction and preparation of every frame of
   both cameras, side by side as in a run), and wall / floor.

@@ -10,7 +10,7 @@ uncertainty, spread, poses, likelihood, fit, quality, times) and the root attrib
 with exact equality (``np.array_equal``, NaN equal to NaN). Prints one line per case with its wall
 seconds and exits 1 at the first difference.
 
-Cases (``--cases``): ``full``, the whole session (56 frames: shape calibration on the first 25, then
+Cases (``--cases``): ``full``, the whole session (56 frames: shape calibration on the first 13, then
 tracking); ``max12``, ``--max-frames 12`` (the shape window cut short); ``ipf6`` and
 ``condensation6``, the other trackers on 6 frames. Default: full and max12; ``--quick``: max12.
 """

@@ -1103,3 +1103,37 @@ def test_shape_defaults_of_the_schema_are_the_shipped_ones():
     differ = {k: (schema[k], v) for k, v in shipped.items()
               if k not in ("enabled", "parameters", "limits", "ranges") and schema[k] != (tuple(v) if isinstance(v, list) and isinstance(schema[k], tuple) else v)}  # fmt: skip
     assert differ == {}
+
+
+@pytest.mark.parametrize(("gone_at", "note"), [(None, "skipped: no subject"),
+                                               (9, "skipped: subject not in view in the first frames")])
+def test_the_initialisation_starts_before_the_shape_window_is_read(embedded_session, monkeypatch, gone_at, note):
+    """The shape calibration initialises on the first ``init.frames`` frames while the rest of the
+    window is still being read; a window frame out of view skips the calibration whatever the
+    initialisation did (as when the window was checked before it)."""
+    from gaitcap import pipeline
+    from gaitcap.errors import TrackingError
+    from gaitcap.prefetch import Head
+
+    truth, rig, model = _truth_setup(embedded_session.session)
+    cfg = load_tracking_config()
+    cfg.init.frames, cfg.shape.frames = 4, 10
+    views = tracking_views(rig, cfg.scale)
+    masks = [[truth.mask(c, t) for c in rig.names] for t in range(10)]
+    if gone_at is not None:
+        masks[gone_at] = [np.zeros_like(m) for m in masks[gone_at]]
+    head = Head(iter([observe(views, m) for m in masks]), 10)
+    read_at_init = []
+
+    def initialise(*args, **kwargs):
+        read_at_init.append(len(head.items))
+        raise TrackingError("no subject")
+
+    monkeypatch.setattr(pipeline, "initialise", initialise)
+    lik = SilhouetteLikelihood(views, cfg.beta)
+    filt = pipeline._new_tracker(cfg, model, lik)
+    tracker, start, settled, shape_note, problems = pipeline._calibrate_shape(filt, lik, views, cfg, head)
+    assert read_at_init == [4]  # the window's other 6 frames were not read yet
+    assert len(head.items) == 10
+    assert tracker is filt and start is None and not settled and problems == []
+    assert shape_note == note

@@ -35,7 +35,7 @@ from gaitcap.io.silhouettes_h5 import SILHOUETTES_FILE, SilhouetteWriter
 from gaitcap.io.track_h5 import (QUALITY_NOT_INITIALISED, QUALITY_OK, QUALITY_OUT_OF_VIEW, QUALITY_POOR_FIT,
                                  TrackWriter, proportions_attrs)  # fmt: skip
 from gaitcap.io.trc import write_trc
-from gaitcap.prefetch import Prefetched
+from gaitcap.prefetch import Head, Prefetched
 from gaitcap.quality import assess
 from gaitcap.session import CALIBRATION_FILE, Session
 from gaitcap.session_check import check_session_videos, check_silhouettes_meet
@@ -151,34 +151,49 @@ def run_track(
     likelihood = SilhouetteLikelihood(views, cfg.beta)
     # the videos are read and the silhouettes extracted in a worker thread, a few frames ahead
     saver = MaskSaver(out / SILHOUETTES_FILE, file_attrs(sil_cfg)) if save_masks else None
+    # the first frames (initialisation, shape calibration) are read ahead without waiting for the
+    # tracker; once they are in the head, the queue shrinks back to PREFETCH_FRAMES
+    buffered = _buffered_frames(cfg)
     stream = Prefetched(_observations(ses, rig.names, views, sil_cfg, n_frames, stages, saver, cfg.soft_silhouettes),
-                        depth=PREFETCH_FRAMES)  # fmt: skip
+                        depth=max(PREFETCH_FRAMES, buffered))  # fmt: skip
+    head = Head(stream, buffered, on_read=lambda n: stream.set_depth(max(PREFETCH_FRAMES, buffered - n)))
     stages["setup"] = time.perf_counter() - t_start
     with stream, kernel_threads(cfg.threads):
+        with stages.timed("kernels"):  # while the prefetch thread fits the backgrounds
+            warm_up(len(views))
+            _import_late()
         with stages.timed("first_frames"):
-            first = _first_observations(session, stream, cfg)
-        check_silhouettes_meet(views, first, ses.root / CALIBRATION_FILE)
+            _first_observations(session, head, cfg)
+        check_silhouettes_meet(views, head, ses.root / CALIBRATION_FILE)
         _prepare_out(out, save_masks)  # only once the inputs are known good: bad input creates nothing
         if saver is not None:
             saver.open()
-        summary = _track_session(session, out, ses, videos, cfg, views, likelihood, first, stream, height_m, n_frames,
+        summary = _track_session(session, out, ses, videos, cfg, views, likelihood, head, stream, height_m, n_frames,
                                  progress, on_frame, t_start, stages)  # fmt: skip
     if saver is not None:
         saver.finish()
     return summary
 
 
-def _first_observations(session: Path, stream: Iterator[Observation], cfg: TrackingConfig) -> list[Observation]:
-    """The first frames, kept for the calibration check, the initialisation and the shape calibration."""
-    first: list[Observation] = []
-    buffered = max(cfg.init.frames, cfg.shape.frames if cfg.shape.enabled else 0)
-    for obs in stream:
-        first.append(obs)
-        if len(first) >= buffered:
-            break
+def _buffered_frames(cfg: TrackingConfig) -> int:
+    """The first frames kept for the calibration check, the initialisation and the shape calibration."""
+    return max(cfg.init.frames, cfg.shape.frames if cfg.shape.enabled else 0)
+
+
+def _first_observations(session: Path, head: Head[Observation], cfg: TrackingConfig) -> list[Observation]:
+    """The frames the initialisation looks at (the rest of the head is read meanwhile)."""
+    first = head.take(cfg.init.frames)
     if not first:
         raise TrackingError(f"{session}: no frame could be read")
     return first
+
+
+def _import_late() -> None:
+    """Import the parts of scipy a run needs later (the trajectories' low-pass, the factored tracker's
+    joint angles) while the prefetch thread fits the backgrounds, rather than at start-up (a fifth of
+    ``gaitcap track``'s imports); the modules that use them import them when first called."""
+    import scipy.signal  # noqa: F401
+    import scipy.spatial.transform  # noqa: F401
 
 
 @contextmanager
@@ -305,14 +320,13 @@ def _save_masks(writer: SilhouetteWriter, t: int, sources: dict[str, Source], pr
 
 
 def _track_session(session: Path, out: Path, ses: Session, videos, cfg: TrackingConfig, views, likelihood,
-                   first: list[Observation], stream: Iterator[Observation], height_m: float | None, n_frames: int,
+                   head: Head[Observation], stream: Iterator[Observation], height_m: float | None, n_frames: int,
                    progress: bool, on_frame, t_start: float, stages: Stages) -> TrackSummary:  # fmt: skip
-    """:func:`run_track` once the output folder is ready: ``first`` the buffered first frames, the
+    """:func:`run_track` once the output folder is ready: ``head`` the buffered first frames, the
     others read from ``stream``."""
-    with stages.timed("kernels"):
-        warm_up(len(views))
     height, height_source = _height(ses, height_m)
     if height is None:
+        first = head.take(head.limit)
         pos = subject_positions(views, first)
         ok = np.where(np.all(np.isfinite(pos), axis=1))[0]
         est = estimate_height(views, first[ok[0]], pos[ok[0]]) if len(ok) else None
@@ -323,9 +337,9 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
     model = load_body_model(height_m=height)
     filt = _new_tracker(cfg, model, likelihood)
     start, settled, shape_note, body_problems = None, False, "off", []
-    if cfg.shape.enabled:
-        with stages.timed("shape"):
-            filt, start, settled, shape_note, body_problems = _calibrate_shape(filt, likelihood, views, cfg, first,
+    if cfg.shape.enabled:  # its serial parts on shape.workers kernel threads: the prefetch thread waits meanwhile
+        with stages.timed("shape"), kernel_threads(max(_thread_count(cfg.threads), cfg.shape.workers)):
+            filt, start, settled, shape_note, body_problems = _calibrate_shape(filt, likelihood, views, cfg, head,
                                                                                stages)  # fmt: skip
     attrs = {"config": yaml.safe_dump(cfg.model_dump(), sort_keys=False), "tracker": cfg.tracker,
              "height_m": float(height), "height_source": height_source, "session": str(session.resolve()),
@@ -334,8 +348,8 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
     timing = FrameTiming()
     try:
         with stages.timed("tracking"):
-            tracked = _track_frames(filt, likelihood, views, cfg, first, stream, writer, n_frames, progress, timing,
-                                    on_frame, start, settled)  # fmt: skip
+            tracked = _track_frames(filt, likelihood, views, cfg, head.take(head.limit), stream, writer, n_frames,
+                                    progress, timing, on_frame, start, settled)  # fmt: skip
         t_writing = time.perf_counter()
         raw, quality = writer.read_back()
         if not np.any((quality == QUALITY_OK) | (quality == QUALITY_POOR_FIT)):
@@ -380,9 +394,10 @@ def _new_tracker(cfg: TrackingConfig, model, likelihood):
 _REPEAT_SEED_STEP = 7919
 
 
-def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[Observation],
+def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, head: Head[Observation],
                      stages: Stages | None = None):  # fmt: skip
-    """Fit the subject's proportions on the buffered first frames (gaitcap.tracking.shape).
+    """Fit the subject's proportions on the buffered first frames (gaitcap.tracking.shape), ``head``:
+    initialised on its first ``init.frames`` while the others are still being read.
 
     Returns the tracker to use (with the calibrated model), the pose of the first frame under it
     (None: initialise as usual), whether that pose's leg assignment was settled over the first
@@ -393,18 +408,23 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
     run side by side, the k-th with the random streams of seed + k x ``_REPEAT_SEED_STEP``, and their factors are
     averaged (:func:`~gaitcap.tracking.shape.average_shapes`).
     """
-    in_view = all(np.all(o.fractions() >= cfg.quality.min_silhouette_fraction) for o in first)
-    if not in_view or len(first) < 2:
+    early = head.take(cfg.init.frames)
+    init, error = None, None
+    if _in_view(early, cfg):  # else the window is not in view either: no initialisation
+        try:
+            with (stages or Stages()).timed("initialisation"):
+                init = initialise(filt, likelihood, views, early, cfg.init.heading_step_deg, cfg.init.refine_passes,
+                                  cfg.init.widen, leg_frames=cfg.init.leg_frames)  # fmt: skip
+        except TrackingError as e:
+            error = e
+    first = head.take(head.limit)  # the window, read while initialising
+    if not _in_view(first, cfg) or len(first) < 2:
         log.warning("shape calibration skipped: the subject is not in every view of the first %d frames; "
                     "tracking with the proportions of body.yaml", len(first))  # fmt: skip
         return filt, None, False, "skipped: subject not in view in the first frames", []
-    try:
-        with (stages or Stages()).timed("initialisation"):
-            init = initialise(filt, likelihood, views, first[: cfg.init.frames], cfg.init.heading_step_deg,
-                              cfg.init.refine_passes, cfg.init.widen, leg_frames=cfg.init.leg_frames)  # fmt: skip
-    except TrackingError as e:
-        log.warning("shape calibration skipped: %s", e)
-        return filt, None, False, f"skipped: {e}", []
+    if init is None:
+        log.warning("shape calibration skipped: %s", error)
+        return filt, None, False, f"skipped: {error}", []
     filt.start(init.q, fresh=not init.legs_settled)
     poses = [filt.step(o).q for o in first]
     refit_cfg = cfg.model_copy(deep=True)
@@ -433,6 +453,11 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, first: list[O
         start = settle_legs(tracker, first[: cfg.init.leg_frames], start)
     note = f"{factors}; mean fit {result.fit_before:.4f} -> {result.fit_after:.4f} on {len(first)} frames"
     return tracker, start, settled, note, problems
+
+
+def _in_view(frames: list[Observation], cfg: TrackingConfig) -> bool:
+    """Whether every camera sees the subject (``quality.min_silhouette_fraction``) in every frame."""
+    return all(np.all(o.fractions() >= cfg.quality.min_silhouette_fraction) for o in frames)
 
 
 def _search_shape(model, likelihood, refit_cfg: TrackingConfig, first: list[Observation], poses, cfg: TrackingConfig,

@@ -5,7 +5,6 @@ each run on its own (a filter never reaches across a gap)."""
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import sosfiltfilt
 
 
 def finite_runs(valid: np.ndarray) -> list[tuple[int, int]]:
@@ -27,6 +26,8 @@ def filtfilt_runs(x: np.ndarray, sos: np.ndarray) -> np.ndarray:
         A float64 copy, same shape: missing rows stay NaN, runs no longer than sosfiltfilt's
         padding (3 (2 n + 1) samples) are left as they are.
     """
+    from scipy.signal import sosfiltfilt  # here, not at start-up (gaitcap.pipeline._import_late)
+
     out = np.array(x, dtype=np.float64, copy=True)
     flat = out.reshape(len(out), -1)
     pad = 3 * (2 * len(sos) + 1)

@@ -17,7 +17,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from gaitcap.body.spec import BodySpec
 from gaitcap.config import default_config_path, load_yaml_model
@@ -275,6 +274,8 @@ class BodyModel:
         """
         if any(seg.translation) or len(seg.axes) != 3 or len(set(seg.axes)) != 3:
             raise ValueError(f"segment {seg.name}: local_angles needs three rotations about distinct axes")
+        from scipy.spatial.transform import Rotation  # here, not at start-up (gaitcap.pipeline._import_late)
+
         seq = "".join("XYZ"[a] for a in seg.axes)  # upper case: intrinsic, R = R1 R2 R3
         return Rotation.from_matrix(R).as_euler(seq) / np.asarray(seg.signs)
 

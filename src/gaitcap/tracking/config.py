@@ -158,14 +158,14 @@ class ShapeConfig(Strict):
     #: accepted (low, high) ratio of each calibrated length to the height (gaitcap.body.measures
     #: names); a calibrated body outside them is rejected and the shipped proportions are tracked
     ranges: dict[str, tuple[float, float]] = Field(default_factory=dict)
-    frames: int = Field(default=25, ge=2, le=250)
+    frames: int = Field(default=13, ge=2, le=250)
     samples: int = Field(default=5, ge=1, le=100)
     steps: list[float] = Field(default_factory=lambda: [0.06], min_length=1)
     bounds: tuple[float, float] = (0.7, 1.35)
     parameters: dict[str, list[str]] = Field(default_factory=dict)
     #: particles / root particles of the one-pass re-fit that scores each candidate (the search
     #: compares candidates on a paired random stream, so a small budget is enough)
-    refit_particles: tuple[int, int] = (60, 150)
+    refit_particles: tuple[int, int] = (40, 100)
     #: moves of one parameter in one round while the fit keeps improving (pattern search)
     max_moves: int = Field(default=3, ge=1)
     #: also score each candidate with the window's poses moved vertically so that its lowest point
@@ -179,7 +179,9 @@ class ShapeConfig(Strict):
     #: first (the re-fits of a round start from poses tracked with a wrong shape otherwise)
     retrack: bool = False
     #: threads that score candidates side by side (their re-fits are independent, the result the
-    #: same as one after the other); the compiled kernels of each run on ``threads``
+    #: same as one after the other); the compiled kernels of each run on ``threads``. The
+    #: calibration's serial parts (initialisation, the window tracked, the legs settled again) run
+    #: their kernels on max(``threads``, this) threads: the prefetch thread has little to do then
     workers: int = Field(default=2, ge=1, le=64)
     #: calibrations run side by side (one thread each) with their own random streams, their factors
     #: averaged (geometric mean): one calibration's factors are noisy at the same fit

@@ -7,7 +7,6 @@ own, shorter runs are kept as they are (:func:`gaitcap.timeseries.filtfilt_runs`
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import butter
 
 from gaitcap.timeseries import filtfilt_runs
 
@@ -25,6 +24,8 @@ def lowpass(points: np.ndarray, rate_hz: float, cutoff_hz: float, order: int = 4
     """
     if cutoff_hz >= rate_hz / 2:
         raise ValueError(f"cut-off {cutoff_hz} Hz must be below the Nyquist frequency {rate_hz / 2} Hz")
+    from scipy.signal import butter  # here, not at start-up (gaitcap.pipeline._import_late)
+
     correction = (2**0.5 - 1) ** (1 / (2 * order))
     per_pass = rate_hz / np.pi * np.arctan(np.tan(np.pi * cutoff_hz / rate_hz) / correction)
     return filtfilt_runs(points, butter(order, per_pass / (rate_hz / 2), output="sos"))
