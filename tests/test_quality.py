@@ -102,8 +102,15 @@ def test_a_body_outside_anthropometric_ranges_is_doubtful(walk):
     assert _judge(points, names, height=1.9).verdict == "ok"  # 0.89: within [0.75, 1.33]
 
 
+def _rig(*degrees: float, distance_m: float = 4.0) -> CameraRig:
+    """Cameras ``distance_m`` from the middle of the walk (along x, 0-2.4 m), each looking at it
+    with its line of sight at one of ``degrees`` from the walking line."""
+    eyes = [(1.2 - distance_m * np.cos(a), -distance_m * np.sin(a), 1.0) for a in np.radians(degrees)]
+    return CameraRig([Camera.look_at(f"cam{i + 1}", eye, (1.2, 0.0, 1.0)) for i, eye in enumerate(eyes)])
+
+
 def _camera_at(distance_m: float) -> CameraRig:
-    return CameraRig([Camera.look_at("cam1", (2.0, -distance_m, 1.0), (2.0, 0.0, 1.0))])
+    return _rig(45.0, distance_m=distance_m)
 
 
 def test_a_subject_too_small_in_the_image_is_doubtful(walk):
@@ -111,6 +118,32 @@ def test_a_subject_too_small_in_the_image_is_doubtful(walk):
     far = _judge(points, names, rig=_camera_at(20.0))  # 1.6 m at 20 m with f = 600 px: about 50 px
     assert far.verdict == "doubtful" and "too small in the image" in far.reasons[0] and "cam1" in far.reasons[0]
     assert _judge(points, names, rig=_camera_at(5.0)).verdict == "ok"
+
+
+@pytest.mark.parametrize(("degrees", "oblique"), [((90.0, 0.0), False), ((80.0, 8.0), False), ((90.0, 30.0), True),
+                                                 ((90.0, 0.0, 60.0), True), ((14.0,), False), ((16.0,), True)])
+def test_cameras_only_beside_and_in_line_with_the_walk_are_doubtful(walk, degrees, oblique):
+    """Without a camera 15 degrees or more from both the walking line and its perpendicular, which
+    leg is ahead is ambiguous: doubtful, the angles named; one oblique camera is enough."""
+    points, names = walk
+    v = _judge(points, names, rig=_rig(*degrees))
+    assert (v.verdict == "ok") == oblique, v.reasons
+    if not oblique:
+        assert "obliquely" in v.reasons[0] and f"cam1 {degrees[0]:.0f}" in v.reasons[0], v.reasons
+
+
+def test_a_walk_on_the_spot_takes_its_line_from_the_way_the_hips_face(walk):
+    """On a treadmill the pelvis stays put: the walking line is the hips' perpendicular (here x,
+    as for the walk), so the same cameras get the same angles."""
+    points, names = walk
+    on_the_spot = points.copy()
+    on_the_spot[..., 0] -= points[:, :1, 0] - points[:, 0, 0].mean()  # every frame's pelvis at the walk's middle
+    rig = _rig(80.0, 30.0)
+    walking = run_signals(points, names, np.zeros(T, np.uint8), HEIGHT, rig).view_angles_deg
+    still = run_signals(on_the_spot, names, np.zeros(T, np.uint8), HEIGHT, rig).view_angles_deg
+    assert still.keys() == walking.keys() == {"cam1", "cam2"}
+    assert abs(walking["cam1"] - 80.0) < 3 and abs(walking["cam2"] - 30.0) < 3, walking
+    assert all(abs(still[k] - walking[k]) < 3 for k in still), (still, walking)
 
 
 def test_every_failed_check_is_named(walk):

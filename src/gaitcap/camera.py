@@ -208,6 +208,21 @@ class Camera:
         return cls(name=name, size=(w, h), matrix=K, dist=np.asarray(dist, float), rvec=rvec, tvec=tvec)
 
 
+def dlt_point(projections: Sequence[np.ndarray], pixels: Sequence[np.ndarray]) -> np.ndarray | None:
+    """Linear (DLT) triangulation of one point from its ideal (undistorted) pixels (2,) in the views
+    of projection matrices (3, 4), matched lists: the world point (3,), or None when fewer than two
+    views see it or the solution lies at infinity."""
+    rows = []
+    for P, (u, v) in zip(projections, pixels, strict=True):
+        rows.append(u * P[2] - P[0])
+        rows.append(v * P[2] - P[1])
+    if len(rows) < 4:
+        return None
+    _, _, vt = np.linalg.svd(np.asarray(rows))
+    X = vt[-1]
+    return X[:3] / X[3] if abs(X[3]) > 1e-12 else None
+
+
 def distort_normalized(x: np.ndarray, y: np.ndarray, dist: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Apply OpenCV's radial/tangential distortion to normalised coordinates (same shapes)."""
     d = np.zeros(8)
@@ -275,16 +290,10 @@ class CameraRig:
         Ps = [c.projection_matrix() for c in self.cameras]
         out = np.full((n, 3), np.nan)
         for j in range(n):
-            rows = []
-            for i, P in enumerate(Ps):
-                if valid[i, j]:
-                    u, v = und[i, j]
-                    rows.append(u * P[2] - P[0])
-                    rows.append(v * P[2] - P[1])
-            if len(rows) >= 4:
-                _, _, vt = np.linalg.svd(np.asarray(rows))
-                X = vt[-1]
-                out[j] = X[:3] / X[3]
+            seen = np.flatnonzero(valid[:, j])
+            X = dlt_point([Ps[i] for i in seen], [und[i, j] for i in seen])
+            if X is not None:
+                out[j] = X
         return out
 
     def subset(self, names: Iterable[str]) -> CameraRig:

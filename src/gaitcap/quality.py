@@ -14,7 +14,14 @@ walking person passes:
 - thigh and shank lengths against the usual proportions for the subject's height (the body
   model's own, body.yaml: 0.245 H and 0.246 H);
 - the subject's height in each camera's image (pixels): a small figure leaves the limbs a few
-  pixels wide.
+  pixels wide;
+- whether some camera views the walk obliquely. Seen from beside the walkway a camera sees how far
+  apart the feet are fore and aft but not which is on the left; seen along it, the reverse; two
+  such views fit both pairings of the feet equally (up to perspective), so which leg is ahead
+  cannot be told. A camera whose line of sight lies ``min_oblique_deg`` or more from both the
+  walking line and its perpendicular sees a mix of both separations and tells them apart. The
+  walking line is the principal horizontal axis of the tracked pelvis, or the way the hips face
+  for a walk on the spot (a treadmill).
 
 :func:`judge` turns them into ``ok`` / ``doubtful`` / ``failed`` with the reasons, by the
 thresholds of ``tracking.yaml``'s ``verdict`` section.
@@ -75,6 +82,8 @@ class RunSignals:
         crossed: (T,) bool, the frames whose ankles cross.
         body_problems: the shape calibration's lengths outside ``shape.ranges`` (its body was
             rejected and the shipped proportions tracked; gaitcap.body.measures.outside_ranges).
+        view_angles_deg: camera -> angle (0-90 degrees) between its horizontal line of sight to
+            the subject and the walking line (empty without cameras).
     """
 
     n_frames: int
@@ -86,6 +95,7 @@ class RunSignals:
     image_height_px: dict[str, float] = field(default_factory=dict)
     crossed: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
     body_problems: tuple[str, ...] = ()
+    view_angles_deg: dict[str, float] = field(default_factory=dict)
 
     @property
     def crossed_fraction(self) -> float:
@@ -147,6 +157,50 @@ def _segment_ratios(points: np.ndarray, names: tuple[str, ...], height_m: float)
             if seg in per_side[side]}  # fmt: skip
 
 
+#: a pelvis travelling less than this (metres) along its principal axis walks on the spot (a
+#: treadmill): its walking line is then the way the hips face
+MIN_TRAVEL_M = 0.5
+
+
+def walking_line(points: np.ndarray, names: tuple[str, ...]) -> np.ndarray | None:
+    """Unit horizontal vector (2,) of the walking line of points (T, P, 3): the principal horizontal
+    axis of the pelvis positions when they travel :data:`MIN_TRAVEL_M` or more along it, else the
+    perpendicular of the hips' mean horizontal axis (walking on the spot); None when neither can
+    be measured (NaN frames ignored)."""
+    if "pelvis" in names:
+        xy = points[:, names.index("pelvis"), :2]
+        xy = xy[np.all(np.isfinite(xy), axis=1)]
+        if len(xy) >= 2:
+            centred = xy - xy.mean(axis=0)
+            axis = np.linalg.svd(centred, full_matrices=False)[2][0]
+            if np.ptp(centred @ axis) >= MIN_TRAVEL_M:
+                return axis
+    if "hip_l" not in names or "hip_r" not in names:
+        return None
+    hips = points[:, names.index("hip_l"), :2] - points[:, names.index("hip_r"), :2]
+    hips = hips[np.all(np.isfinite(hips), axis=1)]
+    mean = hips.mean(axis=0) if len(hips) else np.zeros(2)
+    norm = float(np.linalg.norm(mean))
+    return np.array([-mean[1], mean[0]]) / norm if norm > 1e-9 else None
+
+
+def view_angles(points: np.ndarray, names: tuple[str, ...], rig: CameraRig | None) -> dict[str, float]:
+    """camera -> angle in degrees (0: along the walking line, 90: square to it) between each camera's
+    horizontal line of sight to the subject's mean position and the walking line
+    (:func:`walking_line`) of points (T, P, 3); empty without cameras or a walking line."""
+    line = walking_line(points, names)
+    where = points[:, names.index("pelvis") if "pelvis" in names else 0, :2]
+    where = where[np.all(np.isfinite(where), axis=1)]
+    if rig is None or line is None or not len(where):
+        return {}
+    out = {}
+    for cam in rig:
+        sight = cam.center[:2] - where.mean(axis=0)
+        cos = abs(float(sight @ line)) / max(float(np.linalg.norm(sight)), 1e-9)
+        out[cam.name] = float(np.degrees(np.arccos(min(cos, 1.0))))
+    return out
+
+
 def _image_heights(points: np.ndarray, rig: CameraRig | None) -> dict[str, float]:
     if rig is None or not len(points):
         return {}
@@ -173,7 +227,7 @@ def run_signals(points: np.ndarray, names: tuple[str, ...], quality: np.ndarray,
         n_frames=len(quality), n_tracked=int(tracked.sum()), n_ok=int(np.sum(quality == QUALITY_OK)),
         n_crossed=int(crossed.sum()), floor_m=_floor_height(pts, names),
         segment_ratios=_segment_ratios(pts, names, height_m), image_height_px=_image_heights(pts, rig),
-        crossed=crossed,
+        crossed=crossed, view_angles_deg=view_angles(pts, names, rig),
     )  # fmt: skip
 
 
@@ -205,6 +259,12 @@ def judge(signals: RunSignals, cfg: VerdictConfig) -> RunVerdict:
     if small:
         listed = ", ".join(f"{v:.0f} px in {k}" for k, v in small.items())
         reasons.append(f"the subject is too small in the image ({listed})")
+    angles = s.view_angles_deg
+    if angles and not any(cfg.min_oblique_deg <= a <= 90.0 - cfg.min_oblique_deg for a in angles.values()):
+        listed = ", ".join(f"{k} {v:.0f}" for k, v in angles.items())
+        reasons.append(f"no camera views the walk obliquely (degrees between each line of sight and the walking line: "
+                       f"{listed}): from beside and in line with the walkway only, which leg is ahead is ambiguous "
+                       "and the legs may be swapped")  # fmt: skip
     return RunVerdict("doubtful" if reasons else "ok", tuple(reasons))
 
 

@@ -58,6 +58,7 @@ class FactoredIPFConfig(Strict):
     swap_fit_frames: int = Field(default=10, ge=1, le=1000)
     swap_margin: float = Field(default=0.015, ge=0, le=1)
     swap_shanks: bool = False
+    swap_continuity: bool = True
     recover_widen: float | None = Field(default=3.0, gt=1, le=10)
     keep_previous: bool = True
     ess_threshold: float = Field(default=0.5, ge=0, le=1)
@@ -88,6 +89,7 @@ class VerdictConfig(Strict):
     max_floor_offset_m: float = Field(default=0.1, gt=0)
     segment_ratio: tuple[float, float] = (0.75, 1.33)
     min_image_height_px: float = Field(default=60.0, ge=0)
+    min_oblique_deg: float = Field(default=15.0, ge=0, le=45)
 
     @field_validator("segment_ratio")
     @classmethod

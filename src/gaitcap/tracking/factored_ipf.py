@@ -66,6 +66,8 @@ class FactoredIPF(Tracker):
         self._ankle_r = np.array([i for i in self.right_leg if names[i].startswith("ankle_")], int)
         self._fits: deque[float] = deque(maxlen=self.config.factored_ipf.swap_fit_frames)  # first-pass fits
         self._fresh = True  # no frame tracked since the last start
+        self._before: np.ndarray | None = None  # the estimate of the frame before the previous one
+        self._sagittal = np.array([*self._hip_flex, *self._knee_flex])
         legs_dofs = np.concatenate([self.left_leg, self.right_leg])
         self._not_legs = np.setdiff1d(np.arange(self.model.n_dofs), legs_dofs)
         self._root = next(seg.index for seg in self.model.segments if seg.parent < 0)
@@ -89,6 +91,7 @@ class FactoredIPF(Tracker):
     def start(self, q0: np.ndarray, fresh: bool = True) -> None:
         super().start(q0, fresh)
         self._fits.clear()
+        self._before = None
         self._fresh = fresh  # the next frame weighs both leg assignments of q0 on equal terms
 
     def step(self, obs: Observation, widen: float = 1.0) -> Estimate:
@@ -132,6 +135,14 @@ class FactoredIPF(Tracker):
         the further passes: a first pass's fit is a noisy judge of two leg assignments. Such wins
         are rare, so the second refinement costs little.
 
+        With ``swap_continuity``, two hypotheses within ``swap_margin`` of each other are a tie
+        that the silhouettes cannot break (seen from the side or from the front, which leg is
+        ahead is ambiguous), and the one nearer the legs' extrapolated motion wins
+        (:meth:`_preferred`): without it the first hypothesis always won a tie, and a swing leg
+        meeting the stance leg bounced back off it half the time. This is no dynamic model: the
+        particles are still drawn around the previous estimate alone, and the extrapolation only
+        orders two poses the image scores alike.
+
         The runs behind these choices are in docs/tuning_history.md (``factored_ipf`` keys).
         """
         start = self.q.copy()
@@ -142,6 +153,9 @@ class FactoredIPF(Tracker):
         first = best
         dropped = self._fit_dropped(best.fit)
         fresh, self._fresh = self._fresh or widen > 1.0, False
+        # ties broken by the legs' motion only while tracking is healthy: after a start there is no
+        # motion yet, and a first pass that dropped follows a previous estimate gone wrong
+        continuity = cfg.swap_continuity and not fresh and not dropped
         if cfg.swap_hypothesis and (fresh or self._legs_close(start) or dropped):  # always after a fresh start
             # both hypotheses get the first pass; the further passes refine the winner (and the
             # first hypothesis too when it lost)
@@ -155,22 +169,42 @@ class FactoredIPF(Tracker):
                 third = self._search_legs(obs, self._shanks_exchanged(start), best, spreads, widen)
                 evaluations += third.evaluations
                 other = third if third.fit > other.fit else other
-            best = other if other.fit > best.fit + (0.0 if fresh else cfg.swap_margin) else best
+            best = self._preferred(best, other, start, 0.0 if fresh else cfg.swap_margin, continuity)
             best.evaluations = evaluations
         if cfg.recover_widen is not None and widen <= 1.0 and self._fit_dropped(best.fit):
+            before_recovery = best
             best = self._recover(obs, start, best)
+            continuity = continuity and best is before_recovery
         self._fits.append(best.fit)
         if cfg.passes > 1:
             refined, _ = self._search(obs, best.q, widen, 1, cfg.passes)
             if first is not best:  # replaced only if it still loses by swap_margin once refined
                 first_refined, _ = self._search(obs, first.q, widen, 1, cfg.passes)
                 spent = refined.evaluations + first_refined.evaluations
-                refined = first_refined if first_refined.fit + cfg.swap_margin >= refined.fit else refined
+                refined = self._preferred(first_refined, refined, start, cfg.swap_margin, continuity)
                 refined.evaluations = spent
             refined.evaluations += best.evaluations
             best = refined
+        self._before = start
         self.q = best.q
         return best
+
+    def _preferred(self, incumbent: Estimate, challenger: Estimate, previous: np.ndarray, margin: float,
+                   continuity: bool) -> Estimate:  # fmt: skip
+        """The challenger when it fits ``margin`` better than the incumbent. Within the margin (a tie
+        that silhouettes cannot break: seen from the side or the front, which leg is ahead is
+        ambiguous) with ``continuity``, the one whose hip and knee flexions are nearer their
+        extrapolation from the last two frames, 2 q_{t-1} - q_{t-2} (``previous``: q_{t-1}; the legs
+        keep moving the way they were: a swing leg passes the stance leg instead of bouncing back
+        off it); else the incumbent."""
+        if challenger.fit > incumbent.fit + margin:
+            return challenger
+        if not continuity or self._before is None or incumbent.fit > challenger.fit + margin:
+            return incumbent
+        k = self._sagittal
+        ahead = 2 * previous[k] - self._before[k]
+        near = [float(np.sum((e.q[k] - ahead) ** 2)) for e in (incumbent, challenger)]
+        return challenger if near[1] < near[0] else incumbent
 
     def _kept_if_better(self, obs: Observation, start: np.ndarray, best: Estimate) -> Estimate:
         """The previous estimate ``start`` (D,) unchanged, when it fits this frame better than the

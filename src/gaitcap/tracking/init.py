@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gaitcap.body.model import BodyModel
+from gaitcap.camera import dlt_point
 from gaitcap.errors import TrackingError
 from gaitcap.tracking.base import Tracker
 from gaitcap.tracking.likelihood import SilhouetteLikelihood
@@ -54,18 +55,9 @@ def silhouette_centroid(sil: np.ndarray) -> np.ndarray | None:
 
 def triangulate(views: list[TrackingView], pixels: list[np.ndarray | None]) -> np.ndarray | None:
     """DLT triangulation of one point seen in several pinhole views (None: not seen)."""
-    rows = []
-    for view, px in zip(views, pixels):
-        if px is None:
-            continue
-        P = view.K @ np.hstack([view.camera.R, view.camera.tvec[:, None]])
-        rows.append(px[0] * P[2] - P[0])
-        rows.append(px[1] * P[2] - P[1])
-    if len(rows) < 4:
-        return None
-    _, _, vt = np.linalg.svd(np.asarray(rows))
-    X = vt[-1]
-    return X[:3] / X[3] if abs(X[3]) > 1e-12 else None
+    seen = [(view, px) for view, px in zip(views, pixels, strict=True) if px is not None]
+    return dlt_point([view.K @ np.hstack([view.camera.R, view.camera.tvec[:, None]]) for view, _ in seen],
+                     [px for _, px in seen])  # fmt: skip
 
 
 def subject_positions(views: list[TrackingView], observations: list[Observation]) -> np.ndarray:
