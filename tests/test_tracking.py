@@ -13,7 +13,6 @@ import yaml
 from gaitcap.body.measures import model_lengths
 from gaitcap.body.model import load_body_model
 from gaitcap.errors import ConfigError, OutputError
-from gaitcap.io.calibration_toml import read_calibration
 from gaitcap.io.trajectories_h5 import read_trajectory
 from gaitcap.markers.motion import read_markers
 from gaitcap.pipeline import Stages, run_track
@@ -999,6 +998,18 @@ def _stub_estimate(model, q: np.ndarray, fit: float):
                     log_likelihood=0.0, fit=fit, evaluations=1)  # fmt: skip
 
 
+def _stub_two_first_passes(tracker, model, mirror_fit: float) -> None:
+    """Make the tracker's first passes return their start pose, fitting 0.80 (the first hypothesis)
+    then ``mirror_fit`` (the mirror), with the legs always close enough for the mirror."""
+    fits = iter([0.80, mirror_fit])
+
+    def search(obs, start, *args, **kwargs):
+        return _stub_estimate(model, start, next(fits)), []
+
+    tracker._search = search
+    tracker._legs_close = lambda q: True
+
+
 def test_swap_margin_keeps_the_first_hypothesis_unless_the_mirror_fits_clearly_better(embedded_session):
     """The mirrored hypothesis replaces the first only when it fits ``swap_margin`` better, except
     on the first frame after a start, where any better fit wins: the decision rule, on first
@@ -1016,13 +1027,7 @@ def test_swap_margin_keeps_the_first_hypothesis_unless_the_mirror_fits_clearly_b
         tracker = FactoredIPF(model, SilhouetteLikelihood(views, cfg.beta), cfg, np.random.default_rng(0))
         tracker.start(truth.poses[9])
         tracker._fresh = fresh  # False: as if a frame had been tracked since the start
-        fits = iter([0.80, mirror_fit])
-
-        def search(obs, start, *args, **kwargs):
-            return _stub_estimate(model, start, next(fits)), []
-
-        tracker._search = search
-        tracker._legs_close = lambda q: True
+        _stub_two_first_passes(tracker, model, mirror_fit)
         est = tracker.step(obs)
         assert (est.fit == mirror_fit) == mirror_wins and est.evaluations == 2
 
@@ -1051,13 +1056,7 @@ def test_swap_continuity_breaks_a_tie_by_the_legs_extrapolated_motion(embedded_s
     before[knees] = previous[knees] = 0.3  # the mirror moves the hips only
     tracker.start(previous)
     tracker._fresh, tracker._before = False, before  # as if frames t-2 and t-1 had been tracked
-    fits = iter([0.80, mirror_fit])
-
-    def search(obs, start, *args, **kwargs):
-        return _stub_estimate(model, start, next(fits)), []
-
-    tracker._search = search
-    tracker._legs_close = lambda q: True
+    _stub_two_first_passes(tracker, model, mirror_fit)
     est = tracker.step(obs)
     assert (est.fit == mirror_fit) == mirror_wins
     assert np.allclose(est.q[hips], [0.02, -0.02] if mirror_wins else [-0.02, 0.02])
