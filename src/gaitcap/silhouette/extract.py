@@ -34,7 +34,9 @@ frame's global per-channel brightness ratio to it (lighting drift and jumps):
    background is textured, the frame's local texture correlates with the background's
    (normalised cross-correlation >= ``min_ncc``: a shadow darkens the floor's texture, a dark
    trouser leg replaces it); with calibrated cameras run together (:mod:`gaitcap.silhouette.joint`)
-   these candidates are then checked on the floor across the cameras (:mod:`gaitcap.silhouette.floor`);
+   these candidates are then checked on the floor across the cameras (:mod:`gaitcap.silhouette.floor`),
+   which also accepts deeper ones (ratio down to ``floor_min_ratio``: the hard shadow of one strong
+   light) where another camera confirms them; to one camera alone they look like dark clothes;
 3. clean-up: opening, closing; components smaller than ``min_component_fraction`` of the image
    dropped, and smaller than ``keep_relative`` of the largest dropped unless near the main
    parts (within ``keep_margin`` of their box's height: a head or a foot cut off at the neck or

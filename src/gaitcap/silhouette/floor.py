@@ -12,10 +12,11 @@ cameras two geometric facts can:
 
 So a shadow candidate of camera i stays a shadow only where its ray meets the floor and at least
 one other camera that sees that floor point finds it darkened (foreground or darker than its
-background); where no other camera sees the point, camera i's photometric decision stands. With
-several cameras, a shadow must also lie near the capture area (the floor two cameras see, grown
-by ``reach``): a pixel of a wall, back-projected to the floor, lands behind the wall, outside the
-view of the other cameras, where no shadow of the person can be seen.
+background); where no other camera sees the point, camera i's photometric decision stands, except
+for candidates darker than the photometric test accepts alone (``shadow.floor_min_ratio``), which
+need that confirmation. With several cameras, a shadow must also lie near the capture area (the
+floor two cameras see, grown by ``reach``): a pixel of a wall, back-projected to the floor, lands
+behind the wall, outside the view of the other cameras, where no shadow of the person can be seen.
 
 The floor point of every working-scale pixel of camera i, projected into camera j, is computed
 once per rig (:class:`FloorShadowCheck`); each frame then costs one ``cv2.remap`` per camera pair.
