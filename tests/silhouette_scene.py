@@ -138,11 +138,13 @@ class RigScene:
     shadows: list[np.ndarray]  # (H, W) uint8 0/1 visible floor shadow per camera
 
 
-def grey_body_rig(seed: int = 0, size: tuple[int, int] = (160, 120), noise: float = 2.0) -> RigScene:
+def grey_body_rig(seed: int = 0, size: tuple[int, int] = (160, 120), noise: float = 2.0,
+                  shadow_depth: float = 0.6) -> RigScene:  # fmt: skip
     """A grey upright body (a cylinder 0.4 m wide, 1.7 m tall at the origin) in front of a light grey
     wall (plane y = 1.2 m), on a darker grey floor, with a cast shadow on the floor beside it, seen by
     two cameras 1.5 m high. Over the wall the body is a darker grey of the same chromaticity, as a
-    shadow would be; over the floor it is lighter than the floor."""
+    shadow would be; over the floor it is lighter than the floor. ``shadow_depth``: the shadow's
+    brightness / the floor's."""
     from gaitcap.camera import Camera
 
     rng = np.random.default_rng(seed)
@@ -150,7 +152,7 @@ def grey_body_rig(seed: int = 0, size: tuple[int, int] = (160, 120), noise: floa
         Camera.look_at(name, (x, -3.0, 1.5), (0.0, 0.0, 0.7), size=size, focal_px=150.0)
         for name, x in (("left", -2.0), ("right", 2.0))
     ]
-    wall, floor, body, depth = 160.0, 100.0, 125.0, 0.6
+    wall, floor, body, depth = 160.0, 100.0, 125.0, shadow_depth
     out = RigScene(cams, [], [], [], [])
     for cam in cams:
         w, h = cam.size

@@ -331,3 +331,54 @@ def test_joint_soft_silhouettes_agree_with_the_masks():
         assert np.array_equal(mask, mask_s)
         assert np.all(s[mask == 0] == 0) and s[mask == 1].min() >= extractors[0].config.foreground.soft_min
         assert s.max() == 1.0
+
+
+def _colour_only_leg(ring: bool) -> tuple[np.ndarray, np.ndarray, tuple[slice, slice]]:
+    """A plate (a teal floor), a frame and the leg's box: a dark torso on a leg of the floor's
+    brightness but another colour (plain RMS difference 12.9 grey levels, below ``min_diff`` 18; all of
+    it a change of colour), with, if ``ring``, a one-pixel ring of half that colour change around the
+    leg (how video's half-resolution colour bleeds past an outline)."""
+    plate = np.full((120, 160, 3), (100.0, 100.0, 70.0))  # BGR
+    frame = plate.copy()
+    frame[20:60, 60:100] = 30  # torso
+    if ring:
+        frame[59:111, 65:95] = plate[0, 0] + 0.5 * np.array([-8.0, -6.0, 20.0])
+    frame[60:110, 66:94] = plate[0, 0] + np.array([-8.0, -6.0, 20.0])  # grey-violet leg: D orthogonal to B
+    return _noisy(plate, 1.0, 1), _noisy(frame, 1.0, 2), np.s_[60:110, 66:94]
+
+
+def test_colour_weight_finds_a_leg_that_differs_from_the_floor_in_colour_not_brightness():
+    plate, frame, leg = _colour_only_leg(ring=False)
+    masks = {}
+    for w in (1.0, 2.0):
+        ex = SilhouetteExtractor(_config(foreground={"chroma_weight": w, "hysteresis": 1.0}))
+        ex.fit_background(plate=plate)
+        masks[w] = ex.process(frame)[0]
+    inside = np.s_[leg[0].start + 1 : leg[0].stop - 1, leg[1].start + 1 : leg[1].stop - 1]
+    assert masks[1.0][leg].mean() < 0.1  # plain RMS: below the threshold
+    assert masks[2.0][inside].mean() > 0.95  # (its outermost ring is trimmed: chroma_edge)
+    assert masks[2.0][:, 110:].sum() == 0 and masks[2.0][:15].sum() == 0  # the floor stays background
+
+
+def test_outline_rings_follow_the_brightness_not_the_bleeding_colour():
+    plate, frame, leg = _colour_only_leg(ring=True)
+    masks = {}
+    for rings in (0, 1):
+        ex = SilhouetteExtractor(_config(foreground={"chroma_edge": rings}))
+        ex.fit_background(plate=plate)
+        masks[rings] = ex.process(frame)[0]
+    side = np.s_[70:100, 65]  # the bleeding ring left of the leg
+    assert masks[0][side].mean() > 0.9 and masks[1][side].mean() < 0.1
+    assert masks[1][leg].mean() > 0.95  # the leg itself stays whole
+
+
+def test_a_deep_shadow_is_removed_where_another_camera_confirms_it_on_the_floor():
+    rig = grey_body_rig(seed=7, shadow_depth=0.3)  # one strong light: the shadow has 30 % of the floor's light
+    deep = _rig_masks(rig, SilhouetteConfig())
+    shallow_only = _rig_masks(rig, _config(shadow={"floor_min_ratio": 0.45}))
+    alone = _rig_masks(rig, SilhouetteConfig(), calibrated=False)
+    for c in range(2):
+        shadow, truth = rig.shadows[c].astype(bool), rig.masks[c].astype(bool)
+        assert deep[c][shadow].mean() < 0.05 and deep[c][truth].mean() > 0.9
+        assert shallow_only[c][shadow].mean() > 0.5  # too dark for the photometric test
+        assert alone[c][shadow].mean() > 0.5  # one camera cannot tell it from dark clothes

@@ -55,6 +55,16 @@ class ForegroundConfig(Strict):
         description="weak foreground where the background is textured and the frame's local correlation with it is "
         "below this (-1: off); texture window and least std from the shadow keys",
     )  # fmt: skip
+    chroma_weight: float = Field(
+        default=2.0, ge=1, le=10,
+        description="weight of the colour part of the difference (orthogonal to the background's colour) against "
+        "its brightness part (1: plain RMS over channels)",
+    )  # fmt: skip
+    chroma_edge: int = Field(
+        default=1, ge=0, le=5,
+        description="outermost rings of the foreground kept only where the plain RMS difference passes the weak "
+        "level (video's half-resolution colour bleeds past the outline; 0: off)",
+    )  # fmt: skip
     soft_min: float = Field(
         default=0.75, ge=0, le=1,
         description="soft silhouette (tracking.soft_silhouettes): value of the least confident pixel inside the mask",
@@ -82,6 +92,11 @@ class ShadowConfig(Strict):
         default=True,
         description="with calibrated cameras, a shadow must lie on the floor and be darkened in the other cameras too",
     )
+    floor_min_ratio: float = Field(
+        default=0.25, gt=0, lt=1,
+        description="with the floor check, darker candidates down to this brightness ratio are shadows where "
+        "another camera sees their floor point darkened (to one camera they look like dark clothes)",
+    )  # fmt: skip
     floor_tolerance: int = Field(
         default=2, ge=0, le=15, description="slack (pixels at working scale) when looking up a floor point in another camera"
     )
@@ -94,6 +109,8 @@ class ShadowConfig(Strict):
     def _ratios_ordered(self) -> ShadowConfig:
         if self.min_ratio >= self.max_ratio:
             raise ValueError(f"min_ratio ({self.min_ratio}) must be below max_ratio ({self.max_ratio})")
+        if self.floor_min_ratio > self.min_ratio:
+            raise ValueError(f"floor_min_ratio ({self.floor_min_ratio}) must not be above min_ratio ({self.min_ratio})")
         return self
 
 

@@ -13,20 +13,30 @@ it has decoded (``gaitcap.video``), so the tracker can share its decoding. Typic
 Per pixel, at the working scale (``config.scale``), with ``B`` the background and ``g`` the
 frame's global per-channel brightness ratio to it (lighting drift and jumps):
 
-1. difference: ``d = sqrt(mean_c (I_c - g_c B_c)^2)``; confident foreground where
-   ``d > t = max(k * sigma, min_diff)`` (``sigma``: per-pixel noise of the background model), weak
-   foreground where ``d > hysteresis * t``: weak pixels are kept only where they are 8-connected to
-   confident ones (hysteresis: a grey trouser leg over a grey floor joins the body through its
-   confident edges, background noise of the same strength stays alone). ``d / t`` is also the
-   pixel's foreground strength, from which :meth:`SilhouetteExtractor.finish_soft` makes a soft
-   silhouette (1 confident, ``soft_min`` doubtful, 0 background) for the tracker;
+1. difference: with ``D = I - g B`` split into its part along the background's colour ``B`` (a
+   change of brightness: shading, shadow, light) and the rest ``D_perp`` (a change of colour),
+   ``d = sqrt((|D|^2 + (w^2 - 1) |D_perp|^2) / 3)``, ``w = chroma_weight`` (``w = 1``: the RMS over
+   channels): lighting changes the brightness of a surface, not its colour, so a colour change is
+   stronger evidence of something in front of it (grey trousers over a teal carpet differ in
+   colour, hardly in brightness). Confident foreground where ``d > t = max(k * sigma, min_diff)``
+   (``sigma``: per-pixel noise of the background model), weak foreground where
+   ``d > hysteresis * t``: weak pixels are kept only where they are 8-connected to confident ones
+   (hysteresis: a grey trouser leg over a grey floor joins the body through its confident edges,
+   background noise of the same strength stays alone). Video stores colour at half resolution,
+   so a colour difference bleeds a pixel or two past the outline: the outermost ``chroma_edge``
+   rings of the connected foreground are kept only where the plain RMS difference passes the weak
+   level too. ``d / t`` is also the pixel's foreground strength, from which
+   :meth:`SilhouetteExtractor.finish_soft` makes a soft silhouette (1 confident, ``soft_min``
+   doubtful, 0 background) for the tracker;
 2. shadow (Horprasert-style brightness/chromaticity test): a candidate (weak or confident) pixel is a cast shadow
    when its brightness ratio ``r = sum_c I_c / sum_c g_c B_c`` lies in ``[min_ratio, max_ratio]``,
    its normalised rgb chromaticity is within ``max_chroma`` of the background's, and, where the
    background is textured, the frame's local texture correlates with the background's
    (normalised cross-correlation >= ``min_ncc``: a shadow darkens the floor's texture, a dark
    trouser leg replaces it); with calibrated cameras run together (:mod:`gaitcap.silhouette.joint`)
-   these candidates are then checked on the floor across the cameras (:mod:`gaitcap.silhouette.floor`);
+   these candidates are then checked on the floor across the cameras (:mod:`gaitcap.silhouette.floor`),
+   which also accepts deeper ones (ratio down to ``floor_min_ratio``: the hard shadow of one strong
+   light) where another camera confirms them; to one camera alone they look like dark clothes;
 3. clean-up: opening, closing; components smaller than ``min_component_fraction`` of the image
    dropped, and smaller than ``keep_relative`` of the largest dropped unless near the main
    parts (within ``keep_margin`` of their box's height: a head or a foot cut off at the neck or
@@ -168,7 +178,11 @@ class FrameEvidence:
         candidate: (h, w) bool, differs from the background by more than the threshold.
         weak: (h, w) bool, differs by more than ``hysteresis`` times the threshold (includes ``candidate``).
         strength: (h, w) float32, squared difference / squared threshold (``(d / t)^2``).
+        colour_only: (h, w) bool, weak only thanks to the colour weight (the plain RMS difference is
+            below the weak level): such pixels are trimmed off the outline's outer rings.
         shadow: (h, w) bool, weak pixels that pass this camera's cast-shadow test.
+        deep_shadow: (h, w) bool, weak pixels that would pass it at a deeper brightness ratio
+            (``shadow.floor_min_ratio``): shadows only if the floor check confirms them.
         darkening: (h, w) bool, candidate or darker than the background (what another camera
             looks up to confirm that a floor point is shadowed).
     """
@@ -178,7 +192,9 @@ class FrameEvidence:
     candidate: np.ndarray
     weak: np.ndarray
     strength: np.ndarray
+    colour_only: np.ndarray
     shadow: np.ndarray
+    deep_shadow: np.ndarray
     darkening: np.ndarray
 
 
@@ -203,6 +219,7 @@ class SilhouetteExtractor:
         self._open_k = _disk(c.open_radius) if c.open_radius > 0 else None
         self._close_k = _disk(c.close_radius) if c.close_radius > 0 else None
         self._adapt_k = _disk(max(2, c.close_radius))
+        self._ring_k = np.ones((3, 3), np.uint8)
 
     # -- background ---------------------------------------------------------------------------
     def _work(self, image: np.ndarray) -> np.ndarray:
@@ -296,15 +313,20 @@ class SilhouetteExtractor:
         if self._thr2 is None:  # plate without samples: one global noise level from this frame
             g = gain if self.config.background.gain_compensation else global_gain(img, self._bg)
             self._thr2 = self._threshold2(self._global_noise(img, self._bg * g.reshape(1, 1, 3)))
-        d2 = self._diff2(img, bg)
+        d2, plain2 = self._diff2(img, bg)
         strength = cv2.divide(d2, self._thr2)
         candidate = strength > 1.0
         h = self.config.foreground.hysteresis
         weak = strength > np.float32(h * h) if h < 1 else candidate
+        colour_only = np.zeros_like(weak) if plain2 is d2 else weak & (plain2 <= np.float32(h * h) * self._thr2)
         if self.config.foreground.texture_ncc > -1:
             weak = weak | self._texture_changed(img, bg, candidate)
-        shadow = self._shadow(img, bg, weak) if self.config.shadow.enabled else np.zeros_like(candidate)
-        return FrameEvidence(img, gain, candidate, weak, strength, shadow, candidate | self._darker(img, bg, d2))
+        if self.config.shadow.enabled:
+            shadow, deep = self._shadow(img, bg, weak)
+        else:
+            shadow, deep = np.zeros_like(candidate), np.zeros_like(candidate)
+        darkening = candidate | self._darker(img, bg, plain2)
+        return FrameEvidence(img, gain, candidate, weak, strength, colour_only, shadow, deep, darkening)
 
     def finish(self, evidence: FrameEvidence, shadow: np.ndarray) -> tuple[np.ndarray, FrameQuality]:
         """Steps 3-4: clean-up of ``candidate & ~shadow`` and background adaptation.
@@ -334,6 +356,7 @@ class SilhouetteExtractor:
     def _finish(self, evidence: FrameEvidence, shadow: np.ndarray,
                 soft: bool) -> tuple[np.ndarray, np.ndarray | None, FrameQuality]:  # fmt: skip
         raw = _connected_to(evidence.weak & ~shadow, evidence.candidate & ~shadow, self._open_k)
+        self._trim_outline(raw, evidence.colour_only)
         mask_small, n_comp = self._clean(raw)
         self._adapt(evidence.image, evidence.gain, mask_small, evidence.weak | shadow)
         mask = self._to_full(mask_small)
@@ -383,11 +406,29 @@ class SilhouetteExtractor:
         log.debug("%s: global noise sigma %.2f grey levels (from the first frame)", self.name, sigma)
         return np.full(img.shape[:2], sigma, np.float32)
 
-    @staticmethod
-    def _diff2(img: np.ndarray, bg: np.ndarray) -> np.ndarray:
-        """(h, w) float32: mean over channels of the squared difference frame - background."""
+    def _diff2(self, img: np.ndarray, bg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Squared differences frame - background, each (h, w) float32: the colour-weighted
+        ``d^2 = (|D|^2 + (w^2 - 1) |D_perp|^2) / 3`` of step 1 and the plain mean over channels
+        ``|D|^2 / 3`` (the same array when ``chroma_weight`` is 1)."""
         diff = cv2.subtract(img, bg)
-        return cv2.transform(cv2.multiply(diff, diff), np.full((1, 3), 1.0 / 3.0, np.float32))
+        plain2 = cv2.transform(cv2.multiply(diff, diff), np.full((1, 3), 1.0 / 3.0, np.float32))
+        w2 = np.float32(self.config.foreground.chroma_weight ** 2)
+        if w2 == 1:
+            return plain2, plain2
+        # |D_perp|^2 = |D|^2 - (D . B)^2 / |B|^2; the background is never black (+1)
+        ones = np.ones((1, 3), np.float32)
+        dot = cv2.transform(cv2.multiply(diff, bg), ones)
+        norm2 = cv2.transform(cv2.multiply(bg, bg), ones) + np.float32(1.0)
+        along2 = cv2.divide(cv2.multiply(dot, dot), norm2, scale=1.0 / 3.0)
+        return cv2.addWeighted(plain2, float(w2), along2, float(1 - w2), 0.0), plain2
+
+    def _trim_outline(self, raw: np.ndarray, colour_only: np.ndarray) -> None:
+        """Drop, in place, the ``colour_only`` (h, w) bool pixels of the outermost
+        ``foreground.chroma_edge`` rings of ``raw`` (h, w) uint8 0/255: the half-resolution colour
+        of video bleeds past the outline, the brightness does not."""
+        for _ in range(self.config.foreground.chroma_edge):
+            ring = cv2.subtract(raw, cv2.erode(raw, self._ring_k))
+            raw[(ring > 0) & colour_only] = 0
 
     def _darker(self, img: np.ndarray, bg: np.ndarray, d2: np.ndarray) -> np.ndarray:
         """(h, w) bool: darker than the background (brightness ratio below ``shadow.max_ratio``) by
@@ -398,16 +439,19 @@ class SilhouetteExtractor:
         half = 0.5 * self.config.foreground.hysteresis
         return darker & (d2 > np.float32(half * half) * self._thr2)
 
-    def _shadow(self, img: np.ndarray, bg: np.ndarray, candidate: np.ndarray) -> np.ndarray:
-        """(h, w) bool: candidate pixels explained as cast shadow on the background.
+    def _shadow(self, img: np.ndarray, bg: np.ndarray, candidate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Candidate pixels explained as cast shadow on the background: (h, w) bool each, those in
+        ``[min_ratio, max_ratio]`` and the deep ones in ``[floor_min_ratio, min_ratio)`` (a shadow
+        only if the floor check confirms it).
 
         Computed inside the bounding box of the candidates (plus the texture window) only.
         """
         s = self.config.shadow
         shadow = np.zeros_like(candidate)
+        deep = np.zeros_like(candidate)
         x, y, w, h = cv2.boundingRect(candidate.view(np.uint8))
         if w == 0 or h == 0:
-            return shadow
+            return shadow, deep
         m = s.texture_window
         y0, y1 = max(0, y - m), min(candidate.shape[0], y + h + m)
         x0, x1 = max(0, x - m), min(candidate.shape[1], x + w + m)
@@ -416,14 +460,18 @@ class SilhouetteExtractor:
         si = cv2.transform(img_r, ones) + np.float32(1.0)  # sum of channels
         sb = cv2.transform(bg_r, ones) + np.float32(1.0)
         ratio = si / sb
-        darker = cand_r & (ratio >= s.min_ratio) & (ratio <= s.max_ratio)
+        lowest = s.floor_min_ratio if s.floor_check else s.min_ratio
+        darker = cand_r & (ratio >= lowest) & (ratio <= s.max_ratio)
         # chromaticity only where it matters (candidate pixels in the brightness range)
         ys, xs = np.nonzero(darker)
         chroma = np.abs(img_r[ys, xs] / si[ys, xs, None] - bg_r[ys, xs] / sb[ys, xs, None]).max(axis=1)
         same_colour = np.zeros_like(darker)
         same_colour[ys, xs] = chroma <= s.max_chroma
-        shadow[y0:y1, x0:x1] = darker & same_colour & self._same_texture(si, sb)
-        return shadow
+        found = darker & same_colour & self._same_texture(si, sb)
+        is_deep = ratio < s.min_ratio
+        shadow[y0:y1, x0:x1] = found & ~is_deep
+        deep[y0:y1, x0:x1] = found & is_deep
+        return shadow, deep
 
     def _texture_changed(self, img: np.ndarray, bg: np.ndarray, candidate: np.ndarray) -> np.ndarray:
         """(h, w) bool: the background is textured there and the frame no longer shows its texture

@@ -12,10 +12,11 @@ cameras two geometric facts can:
 
 So a shadow candidate of camera i stays a shadow only where its ray meets the floor and at least
 one other camera that sees that floor point finds it darkened (foreground or darker than its
-background); where no other camera sees the point, camera i's photometric decision stands. With
-several cameras, a shadow must also lie near the capture area (the floor two cameras see, grown
-by ``reach``): a pixel of a wall, back-projected to the floor, lands behind the wall, outside the
-view of the other cameras, where no shadow of the person can be seen.
+background); where no other camera sees the point, camera i's photometric decision stands, except
+for candidates darker than the photometric test accepts alone (``shadow.floor_min_ratio``), which
+need that confirmation. With several cameras, a shadow must also lie near the capture area (the
+floor two cameras see, grown by ``reach``): a pixel of a wall, back-projected to the floor, lands
+behind the wall, outside the view of the other cameras, where no shadow of the person can be seen.
 
 The floor point of every working-scale pixel of camera i, projected into camera j, is computed
 once per rig (:class:`FloorShadowCheck`); each frame then costs one ``cv2.remap`` per camera pair.
@@ -151,16 +152,20 @@ class FloorShadowCheck:
         self.near = _near_shared_floor(points, self.seen, reach)
         self._grow = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * tolerance + 1,) * 2) if tolerance > 0 else None
 
-    def relabel(self, shadows: Sequence[np.ndarray], darkening: Sequence[np.ndarray]) -> list[np.ndarray]:
+    def relabel(self, shadows: Sequence[np.ndarray], darkening: Sequence[np.ndarray],
+                deep: Sequence[np.ndarray] | None = None) -> list[np.ndarray]:  # fmt: skip
         """The shadow maps kept by the floor test, one per camera.
 
         Args:
             shadows: (h_i, w_i) bool per camera, the photometric shadow candidates.
             darkening: (h_i, w_i) bool per camera, foreground or darker than the background.
+            deep: (h_i, w_i) bool per camera, candidates too dark for the photometric test alone
+                (dark clothes look the same to one camera), or None.
 
         Returns:
             (h_i, w_i) bool per camera: candidates on the floor near the capture area that another
-            camera seeing the floor point also finds darkened, or that no other camera sees.
+            camera seeing the floor point also finds darkened, or that no other camera sees; deep
+            candidates only where another camera confirms them.
         """
         dark = [d.view(np.uint8) for d in darkening]
         if self._grow is not None:
@@ -168,13 +173,16 @@ class FloorShadowCheck:
         out = []
         for i, shadow in enumerate(shadows):
             kept = np.zeros_like(shadow)
-            x, y, w, h = cv2.boundingRect(shadow.view(np.uint8))  # only where there are candidates
+            deep_i = deep[i] if deep is not None else np.zeros_like(shadow)
+            x, y, w, h = cv2.boundingRect((shadow | deep_i).view(np.uint8))  # only where there are candidates
             if w and h:
                 box = np.s_[y : y + h, x : x + w]
                 confirmed = np.zeros((h, w), np.uint8)
                 for j, m in self.maps[i]:
                     confirmed |= cv2.remap(dark[j], m[box], None, cv2.INTER_NEAREST,
                                            borderMode=cv2.BORDER_CONSTANT, borderValue=0)  # fmt: skip
-                kept[box] = shadow[box] & self.on_floor[i][box] & self.near[i][box] & ((confirmed > 0) | ~self.seen[i][box])
+                floor = self.on_floor[i][box] & self.near[i][box]
+                confirmed = confirmed > 0
+                kept[box] = floor & ((shadow[box] & (confirmed | ~self.seen[i][box])) | (deep_i[box] & confirmed))
             out.append(kept)
         return out

@@ -61,5 +61,5 @@ class JointExtractor:
         evidence = list(self._map(lambda ex, im: ex.observe(im), self.extractors, images))
         shadows = [e.shadow for e in evidence]
         if self.floor is not None:
-            shadows = self.floor.relabel(shadows, [e.darkening for e in evidence])
+            shadows = self.floor.relabel(shadows, [e.darkening for e in evidence], [e.deep_shadow for e in evidence])
         return evidence, shadows
