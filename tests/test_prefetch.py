@@ -5,11 +5,20 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Iterator
+from functools import partial
 
 import pytest
 
 from gaitcap.errors import InputError
 from gaitcap.prefetch import Head, Prefetched
+
+
+def _recorded(produced: list[int], n: int = 100) -> Iterator[int]:
+    """0 .. n-1, each appended to ``produced`` as the worker reads it."""
+    for i in range(n):
+        produced.append(i)
+        yield i
 
 
 def test_items_come_in_order():
@@ -18,12 +27,8 @@ def test_items_come_in_order():
 
 
 def test_the_worker_stays_at_most_depth_items_ahead():
-    produced = []
-
-    def source():
-        for i in range(100):
-            produced.append(i)
-            yield i
+    produced: list[int] = []
+    source = partial(_recorded, produced)
 
     with Prefetched(source(), depth=2) as items:
         assert next(items) == 0
@@ -70,12 +75,8 @@ def test_depth_below_one_is_rejected():
 
 
 def test_a_smaller_depth_holds_the_worker_back_once_the_queue_drains():
-    produced = []
-
-    def source():
-        for i in range(100):
-            produced.append(i)
-            yield i
+    produced: list[int] = []
+    source = partial(_recorded, produced)
 
     with Prefetched(source(), depth=10) as items:
         time.sleep(0.3)
