@@ -50,6 +50,10 @@ Robustness:
   43-58 %. Over 65 tracked runs (several tracker settings) the OpenSim walk's last foot strike,
   1.5 frames before the end, is now found (events within one frame: 232 -> 265 of 272), and the
   Vicon walk's events are unchanged;
+- a toe marker lost at push-off while the toe stands on the floor is held there by the marker
+  mapping until the ankle is out of the foot's reach (``Trajectory.meta[TOE_RELEASES]``,
+  :func:`gaitcap.markers.jointcentres.hold_on_floor`); its signal then ends in its fall, and the
+  release is taken as the foot off (an ``"end"`` edge event, under the rhythm check below);
 - an extremum must stand out by a fraction of the signal's robust range (prominence), and events
   of one kind on one side are at least ``min_event_interval_s`` apart;
 - per side, strikes and offs must alternate; of two consecutive events of the same kind the less
@@ -72,7 +76,7 @@ from gaitcap.errors import InputError
 from gaitcap.gait.options import GaitOptions
 from gaitcap.gait.signals import fill_short_gaps, lowpass, parabolic_peak, velocity
 from gaitcap.timeseries import finite_runs
-from gaitcap.trajectory import SIDES, GaitEvent, Side, Trajectory, side_suffix
+from gaitcap.trajectory import SIDES, TOE_RELEASES, GaitEvent, Side, Trajectory, side_suffix
 
 log = logging.getLogger("gaitcap.gait.events")
 
@@ -216,8 +220,7 @@ def _extrema(signal: np.ndarray, rate: float, opt: GaitOptions, maxima: bool) ->
     ok = np.isfinite(y)
     if ok.sum() < 3:
         return []
-    lo, hi = np.nanquantile(y, [0.05, 0.95])
-    min_prom = opt.min_prominence * max(hi - lo, 1e-9)
+    min_prom = _min_prominence(y, opt)
     distance = max(1, int(round(opt.min_event_interval_s * rate)))
     found: list[tuple[float, float, str]] = []
     for start, stop in finite_runs(ok):
@@ -241,6 +244,41 @@ def _extrema(signal: np.ndarray, rate: float, opt: GaitOptions, maxima: bool) ->
                 continue
             found.append((start + parabolic_peak(seg, int(p)), float(prom), edge))
     return found
+
+
+def _min_prominence(y: np.ndarray, opt: GaitOptions) -> float:
+    """The prominence an extremum of the (T,) signal ``y`` needs: a fraction of its robust range."""
+    lo, hi = np.nanquantile(y, [0.05, 0.95])
+    return opt.min_prominence * max(float(hi - lo), 1e-9)
+
+
+def _release_offs(toe: np.ndarray, releases: list[float], side: Side, opt: GaitOptions) -> list[_Extremum]:
+    """Foot offs where a toe held on the floor through its marker's gap left the foot's reach
+    (``Trajectory.meta[TOE_RELEASES]``, :func:`gaitcap.markers.jointcentres.hold_on_floor`).
+
+    The held toe's signal ``toe`` (T,) falls until the release and has no sample after it, so the
+    Zeni minimum is the run's last sample, which :func:`_extrema` never takes. A release whose
+    last held sample ends a finite run is taken as a foot off at the release's sub-frame, with the
+    fall since the run's highest point as its prominence, marked ``edge="end"`` so that
+    :func:`_in_rhythm` checks its stance against the others.
+    """
+    y = -toe
+    ok = np.isfinite(y)
+    if ok.sum() < 3:
+        return []
+    min_prom = _min_prominence(y, opt)
+    out = []
+    for frame in releases:
+        i = int(np.floor(frame))
+        if not (0 <= i < len(y) and ok[i]) or (i + 1 < len(y) and ok[i + 1]):
+            continue
+        start = i
+        while start > 0 and ok[start - 1]:
+            start -= 1
+        prom = float(y[i] - np.min(y[start : i + 1]))
+        if prom >= min_prom:
+            out.append(_Extremum(float(frame), prom, side, "foot_off", "end"))
+    return out
 
 
 def _alternate(extrema: list[_Extremum]) -> list[_Extremum]:
@@ -401,6 +439,7 @@ def detect_events(
         s = side_suffix(side)
         ext = [_Extremum(f, p, side, "foot_strike", x) for f, p, x in _extrema(sig[f"heel{s}"], traj.rate_hz, opt, True)]
         ext += [_Extremum(f, p, side, "foot_off", x) for f, p, x in _extrema(sig[f"toe{s}"], traj.rate_hz, opt, False)]
+        ext += _release_offs(sig[f"toe{s}"], traj.meta.get(TOE_RELEASES, {}).get(side, []), side, opt)
         alternating[side] = _alternate(ext)
     alternating = _exclusive_strikes(alternating, opt.plausible.min_step_s * traj.rate_hz)
     events: list[GaitEvent] = []

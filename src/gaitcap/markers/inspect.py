@@ -55,6 +55,10 @@ def describe_file(path: str | Path, mapping: Mapping | str | Path | None = None,
         present = [n for n in names if raw.has(n)]
         if len(present) > 1:
             lines.append(f"  segment {segment}: {', '.join(present)} fill each other's gaps")
+    for side, contact in main.mapping.floor_contacts.items():
+        names = contact.present(raw.names)
+        if names is not None:
+            lines.append(f"  {side} toe {names[0]}: held on the floor through a gap while {names[1]} can reach it")
     unused = [n for n in raw.names if n not in _used_markers(main, raw)]
     if unused:
         lines.append(f"markers not used: {', '.join(unused)}")

@@ -17,6 +17,7 @@ from gaitcap.timeseries import finite_runs
 from gaitcap.markers.mapping import (
     ChordRule,
     ClusterRule,
+    FloorContact,
     HarringtonRule,
     LerpRule,
     Mapping,
@@ -24,7 +25,7 @@ from gaitcap.markers.mapping import (
     ShiftRule,
     SoleRule,
 )
-from gaitcap.trajectory import POINT_NAMES, Trajectory
+from gaitcap.trajectory import POINT_NAMES, TOE_RELEASES, Trajectory
 
 log = logging.getLogger("gaitcap.markers.jointcentres")
 
@@ -234,6 +235,94 @@ def fill_segment_gaps(markers: Trajectory, segments: dict[str, list[str]]) -> Tr
     return replace(markers, points=points) if filled_any else markers
 
 
+def _on_floor(marker: np.ndarray, last: int, rate_hz: float, contact: FloorContact) -> bool:
+    """Whether ``marker`` (T, 3) stood on the floor at frame ``last``: near its foot-flat height
+    (5th percentile of its height over the trial) and nearly still since the frame before."""
+    if last < 1 or not np.isfinite(marker[last - 1 : last + 1]).all():
+        return False
+    flat = float(np.nanpercentile(marker[:, 2], 5))
+    speed = float(np.linalg.norm(marker[last] - marker[last - 1])) * rate_hz
+    return marker[last, 2] <= flat + contact.max_height_m and speed <= contact.max_speed_m_s
+
+
+def hold_on_floor(marker: np.ndarray, reach: np.ndarray, rate_hz: float, contact: FloorContact) -> tuple[np.ndarray, list[float]]:
+    """Hold a foot marker lost while on the floor where it was, while the foot can still stand on it.
+
+    At push-off the toe marker is often hidden (by the other foot, or it leaves the volume) while
+    the toe still stands on the floor. A standing toe does not move: the marker is held at its
+    last position for as long as the ankle (``reach``) stays within the foot's length of it, the
+    largest toe-ankle distance seen while both were visible, plus ``tolerance_m``; the foot is
+    rigid, so once the ankle is further away the toe has left that spot: the toe is off, the
+    rest of the gap stays open, and the sub-frame of the crossing is returned. A gap that opens
+    in swing (the marker above its foot-flat height or moving) is left alone.
+
+    The crossing is the latest the toe can have lifted. In a normal push-off the foot is steeply
+    plantarflexed at toe off (the ankle nearly above the toe) and the swing carries the ankle out
+    of reach within a frame: on the C3D.ORG Plug-in-Gait sample the right foot off recorded at
+    2.600 s is found at 2.598 s (toe lost at 2.50 s). A foot lifted flat (no heel rise) keeps the
+    ankle within reach longer and is found late; the gait events' rhythm check drops a release
+    that lengthens the stance by more than ``GaitOptions.edge_rhythm_tolerance``.
+
+    Args:
+        marker: the toe marker, shape (T, 3), metres, z up, NaN in gaps.
+        reach: the ankle marker, shape (T, 3), NaN where missing.
+        rate_hz: sampling rate.
+        contact: the thresholds.
+    Returns:
+        the marker with the held frames filled (a copy), and the release sub-frames, one per gap
+        that ended with the toe lifting (linear interpolation of the distance's crossing).
+    """
+    out = np.array(marker, dtype=np.float64, copy=True)
+    seen = np.isfinite(out).all(axis=1)
+    both = seen & np.isfinite(reach).all(axis=1)
+    if not both.any():
+        return out, []
+    length = float(np.max(np.linalg.norm(marker[both] - reach[both], axis=1))) + contact.tolerance_m
+    releases: list[float] = []
+    for start, stop in finite_runs(~seen):
+        if start == 0 or not _on_floor(marker, start - 1, rate_hz, contact):
+            continue
+        held = marker[start - 1]
+        dist = np.linalg.norm(reach[start - 1 : stop] - held, axis=1)  # dist[0]: the last seen frame
+        k = 1
+        while k < len(dist) and dist[k] <= length:
+            out[start - 1 + k] = held
+            k += 1
+        if k < len(dist) and np.isfinite(dist[k]) and np.isfinite(dist[k - 1]):
+            frac = (length - dist[k - 1]) / (dist[k] - dist[k - 1])
+            releases.append(float(start - 2 + k + np.clip(frac, 0.0, 1.0)))
+    return out, releases
+
+
+def hold_floor_contacts(markers: Trajectory, contacts: dict[str, FloorContact]) -> Trajectory:
+    """:func:`hold_on_floor` for each foot's contact marker present with its reach marker.
+
+    Returns:
+        the trajectory with the held frames filled (the same object when nothing was held) and
+        ``meta[TOE_RELEASES]``: side -> release sub-frames, when any.
+    """
+    source = markers.meta.get("source", "motion")
+    points = markers.points.copy()
+    releases: dict[str, list[float]] = {}
+    for side, contact in contacts.items():
+        names = contact.present(markers.names)
+        if names is None:
+            continue
+        i = markers.index(names[0])
+        before = np.isfinite(points[:, i]).all(axis=1)
+        points[:, i], found = hold_on_floor(markers.points[:, i], markers.point(names[1]), markers.rate_hz, contact)
+        count = int((np.isfinite(points[:, i]).all(axis=1) & ~before).sum())
+        if count:
+            log.info("%s: %s: %d frame(s) held on the floor while %s could reach it%s", source, names[0], count,
+                     names[1], f"; lifted at frame(s) {', '.join(f'{f:.1f}' for f in found)}" if found else "")  # fmt: skip
+        if found:
+            releases[side] = found
+    if not releases and np.array_equal(points, markers.points, equal_nan=True):
+        return markers
+    meta = {**markers.meta, TOE_RELEASES: releases} if releases else markers.meta
+    return replace(markers, points=points, meta=meta)
+
+
 class _Evaluator:
     """Evaluates a mapping's definitions in order over a marker trajectory."""
 
@@ -382,7 +471,8 @@ def apply_mapping(
     missing = resolution.missing_required()
     if missing:
         raise InputError(f"{source}: mapping {mapping.name!r} needs markers missing from the file: {', '.join(missing)}")
-    ev = _Evaluator(fill_segment_gaps(markers, mapping.segments), static, source)
+    markers = hold_floor_contacts(fill_segment_gaps(markers, mapping.segments), mapping.floor_contacts)
+    ev = _Evaluator(markers, static, source)
     for name, rule in mapping.definitions():
         if name in resolution.unresolved:
             continue

@@ -26,6 +26,11 @@ markers have a gap there), the next usable one fills in::
 SACR]``) whose gaps are filled from each other before the rules run (see
 :func:`gaitcap.markers.jointcentres.fill_segment_gaps`).
 
+``floor_contacts`` names, per foot, a marker that often drops out at push-off (the toe, hidden by
+the other foot) and a marker near that foot's ankle: a gap that opens while the toe is on the
+floor is held there while the ankle can still reach it, and the frame it no longer can is the
+toe's lift-off (see :func:`gaitcap.markers.jointcentres.hold_floor_contacts`).
+
 Output points listed under ``optional`` are left out when their markers are missing (arms of a
 full-body set in a lower-body file); every other output point is required for the mapping to fit.
 """
@@ -260,6 +265,41 @@ class GrfSpec(Strict):
     threshold_n: float = Field(default=20.0, gt=0.0)
 
 
+class FloorContact(Strict):
+    """A foot marker held on the floor through a gap while the foot can still stand on it.
+
+    See :func:`gaitcap.markers.jointcentres.hold_floor_contacts`.
+    """
+
+    marker: str | list[str] = Field(
+        description="the foot's marker nearest the ground at push-off (toe, metatarsal head); a list: the first present"
+    )
+    reach: str | list[str] = Field(
+        description="a marker near the same foot's ankle (the lateral malleolus); a list: the first present"
+    )
+    max_height_m: float = Field(
+        default=0.03, gt=0.0, le=0.2,
+        description="the marker was on the floor: at most this far above its foot-flat height (m)",
+    )
+    max_speed_m_s: float = Field(
+        default=0.3, gt=0.0, le=2.0, description="and moved at most this fast when it was last seen (m/s)"
+    )
+    tolerance_m: float = Field(
+        default=0.003, ge=0.0, le=0.05,
+        description="slack on the foot's length (marker jitter, m) before the toe counts as lifted",
+    )
+
+    def present(self, have: Iterable[str]) -> tuple[str, str] | None:
+        """The (marker, reach) names found among ``have``, or None when either is missing."""
+        names = set(have)
+
+        def first(spellings: str | list[str]) -> str | None:
+            return next((n for n in ([spellings] if isinstance(spellings, str) else spellings) if n in names), None)
+
+        marker, reach = first(self.marker), first(self.reach)
+        return (marker, reach) if marker and reach else None
+
+
 class Mapping(Strict):
     """A marker set -> gaitcap points mapping (see the module docstring).
 
@@ -280,6 +320,9 @@ class Mapping(Strict):
     )
     segments: dict[str, list[str]] = Field(
         default_factory=dict, description="markers of one rigid body, filling each other's gaps"
+    )
+    floor_contacts: dict[Literal["left", "right"], FloorContact] = Field(
+        default_factory=dict, description="per foot, a marker lost while on the floor and held there while in reach"
     )
 
     @model_validator(mode="after")
