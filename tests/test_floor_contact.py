@@ -5,14 +5,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from gait_walker import Walker
 from pydantic import ValidationError
 
 from gaitcap.gait.events import detect_events
 from gaitcap.markers.jointcentres import hold_on_floor
 from gaitcap.markers.mapping import FloorContact, Mapping
 from gaitcap.trajectory import TOE_RELEASES, Trajectory
-
-from gait_walker import Walker
 
 RATE = 50.0
 CONTACT = FloorContact(marker="RTOE", reach="RANK")

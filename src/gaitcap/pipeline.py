@@ -26,7 +26,6 @@ import numpy as np
 import yaml
 from tqdm import tqdm
 
-from gaitcap import __version__
 from gaitcap.body.measures import model_lengths, outside_ranges
 from gaitcap.body.model import load_body_model
 from gaitcap.errors import OutputError, TrackingError

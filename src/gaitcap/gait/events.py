@@ -388,7 +388,7 @@ def _refiners(
     Each refiner maps an anchor (sub-frame index) to a refined sub-frame index, or None when the
     local criterion is not found in its window (the anchor is then kept).
     """
-    rate, s = traj.rate_hz, side_suffix(side)
+    rate = traj.rate_hz
     gap = int(round(opt.max_gap_s * rate))
     heel_vz = velocity(lowpass(fill_short_gaps(heel_track(traj, side), gap), rate, opt.lowpass_hz), rate)[:, 2]
     toe = lowpass(fill_short_gaps(toe_track(traj, side), gap), rate, opt.lowpass_hz)

@@ -13,7 +13,6 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from gaitcap.errors import InputError
-from gaitcap.timeseries import finite_runs
 from gaitcap.markers.mapping import (
     ChordRule,
     ClusterRule,
@@ -25,7 +24,8 @@ from gaitcap.markers.mapping import (
     ShiftRule,
     SoleRule,
 )
-from gaitcap.trajectory import POINT_NAMES, TOE_RELEASES, Trajectory
+from gaitcap.timeseries import finite_runs
+from gaitcap.trajectory import TOE_RELEASES, Trajectory
 
 log = logging.getLogger("gaitcap.markers.jointcentres")
 
