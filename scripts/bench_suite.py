@@ -38,7 +38,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
 from gaitcap.data import embedded_walk  # noqa: E402
-from gaitcap.evaluation.silhouettes import camera_iou  # noqa: E402
+from gaitcap.evaluation.report import read_truth_reference  # noqa: E402
+from gaitcap.evaluation.silhouettes import camera_iou, part_coverage  # noqa: E402
+from gaitcap.io.calibration_toml import read_calibration  # noqa: E402
 from gaitcap.io.silhouettes_h5 import read_cameras, read_mask_shape  # noqa: E402
 from gaitcap.synth.variety import draw_look  # noqa: E402
 
@@ -56,6 +58,7 @@ METRICS = (
     ("lower_mm", "lower-limb MPJPE (mm)"), ("knee_deg", "knee flexion RMSE (deg)"),
     ("swap_frames", "frames with swapped legs"), ("longest_swap", "longest swap (frames)"),
     ("iou", "silhouette IoU (mean)"), ("iou_p10", "silhouette IoU (10th pct of frames)"),
+    ("parts_missing", "camera-frames missing the head or a foot"),
     ("event_ms", "event timing abs. error (ms)"), ("events_missed", "events missed"),
     ("cadence_pct", "cadence abs. error (%)"), ("stride_pct", "stride length abs. error (%)"), ("seconds", "seconds per session"),
 )  # fmt: skip
@@ -120,24 +123,47 @@ def measure(session: Path, truth: Path, truth_masks: Path, run: Path, reuse: boo
     return row
 
 
-def silhouette_row(masks: Path, truth_masks: Path) -> dict:
-    """IoU of a run's ``silhouettes.h5`` against the true masks (mean, 10th percentile of frames, per camera)."""
+#: a body part is missing from a frame when the run's mask holds less than this fraction of its
+#: true silhouette (gaitcap.evaluation.silhouettes.part_coverage)
+PART_MISSING = 0.5
+
+
+def missing_parts(masks: Path, truth_masks: Path, session: Path, truth: Path) -> dict:
+    """Camera-frames in which the run's masks miss the head or a foot that the true masks show:
+    the count, and per part its count and the frames (``camera:frame``)."""
+    rig = read_calibration(session / "calibration.toml")
+    traj = read_truth_reference(truth).trajectory
+    truth_cams = read_cameras(truth_masks)
+    by_part: dict[str, list[str]] = {}
+    frames: set[tuple[str, int]] = set()
+    for cam in (c for c in read_cameras(masks) if c in truth_cams and c in rig.names):
+        n = min(read_mask_shape(masks, cam)[0], read_mask_shape(truth_masks, cam)[0])
+        for part, cover in part_coverage(masks, truth_masks, rig[cam], traj, n).items():
+            lost = np.flatnonzero(cover < PART_MISSING)  # NaN (out of view) compares False
+            by_part.setdefault(part, []).extend(f"{cam}:{k}" for k in lost)
+            frames.update((cam, int(k)) for k in lost)
+    return {"parts_missing": len(frames), "parts_missing_by_part": by_part}
+
+
+def silhouette_row(masks: Path, truth_masks: Path, session: Path, truth: Path) -> dict:
+    """IoU of a run's ``silhouettes.h5`` against the true masks (mean, 10th percentile of frames, per
+    camera) and the camera-frames missing the head or a foot (:func:`missing_parts`)."""
     if not masks.exists():
         return {}
     iou, p10, per_cam = pooled_iou(masks, truth_masks)
-    return {"iou": iou, "iou_p10": p10, "iou_per_camera": per_cam}
+    return {"iou": iou, "iou_p10": p10, "iou_per_camera": per_cam, **missing_parts(masks, truth_masks, session, truth)}
 
 
 def _measure(session: Path, truth: Path, truth_masks: Path, run: Path,
              silhouettes_only: bool = False, config: Path | None = None) -> dict:  # fmt: skip
     if silhouettes_only:
         gaitcap("silhouettes", str(session), "-o", str(run), "--force", check=False)
-        return {"status": "silhouettes only", **silhouette_row(run / "silhouettes.h5", truth_masks)}
+        return {"status": "silhouettes only", **silhouette_row(run / "silhouettes.h5", truth_masks, session, truth)}
     t0 = time.perf_counter()
     extra = ["-c", str(config)] if config else []
     tr = gaitcap("track", str(session), "-o", str(run), "--force", "--save-masks", *extra, check=False)
     row: dict = {"seconds": time.perf_counter() - t0, "status": "ok"}
-    row.update(silhouette_row(run / "silhouettes.h5", truth_masks))
+    row.update(silhouette_row(run / "silhouettes.h5", truth_masks, session, truth))
     if tr.returncode != 0:
         row["status"] = f"track failed (exit {tr.returncode}): " + ((tr.stderr or tr.stdout).strip().splitlines() or [""])[-1]
         return row
@@ -214,7 +240,7 @@ def value(row: dict, key: str) -> float | None:
     """A row's metric; a run that lost the person counts as infinitely wrong for the tracking metrics."""
     v = row.get(key)
     lost = str(row.get("status", "")).startswith(("lost", "track failed"))
-    if v is None and lost and key not in ("iou", "iou_p10", "seconds"):
+    if v is None and lost and key not in ("iou", "iou_p10", "parts_missing", "seconds"):
         return math.inf
     return v
 

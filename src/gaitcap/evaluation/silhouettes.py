@@ -12,9 +12,11 @@ from typing import Any
 
 import numpy as np
 
+from gaitcap.camera import Camera
 from gaitcap.errors import InputError
 from gaitcap.evaluation.metrics import iou_summary, mask_iou
 from gaitcap.io.silhouettes_h5 import read_cameras, read_mask_shape, read_masks
+from gaitcap.trajectory import Trajectory
 
 #: frames read at once per camera
 CHUNK_FRAMES = 16
@@ -57,3 +59,80 @@ def silhouette_iou(out_masks: str | Path, truth_masks: str | Path) -> tuple[dict
         iou = camera_iou(out_masks, truth_masks, cam, n)
         result[cam] = {**iou_summary(iou), "frames_without_person": int(np.isnan(iou).sum()), "frames": n}
     return result, notes
+
+
+#: body parts a silhouette must not lose (issue: "no frame in which the head or a foot is missing
+#: while in view"): name -> (truth points averaged for its centre, radius around it in metres)
+PARTS: dict[str, tuple[tuple[str, ...], float]] = {
+    "head": (("head",), 0.10),
+    "foot_l": (("heel_l", "toe_l"), 0.08),
+    "foot_r": (("heel_r", "toe_r"), 0.08),
+}
+#: a part is in view when the true mask has at least this many pixels within its radius
+MIN_PART_PIXELS = 20
+
+
+def _part_centres(truth: Trajectory) -> dict[str, np.ndarray]:
+    """Each part's centre (T, 3) from the truth's points; parts whose points it lacks are left out."""
+    out = {}
+    for part, (names, _) in PARTS.items():
+        if all(truth.has(n) for n in names):
+            out[part] = np.mean([truth.point(n) for n in names], axis=0)
+    return out
+
+
+def _disc_coverage(est: np.ndarray, ref: np.ndarray, centre: np.ndarray, radius_px: float) -> float:
+    """Fraction of the true mask ``ref`` (H, W) within ``radius_px`` of ``centre`` (2,) pixels that
+    ``est`` (H, W) also holds; NaN when fewer than :data:`MIN_PART_PIXELS` true pixels are there."""
+    h, w = ref.shape
+    if not (np.isfinite(centre).all() and np.isfinite(radius_px) and radius_px > 0):
+        return float("nan")
+    x0, x1 = max(int(centre[0] - radius_px), 0), min(int(centre[0] + radius_px) + 1, w)
+    y0, y1 = max(int(centre[1] - radius_px), 0), min(int(centre[1] + radius_px) + 1, h)
+    if x0 >= x1 or y0 >= y1:
+        return float("nan")
+    yy, xx = np.mgrid[y0:y1, x0:x1]
+    disc = (xx - centre[0]) ** 2 + (yy - centre[1]) ** 2 <= radius_px**2
+    part = disc & (ref[y0:y1, x0:x1] > 0)
+    n = int(part.sum())
+    if n < MIN_PART_PIXELS:
+        return float("nan")
+    return float((est[y0:y1, x0:x1] > 0)[part].sum() / n)
+
+
+def part_coverage(
+    out_masks: Path, truth_masks: Path, camera: Camera, truth: Trajectory, n_frames: int, chunk: int = CHUNK_FRAMES
+) -> dict[str, np.ndarray]:
+    """How much of each body part's true silhouette a run's masks hold, frame by frame.
+
+    A part (:data:`PARTS`) is the disc of its radius around its true centre, projected into the
+    camera (radius in pixels: focal length x radius / depth); its true silhouette is the true
+    mask's pixels in that disc (the part, or whatever stands in front of it: the silhouette is the
+    union), and its coverage the fraction of them the run's mask also holds. Frames are matched by
+    index with the truth's frames (the truth and the video share their rate).
+
+    Args:
+        out_masks, truth_masks: the run's ``silhouettes.h5`` and the truth's masks.
+        camera: the camera (its name is the masks' dataset).
+        truth: the true points, one frame per video frame.
+        n_frames: frames to score.
+    Returns:
+        part -> (n_frames,) coverage in [0, 1], NaN where the part is out of view (fewer than
+        :data:`MIN_PART_PIXELS` true pixels in its disc) or the truth has no frame.
+    """
+    centres = _part_centres(truth)
+    out = {part: np.full(n_frames, np.nan) for part in centres}
+    m = min(n_frames, truth.n_frames)
+    focal = float(camera.matrix[0, 0])
+    for start in range(0, m, chunk):
+        frames = slice(start, min(start + chunk, m))
+        est, ref = read_masks(out_masks, camera.name, frames), read_masks(truth_masks, camera.name, frames)
+        for part, xyz in centres.items():
+            pts = xyz[frames]
+            pix = camera.project(pts)
+            depth = camera.to_camera(pts)[:, 2]
+            with np.errstate(invalid="ignore", divide="ignore"):
+                radius = np.where(depth > 0, focal * PARTS[part][1] / depth, np.nan)
+            for k in range(len(pts)):
+                out[part][start + k] = _disc_coverage(est[k], ref[k], pix[k], radius[k])
+    return out
