@@ -72,6 +72,7 @@ class Run:
     signals: RunSignals
     verdict: str
     reasons: tuple[str, ...]
+    notes: tuple[str, ...]
     before: np.ndarray  # (T, P) metres
     after: np.ndarray  # (T, P)
     error: np.ndarray  # (T, P) metres, NaN where not compared
@@ -141,8 +142,8 @@ def load_run(row: dict, run: Path, cfg: TrackingConfig) -> Run:
     mm = row.get("lower_mm")
     group = "external" if row.get("source") == "external" else str(row.get("walk"))
     return Run(row["name"], names, group, float(mm) if mm is not None else np.inf, s, judged.verdict.verdict,
-               judged.verdict.reasons, before, judged.uncertainty, error, terms, raw, quality, height, rate,
-               row.get("swap_frames"), cfg.verdict.exchanged_margin_m)  # fmt: skip
+               judged.verdict.reasons, judged.verdict.notes, before, judged.uncertainty, error, terms, raw, quality,
+               height, rate, row.get("swap_frames"), cfg.verdict.exchanged_margin_m)  # fmt: skip
 
 
 # ------------------------------------------------------------------------------------------- verdict
@@ -163,7 +164,7 @@ def print_verdicts(runs: list[Run]) -> dict:
         mm = "lost" if not np.isfinite(r.lower_mm) else f"{r.lower_mm:.1f}"
         swaps = "-" if r.swap_frames is None else r.swap_frames
         print(f"| {r.name} | {r.group} | {mm} | {swaps} | {r.signals.n_exchanged} | {r.signals.n_crossed} | "
-              f"{r.verdict} | {'; '.join(r.reasons)} |")  # fmt: skip
+              f"{r.verdict} | {'; '.join(r.reasons + tuple(f'(note) {n}' for n in r.notes))} |")  # fmt: skip
     t = verdict_targets(runs, [r.verdict for r in runs])
     print(f"\nruns above {BAD_MM:.0f} mm doubtful or failed: {t['bad_caught']} of {t['bad']} (missed: "
           f"{', '.join(t['missed']) or 'none'}); runs under {GOOD_MM:.0f} mm ok: {t['good_ok']} of {t['good']} "
@@ -340,7 +341,9 @@ def main() -> None:
                                   "the configured coefficients)")  # fmt: skip
     doc.update(uncertainty_before=before, uncertainty_after=after,
                runs=[{"name": r.name, "walk": r.group, "lower_mm": r.lower_mm if np.isfinite(r.lower_mm) else None,
-                      "verdict": r.verdict, "reasons": list(r.reasons)} for r in runs])  # fmt: skip
+                      "swap_frames": r.swap_frames, "out_of_rhythm": r.signals.n_exchanged,
+                      "crossed": r.signals.n_crossed, "verdict": r.verdict, "reasons": list(r.reasons),
+                      "notes": list(r.notes)} for r in runs])  # fmt: skip
     if args.fit:
         doc["fit"] = refit(runs, cfg)
     if args.json:

@@ -29,16 +29,16 @@ walking person passes:
   model's own, body.yaml: 0.245 H and 0.246 H);
 - the subject's height in each camera's image (pixels): a small figure leaves the limbs a few
   pixels wide;
-- whether some camera views the walk obliquely. Seen from beside the walkway a camera sees how far
-  apart the feet are fore and aft but not which is on the left; seen along it, the reverse; two
-  such views fit both pairings of the feet equally (up to perspective), so which leg is ahead
-  cannot be told. A camera whose line of sight lies ``min_oblique_deg`` or more from both the
+- (a note, not a reason: it leaves the verdict as it is) whether some camera views the walk
+  obliquely. Seen from beside the walkway a camera sees how far apart the feet are fore and aft
+  but not which is on the left; seen along it, the reverse; two such views fit both pairings of
+  the feet equally (up to perspective), so which leg is ahead cannot be told. A camera whose line of sight lies ``min_oblique_deg`` or more from both the
   walking line and its perpendicular sees a mix of both separations and tells them apart. The
   walking line is the principal horizontal axis of the tracked pelvis, or the way the hips face
   for a walk on the spot (a treadmill).
 
-:func:`judge` turns them into ``ok`` / ``doubtful`` / ``failed`` with the reasons, by the
-thresholds of ``tracking.yaml``'s ``verdict`` section.
+:func:`judge` turns them into ``ok`` / ``doubtful`` / ``failed`` with the reasons (and the
+camera layout's note), by the thresholds of ``tracking.yaml``'s ``verdict`` section.
 
 :func:`calibrated_uncertainty`: per frame and point, a standard-deviation-like radius (metres) that
 grows with what varies with the error (docs/validation.md, scripts/bench_uncertainty.py):
@@ -129,13 +129,15 @@ class RunSignals:
 
 @dataclass(frozen=True)
 class RunVerdict:
-    """``verdict`` and ``verdict_reasons`` of ``track.json``."""
+    """``verdict``, ``verdict_reasons`` and ``verdict_notes`` of ``track.json``: the notes name what
+    makes an error more likely without being one (they leave the verdict as it is)."""
 
     verdict: Verdict
     reasons: tuple[str, ...] = ()
+    notes: tuple[str, ...] = ()
 
     def to_dict(self) -> dict[str, object]:
-        return {"verdict": self.verdict, "verdict_reasons": list(self.reasons)}
+        return {"verdict": self.verdict, "verdict_reasons": list(self.reasons), "verdict_notes": list(self.notes)}
 
 
 def _check_shapes(points: np.ndarray, names: tuple[str, ...], quality: np.ndarray) -> None:
@@ -374,13 +376,20 @@ def judge(signals: RunSignals, cfg: VerdictConfig) -> RunVerdict:
     if small:
         listed = ", ".join(f"{v:.0f} px in {k}" for k, v in small.items())
         reasons.append(f"the subject is too small in the image ({listed})")
+    return RunVerdict("doubtful" if reasons else "ok", tuple(reasons), _layout_notes(s, cfg))
+
+
+def _layout_notes(s: RunSignals, cfg: VerdictConfig) -> tuple[str, ...]:
+    """A note (not a reason) when no camera is ``cfg.min_oblique_deg`` or more from both the walking
+    line and its perpendicular: which leg is ahead is then ambiguous to the tracker, but the legs'
+    fore-aft rhythm (a reason of its own) tells whether it got them wrong."""
     angles = s.view_angles_deg
-    if angles and not any(cfg.min_oblique_deg <= a <= 90.0 - cfg.min_oblique_deg for a in angles.values()):
-        listed = ", ".join(f"{k} {v:.0f}" for k, v in angles.items())
-        reasons.append(f"no camera views the walk obliquely (degrees between each line of sight and the walking line: "
-                       f"{listed}): from beside and in line with the walkway only, which leg is ahead is ambiguous "
-                       "and the legs may be swapped")  # fmt: skip
-    return RunVerdict("doubtful" if reasons else "ok", tuple(reasons))
+    if not angles or any(cfg.min_oblique_deg <= a <= 90.0 - cfg.min_oblique_deg for a in angles.values()):
+        return ()
+    listed = ", ".join(f"{k} {v:.0f}" for k, v in angles.items())
+    return (f"no camera views the walk obliquely (degrees between each line of sight and the walking line: {listed}): "
+            "from beside and in line with the walkway only, which leg is ahead is ambiguous; check the legs where "
+            "they pass each other",)  # fmt: skip
 
 
 def point_residuals(points: np.ndarray, rate_hz: float, cutoff_hz: float) -> np.ndarray:
