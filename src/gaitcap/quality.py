@@ -326,7 +326,7 @@ def _image_heights(points: np.ndarray, rig: CameraRig | None) -> dict[str, float
 
 def run_signals(points: np.ndarray, names: tuple[str, ...], quality: np.ndarray, height_m: float,
                 rig: CameraRig | None = None, crossed_margin_m: float = 0.0, *, rate_hz: float,
-                exchanged_margin_m: float = 0.05) -> RunSignals:  # fmt: skip
+                exchanged_margin_m: float = 0.03) -> RunSignals:  # fmt: skip
     """The run-level signals (see the module docstring) of the tracker's raw points (T, P, 3)
     (``points_unfiltered``) sampled at ``rate_hz``, per-frame quality (T,) and the subject's height
     (metres); the image heights need the cameras ``rig``; ankles count as crossed beyond
