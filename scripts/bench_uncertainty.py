@@ -56,6 +56,7 @@ GRID = {
     "max_floor_offset_m": (0.05, 0.1, 0.15, 0.2),
     "segment_ratio": ((0.7, 1.4), (0.75, 1.33), (0.8, 1.25), (0.85, 1.18)),
     "min_exchanged_frames": (2, 3, 4, 5, 6),
+    "exchanged_margin_m": (0.0, 0.03, 0.05, 0.1),
 }
 JOINTS = tuple(dict.fromkeys(p[:-2] for p in LOWER_LIMB))  # hip, knee, ankle
 #: the points each joint's fitted scale goes to: the pelvis with the hips, the foot with the ankle
@@ -82,17 +83,18 @@ class Run:
     height_m: float
     rate_hz: float
     swap_frames: int | None  # frames with the legs swapped against the truth (gaitcap eval), None: unknown
-    exchanged_margin_m: float
     _by_margin: dict = field(default_factory=dict)
 
-    def signals_at(self, margin_m: float) -> RunSignals:
-        """The signals with ankles counted as crossed beyond ``margin_m`` (the image heights kept)."""
-        if margin_m not in self._by_margin:
+    def signals_at(self, margin_m: float, exchanged_margin_m: float) -> RunSignals:
+        """The signals with ankles counted as crossed beyond ``margin_m`` and out of the stride's rhythm
+        beyond ``exchanged_margin_m`` (the image heights and view angles kept)."""
+        key = (margin_m, exchanged_margin_m)
+        if key not in self._by_margin:
             s = run_signals(self.raw, self.names, self.quality, self.height_m, None, margin_m, rate_hz=self.rate_hz,
-                            exchanged_margin_m=self.exchanged_margin_m)  # fmt: skip
-            self._by_margin[margin_m] = replace(s, image_height_px=self.signals.image_height_px,
-                                                view_angles_deg=self.signals.view_angles_deg)  # fmt: skip
-        return self._by_margin[margin_m]
+                            exchanged_margin_m=exchanged_margin_m)  # fmt: skip
+            self._by_margin[key] = replace(s, image_height_px=self.signals.image_height_px,
+                                           view_angles_deg=self.signals.view_angles_deg)  # fmt: skip
+        return self._by_margin[key]
 
 
 def truth_points(traj: Trajectory, truth: Path) -> np.ndarray:
@@ -143,7 +145,7 @@ def load_run(row: dict, run: Path, cfg: TrackingConfig) -> Run:
     group = "external" if row.get("source") == "external" else str(row.get("walk"))
     return Run(row["name"], names, group, float(mm) if mm is not None else np.inf, s, judged.verdict.verdict,
                judged.verdict.reasons, judged.verdict.notes, before, judged.uncertainty, error, terms, raw, quality,
-               height, rate, row.get("swap_frames"), cfg.verdict.exchanged_margin_m)  # fmt: skip
+               height, rate, row.get("swap_frames"))  # fmt: skip
 
 
 # ------------------------------------------------------------------------------------------- verdict
@@ -173,7 +175,7 @@ def print_verdicts(runs: list[Run]) -> dict:
 
 
 def _judge_all(runs: list[Run], vcfg) -> list[str]:
-    return [judge(r.signals_at(vcfg.crossed_margin_m), vcfg).verdict for r in runs]
+    return [judge(r.signals_at(vcfg.crossed_margin_m, vcfg.exchanged_margin_m), vcfg).verdict for r in runs]
 
 
 def _score(runs: list[Run], vcfg) -> tuple[int, int]:
