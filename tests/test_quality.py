@@ -12,8 +12,15 @@ from gaitcap.camera import Camera, CameraRig
 from gaitcap.config import load_yaml_model
 from gaitcap.errors import ConfigError
 from gaitcap.io.track_h5 import QUALITY_OK, QUALITY_OUT_OF_VIEW, QUALITY_POOR_FIT
-from gaitcap.quality import (assess, calibrated_uncertainty, crossed_ankles, judge, out_of_rhythm, run_signals,
-                             stride_frequency)
+from gaitcap.quality import (
+    assess,
+    calibrated_uncertainty,
+    crossed_ankles,
+    judge,
+    out_of_rhythm,
+    run_signals,
+    stride_frequency,
+)
 from gaitcap.tracking.config import TrackingConfig, UncertaintyConfig, VerdictConfig, load_tracking_config
 
 HEIGHT = 1.7

@@ -347,7 +347,8 @@ def run_signals(points: np.ndarray, names: tuple[str, ...], quality: np.ndarray,
 
 def judge(signals: RunSignals, cfg: VerdictConfig) -> RunVerdict:
     """The verdict of a run from its signals: ``failed`` when too few frames fit
-    (``cfg.min_ok_fraction``), else ``doubtful`` when any check fails, else ``ok``."""
+    (``cfg.min_ok_fraction``), else ``doubtful`` when any check fails, else ``ok``; with the
+    camera layout's note, which leaves the verdict as it is (:func:`_layout_notes`)."""
     s, n = signals, signals.n_frames
     if s.n_ok < cfg.min_ok_fraction * n or s.n_ok == 0:
         count = f"only {s.n_ok} of {n} frames fit" if s.n_ok else f"none of the {n} frames fits"
@@ -387,9 +388,10 @@ def _layout_notes(s: RunSignals, cfg: VerdictConfig) -> tuple[str, ...]:
     if not angles or any(cfg.min_oblique_deg <= a <= 90.0 - cfg.min_oblique_deg for a in angles.values()):
         return ()
     listed = ", ".join(f"{k} {v:.0f}" for k, v in angles.items())
-    return (f"no camera views the walk obliquely (degrees between each line of sight and the walking line: {listed}): "
+    note = (f"no camera views the walk obliquely (degrees between each line of sight and the walking line: {listed}): "
             "from beside and in line with the walkway only, which leg is ahead is ambiguous; check the legs where "
-            "they pass each other",)  # fmt: skip
+            "they pass each other")  # fmt: skip
+    return (note,)
 
 
 def point_residuals(points: np.ndarray, rate_hz: float, cutoff_hz: float) -> np.ndarray:

@@ -90,11 +90,14 @@ class TrackSummary:
             "gaitcap_version": __version__,
             "session": str(self.session),
             "message": self.message,
-            **({"verdict": self.verdict, "verdict_reasons": list(self.verdict_reasons),
-                "verdict_notes": list(self.verdict_notes)} if self.verdict else {}),  # fmt: skip
+            **(self._verdict() if self.verdict else {}),
             **({"stages_s": {k: round(float(v), 3) for k, v in self.stages.items()}} if self.stages else {}),
             **({"body": self.body} if self.body else {}),
         }
+
+    def _verdict(self) -> dict[str, Any]:
+        return {"verdict": self.verdict, "verdict_reasons": list(self.verdict_reasons),
+                "verdict_notes": list(self.verdict_notes)}  # fmt: skip
 
 
 @dataclass(frozen=True)
