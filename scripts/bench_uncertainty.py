@@ -55,6 +55,8 @@ GRID = {
     "max_crossed_fraction": (0.1, 0.15, 0.2, 0.25, 0.3),
     "max_floor_offset_m": (0.05, 0.1, 0.15, 0.2),
     "segment_ratio": ((0.7, 1.4), (0.75, 1.33), (0.8, 1.25), (0.85, 1.18)),
+    "min_exchanged_frames": (2, 3, 4, 5, 6),
+    "exchanged_margin_m": (0.0, 0.03, 0.05, 0.1),
 }
 JOINTS = tuple(dict.fromkeys(p[:-2] for p in LOWER_LIMB))  # hip, knee, ankle
 #: the points each joint's fitted scale goes to: the pelvis with the hips, the foot with the ankle
@@ -71,6 +73,7 @@ class Run:
     signals: RunSignals
     verdict: str
     reasons: tuple[str, ...]
+    notes: tuple[str, ...]
     before: np.ndarray  # (T, P) metres
     after: np.ndarray  # (T, P)
     error: np.ndarray  # (T, P) metres, NaN where not compared
@@ -78,14 +81,20 @@ class Run:
     raw: np.ndarray  # (T, P, 3) the tracker's points
     quality: np.ndarray  # (T,)
     height_m: float
+    rate_hz: float
+    swap_frames: int | None  # frames with the legs swapped against the truth (gaitcap eval), None: unknown
     _by_margin: dict = field(default_factory=dict)
 
-    def signals_at(self, margin_m: float) -> RunSignals:
-        """The signals with ankles counted as crossed beyond ``margin_m`` (the image heights kept)."""
-        if margin_m not in self._by_margin:
-            s = run_signals(self.raw, self.names, self.quality, self.height_m, None, margin_m)
-            self._by_margin[margin_m] = replace(s, image_height_px=self.signals.image_height_px)
-        return self._by_margin[margin_m]
+    def signals_at(self, margin_m: float, exchanged_margin_m: float) -> RunSignals:
+        """The signals with ankles counted as crossed beyond ``margin_m`` and out of the stride's rhythm
+        beyond ``exchanged_margin_m`` (the image heights and view angles kept)."""
+        key = (margin_m, exchanged_margin_m)
+        if key not in self._by_margin:
+            s = run_signals(self.raw, self.names, self.quality, self.height_m, None, margin_m, rate_hz=self.rate_hz,
+                            exchanged_margin_m=exchanged_margin_m)  # fmt: skip
+            self._by_margin[key] = replace(s, image_height_px=self.signals.image_height_px,
+                                           view_angles_deg=self.signals.view_angles_deg)  # fmt: skip
+        return self._by_margin[key]
 
 
 def truth_points(traj: Trajectory, truth: Path) -> np.ndarray:
@@ -135,7 +144,8 @@ def load_run(row: dict, run: Path, cfg: TrackingConfig) -> Run:
     mm = row.get("lower_mm")
     group = "external" if row.get("source") == "external" else str(row.get("walk"))
     return Run(row["name"], names, group, float(mm) if mm is not None else np.inf, s, judged.verdict.verdict,
-               judged.verdict.reasons, before, judged.uncertainty, error, terms, raw, quality, height)  # fmt: skip
+               judged.verdict.reasons, judged.verdict.notes, before, judged.uncertainty, error, terms, raw, quality,
+               height, rate, row.get("swap_frames"))  # fmt: skip
 
 
 # ------------------------------------------------------------------------------------------- verdict
@@ -150,10 +160,13 @@ def verdict_targets(runs: list[Run], verdicts: list[str]) -> dict:
 
 def print_verdicts(runs: list[Run]) -> dict:
     print("\n## Verdict per run (lower-limb MPJPE; lost = every frame flagged)\n")
-    print("| run | walk | lower mm | verdict | reasons |\n|---|---|---|---|---|")
+    print("| run | walk | lower mm | swap frames | out of rhythm | crossed | verdict | reasons |")
+    print("|---|---|---|---|---|---|---|---|")
     for r in sorted(runs, key=lambda r: r.lower_mm):
         mm = "lost" if not np.isfinite(r.lower_mm) else f"{r.lower_mm:.1f}"
-        print(f"| {r.name} | {r.group} | {mm} | {r.verdict} | {'; '.join(r.reasons)} |")
+        swaps = "-" if r.swap_frames is None else r.swap_frames
+        print(f"| {r.name} | {r.group} | {mm} | {swaps} | {r.signals.n_exchanged} | {r.signals.n_crossed} | "
+              f"{r.verdict} | {'; '.join(r.reasons + tuple(f'(note) {n}' for n in r.notes))} |")  # fmt: skip
     t = verdict_targets(runs, [r.verdict for r in runs])
     print(f"\nruns above {BAD_MM:.0f} mm doubtful or failed: {t['bad_caught']} of {t['bad']} (missed: "
           f"{', '.join(t['missed']) or 'none'}); runs under {GOOD_MM:.0f} mm ok: {t['good_ok']} of {t['good']} "
@@ -162,7 +175,7 @@ def print_verdicts(runs: list[Run]) -> dict:
 
 
 def _judge_all(runs: list[Run], vcfg) -> list[str]:
-    return [judge(r.signals_at(vcfg.crossed_margin_m), vcfg).verdict for r in runs]
+    return [judge(r.signals_at(vcfg.crossed_margin_m, vcfg.exchanged_margin_m), vcfg).verdict for r in runs]
 
 
 def _score(runs: list[Run], vcfg) -> tuple[int, int]:
@@ -330,7 +343,9 @@ def main() -> None:
                                   "the configured coefficients)")  # fmt: skip
     doc.update(uncertainty_before=before, uncertainty_after=after,
                runs=[{"name": r.name, "walk": r.group, "lower_mm": r.lower_mm if np.isfinite(r.lower_mm) else None,
-                      "verdict": r.verdict, "reasons": list(r.reasons)} for r in runs])  # fmt: skip
+                      "swap_frames": r.swap_frames, "out_of_rhythm": r.signals.n_exchanged,
+                      "crossed": r.signals.n_crossed, "verdict": r.verdict, "reasons": list(r.reasons),
+                      "notes": list(r.notes)} for r in runs])  # fmt: skip
     if args.fit:
         doc["fit"] = refit(runs, cfg)
     if args.json:

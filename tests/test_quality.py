@@ -12,7 +12,15 @@ from gaitcap.camera import Camera, CameraRig
 from gaitcap.config import load_yaml_model
 from gaitcap.errors import ConfigError
 from gaitcap.io.track_h5 import QUALITY_OK, QUALITY_OUT_OF_VIEW, QUALITY_POOR_FIT
-from gaitcap.quality import assess, calibrated_uncertainty, crossed_ankles, judge, run_signals
+from gaitcap.quality import (
+    assess,
+    calibrated_uncertainty,
+    crossed_ankles,
+    judge,
+    out_of_rhythm,
+    run_signals,
+    stride_frequency,
+)
 from gaitcap.tracking.config import TrackingConfig, UncertaintyConfig, VerdictConfig, load_tracking_config
 
 HEIGHT = 1.7
@@ -20,30 +28,39 @@ T = 50
 RATE = 25.0
 
 
+def _walking(phase: np.ndarray, exchanged: slice = slice(0)) -> tuple[np.ndarray, tuple[str, ...]]:
+    """The body model walking: (T, P, 3) points and names for the stride phase (T,) (radians); the
+    legs swing in opposition (hip flexion +-20 degrees) while the pelvis moves forward at 1.2 m/s,
+    the feet near the floor. In the ``exchanged`` frames the legs take each other's flexion: legs
+    exchanged fore and aft, each on its own side, as the tracker can get them."""
+    model = load_body_model(height_m=HEIGHT)
+    Q = np.repeat(model.neutral_pose()[None], len(phase), axis=0)
+    Q[:, model.dof_index("pelvis_tx")] = 1.2 * np.arange(len(phase)) / RATE
+    left, right = model.dof_index("hip_flexion_l"), model.dof_index("hip_flexion_r")
+    Q[:, left] = np.radians(20) * np.sin(phase)
+    Q[:, right] = -Q[:, left]
+    Q[exchanged, left], Q[exchanged, right] = Q[exchanged, right].copy(), Q[exchanged, left].copy()
+    return model.forward(Q), model.point_names
+
+
 @pytest.fixture(scope="module")
 def walk() -> tuple[np.ndarray, tuple[str, ...]]:
-    """A plausible walk of the body model: (T, P, 3) points and names; the legs swing in opposition
-    while the pelvis moves forward at 1.2 m/s, the feet near the floor."""
-    model = load_body_model(height_m=HEIGHT)
-    Q = np.repeat(model.neutral_pose()[None], T, axis=0)
-    phase = 2 * np.pi * np.arange(T) / 25.0
-    Q[:, model.dof_index("pelvis_tx")] = 1.2 * np.arange(T) / RATE
-    Q[:, model.dof_index("hip_flexion_l")] = np.radians(20) * np.sin(phase)
-    Q[:, model.dof_index("hip_flexion_r")] = -np.radians(20) * np.sin(phase)
-    return model.forward(Q), model.point_names
+    """A plausible walk of two strides (1 Hz at 25 frames per second)."""
+    return _walking(2 * np.pi * np.arange(T) / 25.0)
 
 
 def _judge(points, names, quality=None, height=HEIGHT, rig=None, cfg: VerdictConfig | None = None):
     cfg = cfg or VerdictConfig()
     quality = np.zeros(len(points), np.uint8) if quality is None else quality
-    return judge(run_signals(points, names, quality, height, rig, cfg.crossed_margin_m), cfg)
+    return judge(run_signals(points, names, quality, height, rig, cfg.crossed_margin_m, rate_hz=RATE,
+                             exchanged_margin_m=cfg.exchanged_margin_m), cfg)  # fmt: skip
 
 
 def test_a_plausible_walk_is_ok(walk):
     points, names = walk
     v = _judge(points, names)
     assert v.verdict == "ok" and v.reasons == ()
-    assert v.to_dict() == {"verdict": "ok", "verdict_reasons": []}
+    assert v.to_dict() == {"verdict": "ok", "verdict_reasons": [], "verdict_notes": []}
 
 
 def test_poor_fit_for_most_frames_is_doubtful_and_nearly_all_failed(walk):
@@ -122,14 +139,16 @@ def test_a_subject_too_small_in_the_image_is_doubtful(walk):
 
 @pytest.mark.parametrize(("degrees", "oblique"), [((90.0, 0.0), False), ((80.0, 8.0), False), ((90.0, 30.0), True),
                                                  ((90.0, 0.0, 60.0), True), ((14.0,), False), ((16.0,), True)])
-def test_cameras_only_beside_and_in_line_with_the_walk_are_doubtful(walk, degrees, oblique):
+def test_cameras_only_beside_and_in_line_with_the_walk_are_noted(walk, degrees, oblique):
     """Without a camera 15 degrees or more from both the walking line and its perpendicular, which
-    leg is ahead is ambiguous: doubtful, the angles named; one oblique camera is enough."""
+    leg is ahead is ambiguous: a note naming the angles, the verdict left ok (the legs' fore-aft
+    rhythm tells whether they were exchanged); one oblique camera is enough."""
     points, names = walk
     v = _judge(points, names, rig=_rig(*degrees))
-    assert (v.verdict == "ok") == oblique, v.reasons
+    assert v.verdict == "ok" and v.reasons == (), v.reasons
+    assert (v.notes == ()) == oblique, v.notes
     if not oblique:
-        assert "obliquely" in v.reasons[0] and f"cam1 {degrees[0]:.0f}" in v.reasons[0], v.reasons
+        assert "obliquely" in v.notes[0] and f"cam1 {degrees[0]:.0f}" in v.notes[0], v.notes
 
 
 def test_a_walk_on_the_spot_takes_its_line_from_the_way_the_hips_face(walk):
@@ -139,11 +158,53 @@ def test_a_walk_on_the_spot_takes_its_line_from_the_way_the_hips_face(walk):
     on_the_spot = points.copy()
     on_the_spot[..., 0] -= points[:, :1, 0] - points[:, 0, 0].mean()  # every frame's pelvis at the walk's middle
     rig = _rig(80.0, 30.0)
-    walking = run_signals(points, names, np.zeros(T, np.uint8), HEIGHT, rig).view_angles_deg
-    still = run_signals(on_the_spot, names, np.zeros(T, np.uint8), HEIGHT, rig).view_angles_deg
+    walking = run_signals(points, names, np.zeros(T, np.uint8), HEIGHT, rig, rate_hz=RATE).view_angles_deg
+    still = run_signals(on_the_spot, names, np.zeros(T, np.uint8), HEIGHT, rig, rate_hz=RATE).view_angles_deg
     assert still.keys() == walking.keys() == {"cam1", "cam2"}
     assert abs(walking["cam1"] - 80.0) < 3 and abs(walking["cam2"] - 30.0) < 3, walking
     assert all(abs(still[k] - walking[k]) < 3 for k in still), (still, walking)
+
+
+def test_legs_exchanged_fore_and_aft_are_doubtful():
+    """Legs exchanged fore and aft for a stretch (each foot on its own side: the ankles do not cross)
+    go against the stride's rhythm in the frames where the legs are well apart: 60 degrees of phase
+    either side of the peak at frame 18.75, frames 15-22."""
+    phase = 2 * np.pi * np.arange(T) / 25.0
+    points, names = _walking(phase, slice(14, 24))
+    v = _judge(points, names)
+    assert v.verdict == "doubtful" and v.reasons == (
+        ("legs possibly exchanged fore and aft in 8 frames: there the ankles' fore-aft order goes against the "
+         "stride's rhythm"),
+    )
+    exchanged = out_of_rhythm(points, names, np.ones(T, bool), RATE, 0.05)
+    assert np.flatnonzero(exchanged).tolist() == list(range(15, 23))
+    # where no pose was tracked, no frame counts
+    assert not out_of_rhythm(points, names, np.arange(T) < 14, RATE, 0.05).any()
+
+
+@pytest.mark.parametrize("exchanged", [slice(0), slice(18, 20), slice(10, 15)])
+def test_a_walk_in_rhythm_is_not_exchanged(exchanged):
+    """Not doubtful: a clean walk with the points shaken by 2 cm (seeded), an exchange of 2 frames
+    (under min_exchanged_frames 3), an exchange while the legs pass each other (frames 10-14 around
+    the crossing at 12.5: the fore-aft order is not judged where the legs are close)."""
+    points, names = _walking(2 * np.pi * np.arange(T) / 25.0, exchanged)
+    shaken = points + np.random.default_rng(0).normal(0, 0.02, points.shape)
+    v = _judge(shaken, names)
+    assert v.verdict == "ok", v.reasons
+
+
+def test_a_long_walk_is_judged_in_pieces():
+    """Cadence drifting from 0.8 to 1.1 strides per second over 30 s: no frame is out of rhythm
+    (each piece of about 3 strides has its own); a stretch exchanged in the middle is found."""
+    t = np.arange(750) / RATE
+    phase = 2 * np.pi * (0.8 * t + 0.3 * t**2 / (2 * t[-1]))
+    points, names = _walking(phase)
+    tracked = np.ones(len(t), bool)
+    assert not out_of_rhythm(points, names, tracked, RATE, 0.05).any()
+    assert abs(stride_frequency(t[:50], (points[:50, names.index("ankle_l"), 0] - points[:50, names.index("ankle_r"), 0]))
+               - 0.8) < 0.02  # fmt: skip
+    exchanged = out_of_rhythm(*_walking(phase, slice(400, 410)), tracked, RATE, 0.05)
+    assert 4 <= exchanged.sum() <= 10 and set(np.flatnonzero(exchanged)) <= set(range(400, 410))
 
 
 def test_every_failed_check_is_named(walk):
@@ -157,7 +218,7 @@ def _uncertainty(points, names, fit=None, quality=None, cfg: UncertaintyConfig |
     fit = np.full(len(points), 0.8) if fit is None else fit
     quality = np.zeros(len(points), np.uint8) if quality is None else quality
     vcfg = VerdictConfig()
-    signals = run_signals(points, names, quality, HEIGHT, None, vcfg.crossed_margin_m)
+    signals = run_signals(points, names, quality, HEIGHT, None, vcfg.crossed_margin_m, rate_hz=RATE)
     return calibrated_uncertainty(points, names, fit, signals, RATE, cfg or UncertaintyConfig())
 
 
@@ -238,7 +299,7 @@ def test_a_rejected_shape_calibration_is_named_and_doubtful(walk):
 
     points, names = walk
     cfg = load_tracking_config().verdict
-    signals = run_signals(points, names, np.zeros(len(points), np.uint8), 1.9)
+    signals = run_signals(points, names, np.zeros(len(points), np.uint8), 1.9, rate_hz=RATE)
     assert judge(signals, cfg).verdict == "ok"
     problem = "leg 0.600 m is 0.316 of the height, outside 0.40-0.56"
     v = judge(replace(signals, body_problems=(problem,)), cfg)

@@ -1110,6 +1110,7 @@ def test_track_json_holds_the_verdict(tracked_session):
     assert doc["verdict"] == summary.verdict and doc["verdict"] in ("ok", "doubtful", "failed")
     assert doc["verdict_reasons"] == summary.verdict_reasons
     assert (doc["verdict"] == "ok") == (doc["verdict_reasons"] == [])
+    assert doc["verdict_notes"] == summary.verdict_notes and isinstance(doc["verdict_notes"], list)
 
 
 def test_track_json_records_the_stage_times(tracked_session):

@@ -314,7 +314,8 @@ def run_batch(
         if not force and is_finished(out):
             before = read_track_json(out) or {}
             results[i] = TrackSummary(session, out, STATUS_SKIPPED, 0, 0, 0.0, "finished before (use --force to redo)",
-                                      verdict=before.get("verdict"), verdict_reasons=before.get("verdict_reasons", []))
+                                      verdict=before.get("verdict"), verdict_reasons=before.get("verdict_reasons", []),
+                                      verdict_notes=before.get("verdict_notes", []))  # fmt: skip
             log.info("%s: finished before, skipped", session.name)
         else:
             todo.append((i, SessionJob(task, session, out, force, dict(task_kwargs))))

@@ -365,6 +365,8 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
         writer.abort(e)
         raise
     log.info("verdict: %s%s", judged.verdict.verdict, "".join(f"; {r}" for r in judged.verdict.reasons))
+    for note in judged.verdict.notes:
+        log.info("note: %s", note)
     traj = Trajectory(model.point_names, points, videos.fps)
     write_joints_csv(out / "joints.csv", traj)
     write_trc(out / "joints.trc", traj, units="mm")
@@ -377,6 +379,7 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
                                    f"{1000 * timing.tracking_s / max(tracked, 1):.0f} ms/frame tracking, "
                                    f"{tracked / seconds:.1f} frames/s end to end", stages=stages,
                            verdict=judged.verdict.verdict, verdict_reasons=list(judged.verdict.reasons),
+                           verdict_notes=list(judged.verdict.notes),
                            body={"height_m": round(float(height), 4), "height_source": height_source,
                                  "shape": shape_note,
                                  "segment_lengths_m": {k: round(v, 4) for k, v in model_lengths(filt.model).items()}})  # fmt: skip

@@ -8,6 +8,20 @@ walking person passes:
 - the fraction of tracked frames whose ankles *cross*: the left ankle on the right of the right
   ankle along the hips' axis. A walking person's feet keep their sides (the truth of every suite
   walk keeps them 5 cm apart or more); crossed ankles are the mark of legs swapped below the hips;
+- the tracked frames whose ankles are *out of the stride's rhythm* fore and aft: a walk swings
+  the feet past each other twice a stride, so the left ankle's lead over the right one along the
+  walking line, d(t), follows a sinusoid at the stride frequency f. A stretch of frames with the
+  legs exchanged fore and aft (the left leg tracked on the right leg's pixels and back, each foot
+  still on its own side) flips d's sign there: its ankles do not cross, and the events detected
+  from them alternate as usual with the sides exchanged. f is found from |d|, which an exchange
+  leaves unchanged (its fundamental is 2 f: the feet pass each other twice a stride), then
+
+      d(t) ~ a cos 2 pi f t + b sin 2 pi f t      (least squares over the tracked frames)
+
+  and a frame is out of rhythm where that sinusoid puts the legs well apart (beyond half its
+  amplitude: 60 degrees of phase either side of a peak) and d has the other sign by more than
+  ``exchanged_margin_m``. The run is judged in pieces of :data:`RHYTHM_STRIDES` strides, each with
+  its own walking line and frequency (the cadence drifts, a walk turns);
 - the lowest foot point's height above the floor, median over the frames: one foot stands on the
   floor in every frame of a walk (z = 0 in the calibration's world frame); a model floating above
   it, or sunk into it, has collapsed onto something else;
@@ -15,16 +29,16 @@ walking person passes:
   model's own, body.yaml: 0.245 H and 0.246 H);
 - the subject's height in each camera's image (pixels): a small figure leaves the limbs a few
   pixels wide;
-- whether some camera views the walk obliquely. Seen from beside the walkway a camera sees how far
-  apart the feet are fore and aft but not which is on the left; seen along it, the reverse; two
-  such views fit both pairings of the feet equally (up to perspective), so which leg is ahead
-  cannot be told. A camera whose line of sight lies ``min_oblique_deg`` or more from both the
+- (a note, not a reason: it leaves the verdict as it is) whether some camera views the walk
+  obliquely. Seen from beside the walkway a camera sees how far apart the feet are fore and aft
+  but not which is on the left; seen along it, the reverse; two such views fit both pairings of
+  the feet equally (up to perspective), so which leg is ahead cannot be told. A camera whose line of sight lies ``min_oblique_deg`` or more from both the
   walking line and its perpendicular sees a mix of both separations and tells them apart. The
   walking line is the principal horizontal axis of the tracked pelvis, or the way the hips face
   for a walk on the spot (a treadmill).
 
-:func:`judge` turns them into ``ok`` / ``doubtful`` / ``failed`` with the reasons, by the
-thresholds of ``tracking.yaml``'s ``verdict`` section.
+:func:`judge` turns them into ``ok`` / ``doubtful`` / ``failed`` with the reasons (and the
+camera layout's note), by the thresholds of ``tracking.yaml``'s ``verdict`` section.
 
 :func:`calibrated_uncertainty`: per frame and point, a standard-deviation-like radius (metres) that
 grows with what varies with the error (docs/validation.md, scripts/bench_uncertainty.py):
@@ -84,6 +98,8 @@ class RunSignals:
             rejected and the shipped proportions tracked; gaitcap.body.measures.outside_ranges).
         view_angles_deg: camera -> angle (0-90 degrees) between its horizontal line of sight to
             the subject and the walking line (empty without cameras).
+        exchanged: (T,) bool, the tracked frames whose ankles' fore-aft order goes against the
+            stride's rhythm (:func:`out_of_rhythm`): legs possibly exchanged fore and aft.
     """
 
     n_frames: int
@@ -96,6 +112,11 @@ class RunSignals:
     crossed: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
     body_problems: tuple[str, ...] = ()
     view_angles_deg: dict[str, float] = field(default_factory=dict)
+    exchanged: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+
+    @property
+    def n_exchanged(self) -> int:
+        return int(np.sum(self.exchanged))
 
     @property
     def crossed_fraction(self) -> float:
@@ -108,13 +129,15 @@ class RunSignals:
 
 @dataclass(frozen=True)
 class RunVerdict:
-    """``verdict`` and ``verdict_reasons`` of ``track.json``."""
+    """``verdict``, ``verdict_reasons`` and ``verdict_notes`` of ``track.json``: the notes name what
+    makes an error more likely without being one (they leave the verdict as it is)."""
 
     verdict: Verdict
     reasons: tuple[str, ...] = ()
+    notes: tuple[str, ...] = ()
 
     def to_dict(self) -> dict[str, object]:
-        return {"verdict": self.verdict, "verdict_reasons": list(self.reasons)}
+        return {"verdict": self.verdict, "verdict_reasons": list(self.reasons), "verdict_notes": list(self.notes)}
 
 
 def _check_shapes(points: np.ndarray, names: tuple[str, ...], quality: np.ndarray) -> None:
@@ -201,6 +224,94 @@ def view_angles(points: np.ndarray, names: tuple[str, ...], rig: CameraRig | Non
     return out
 
 
+#: stride frequencies (Hz) searched for a run's rhythm: a slow walk to a run
+STRIDE_HZ = (0.3, 1.6)
+#: step (Hz) of that search
+STRIDE_HZ_STEP = 0.005
+#: a run is judged for its rhythm in pieces of about this many strides (at least one piece)
+RHYTHM_STRIDES = 3
+#: a frame's fore-aft order is judged where the rhythm puts the legs beyond this fraction of their
+#: largest separation (0.5: 60 degrees of phase either side of a peak)
+APART = 0.5
+
+
+def fore_aft(points: np.ndarray, names: tuple[str, ...], line: np.ndarray) -> np.ndarray:
+    """(T,) metres: the left ankle's lead over the right one along the unit horizontal ``line`` (2,),
+    from points (T, P, 3); NaN where a point is missing."""
+    return (points[:, names.index("ankle_l"), :2] - points[:, names.index("ankle_r"), :2]) @ line
+
+
+def _sinusoids(t: np.ndarray, hz: float | np.ndarray) -> np.ndarray:
+    """cos and sin of 2 pi hz t: (len(t), 2) for one frequency, (H, len(t), 2) for H of them."""
+    w = 2 * np.pi * np.multiply.outer(hz, t)
+    return np.stack([np.cos(w), np.sin(w)], axis=-1)
+
+
+def stride_frequency(t: np.ndarray, d: np.ndarray) -> float:
+    """The stride frequency (Hz) of a fore-aft separation d (T,) (finite values) at times t (T,)
+    (seconds): the frequency in :data:`STRIDE_HZ` at twice which a sinusoid plus a constant best
+    fits |d| (least squares). |d| does not change when the legs are exchanged, and falls to zero
+    twice a stride, where the feet pass each other."""
+    hz = np.arange(STRIDE_HZ[0], STRIDE_HZ[1] + 1e-9, STRIDE_HZ_STEP)
+    y = np.abs(d) - np.mean(np.abs(d))
+    A = _sinusoids(t, 2 * hz)  # (H, T, 2)
+    A -= A.mean(axis=1, keepdims=True)  # the constant's share taken out
+    G = np.einsum("htj,htk->hjk", A, A) + 1e-12 * np.eye(2)  # normal equations of each frequency
+    b = np.einsum("htj,t->hj", A, y)
+    explained = np.einsum("hj,hj->h", b, np.linalg.solve(G, b[..., None])[..., 0])  # the residual's drop
+    return float(hz[int(np.argmax(explained))])
+
+
+def _separation(points: np.ndarray, names: tuple[str, ...], rate_hz: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """The frames (n,) of points (T, P, 3) with both ankles and their fore-aft separation (n,)
+    along the walking line of those frames; None without a walking line or under one stride of
+    the fastest rhythm."""
+    frames = np.flatnonzero(np.all(np.isfinite(points[:, [names.index("ankle_l"), names.index("ankle_r")], :2]),
+                                   axis=(1, 2)))  # fmt: skip
+    line = walking_line(points[frames], names)
+    if line is None or len(frames) < rate_hz / STRIDE_HZ[1]:
+        return None
+    return frames, fore_aft(points[frames], names, line)
+
+
+def _piece_out_of_rhythm(points: np.ndarray, names: tuple[str, ...], rate_hz: float, margin_m: float) -> np.ndarray:
+    """:func:`out_of_rhythm` of one piece of a run, points (T, P, 3) NaN where not tracked."""
+    out = np.zeros(len(points), bool)
+    measured = _separation(points, names, rate_hz)
+    if measured is None:
+        return out
+    frames, d = measured
+    t = frames / rate_hz
+    A = _sinusoids(t, stride_frequency(t, d))
+    coef = np.linalg.lstsq(A, d, rcond=None)[0]
+    rhythm = A @ coef
+    apart = np.abs(rhythm) > APART * float(np.hypot(*coef))
+    out[frames] = apart & (d * np.sign(rhythm) < -margin_m)
+    return out
+
+
+def out_of_rhythm(points: np.ndarray, names: tuple[str, ...], tracked: np.ndarray, rate_hz: float,
+                  margin_m: float) -> np.ndarray:  # fmt: skip
+    """(T,) bool: the tracked frames (``tracked`` (T,) bool) of points (T, P, 3) sampled at
+    ``rate_hz`` whose ankles' fore-aft order goes against the stride's rhythm by more than
+    ``margin_m`` (metres): legs possibly exchanged fore and aft (see the module docstring). The run
+    is cut into pieces of about :data:`RHYTHM_STRIDES` strides at the whole run's stride
+    frequency, each judged on its own; a run without a walking line or shorter than one stride is
+    never out of it."""
+    if rate_hz <= 0:
+        raise ValueError(f"rate_hz must be > 0, got {rate_hz}")
+    if tracked.shape != (len(points),):
+        raise ValueError(f"tracked must have shape ({len(points)},), got {tracked.shape}")
+    pts = np.where(tracked[:, None, None], points, np.nan)
+    measured = _separation(pts, names, rate_hz)
+    if measured is None:
+        return np.zeros(len(points), bool)
+    stride = rate_hz / stride_frequency(measured[0] / rate_hz, measured[1])  # frames
+    n_pieces = max(1, int(len(points) // (RHYTHM_STRIDES * stride)))
+    return np.concatenate([_piece_out_of_rhythm(pts[idx], names, rate_hz, margin_m)
+                           for idx in np.array_split(np.arange(len(points)), n_pieces)])  # fmt: skip
+
+
 def _image_heights(points: np.ndarray, rig: CameraRig | None) -> dict[str, float]:
     if rig is None or not len(points):
         return {}
@@ -214,10 +325,12 @@ def _image_heights(points: np.ndarray, rig: CameraRig | None) -> dict[str, float
 
 
 def run_signals(points: np.ndarray, names: tuple[str, ...], quality: np.ndarray, height_m: float,
-                rig: CameraRig | None = None, crossed_margin_m: float = 0.0) -> RunSignals:  # fmt: skip
+                rig: CameraRig | None = None, crossed_margin_m: float = 0.0, *, rate_hz: float,
+                exchanged_margin_m: float = 0.03) -> RunSignals:  # fmt: skip
     """The run-level signals (see the module docstring) of the tracker's raw points (T, P, 3)
-    (``points_unfiltered``), per-frame quality (T,) and the subject's height (metres); the image
-    heights need the cameras ``rig``; ankles count as crossed beyond ``crossed_margin_m`` (metres)."""
+    (``points_unfiltered``) sampled at ``rate_hz``, per-frame quality (T,) and the subject's height
+    (metres); the image heights need the cameras ``rig``; ankles count as crossed beyond
+    ``crossed_margin_m`` and out of the stride's rhythm beyond ``exchanged_margin_m`` (metres)."""
     points, quality = np.asarray(points, float), np.asarray(quality)
     _check_shapes(points, names, quality)
     tracked = (quality == QUALITY_OK) | (quality == QUALITY_POOR_FIT)
@@ -228,12 +341,14 @@ def run_signals(points: np.ndarray, names: tuple[str, ...], quality: np.ndarray,
         n_crossed=int(crossed.sum()), floor_m=_floor_height(pts, names),
         segment_ratios=_segment_ratios(pts, names, height_m), image_height_px=_image_heights(pts, rig),
         crossed=crossed, view_angles_deg=view_angles(pts, names, rig),
+        exchanged=out_of_rhythm(points, names, tracked, rate_hz, exchanged_margin_m),
     )  # fmt: skip
 
 
 def judge(signals: RunSignals, cfg: VerdictConfig) -> RunVerdict:
     """The verdict of a run from its signals: ``failed`` when too few frames fit
-    (``cfg.min_ok_fraction``), else ``doubtful`` when any check fails, else ``ok``."""
+    (``cfg.min_ok_fraction``), else ``doubtful`` when any check fails, else ``ok``; with the
+    camera layout's note, which leaves the verdict as it is (:func:`_layout_notes`)."""
     s, n = signals, signals.n_frames
     if s.n_ok < cfg.min_ok_fraction * n or s.n_ok == 0:
         count = f"only {s.n_ok} of {n} frames fit" if s.n_ok else f"none of the {n} frames fits"
@@ -243,6 +358,9 @@ def judge(signals: RunSignals, cfg: VerdictConfig) -> RunVerdict:
         reasons.append(f"a poor fit for {n - s.n_ok} of {n} frames")
     if s.n_tracked and s.crossed_fraction >= cfg.max_crossed_fraction:
         reasons.append(f"the ankles cross in {s.n_crossed} of {s.n_tracked} frames: a suspected leg swap")
+    if s.n_exchanged >= cfg.min_exchanged_frames:
+        reasons.append(f"legs possibly exchanged fore and aft in {s.n_exchanged} frames: there the ankles' fore-aft "
+                       "order goes against the stride's rhythm")  # fmt: skip
     if np.isfinite(s.floor_m) and abs(s.floor_m) > cfg.max_floor_offset_m:
         where = "above" if s.floor_m > 0 else "below"
         reasons.append(f"the feet stay {100 * abs(s.floor_m):.0f} cm {where} the floor: the model is not standing "
@@ -259,13 +377,21 @@ def judge(signals: RunSignals, cfg: VerdictConfig) -> RunVerdict:
     if small:
         listed = ", ".join(f"{v:.0f} px in {k}" for k, v in small.items())
         reasons.append(f"the subject is too small in the image ({listed})")
+    return RunVerdict("doubtful" if reasons else "ok", tuple(reasons), _layout_notes(s, cfg))
+
+
+def _layout_notes(s: RunSignals, cfg: VerdictConfig) -> tuple[str, ...]:
+    """A note (not a reason) when no camera is ``cfg.min_oblique_deg`` or more from both the walking
+    line and its perpendicular: which leg is ahead is then ambiguous to the tracker, but the legs'
+    fore-aft rhythm (a reason of its own) tells whether it got them wrong."""
     angles = s.view_angles_deg
-    if angles and not any(cfg.min_oblique_deg <= a <= 90.0 - cfg.min_oblique_deg for a in angles.values()):
-        listed = ", ".join(f"{k} {v:.0f}" for k, v in angles.items())
-        reasons.append(f"no camera views the walk obliquely (degrees between each line of sight and the walking line: "
-                       f"{listed}): from beside and in line with the walkway only, which leg is ahead is ambiguous "
-                       "and the legs may be swapped")  # fmt: skip
-    return RunVerdict("doubtful" if reasons else "ok", tuple(reasons))
+    if not angles or any(cfg.min_oblique_deg <= a <= 90.0 - cfg.min_oblique_deg for a in angles.values()):
+        return ()
+    listed = ", ".join(f"{k} {v:.0f}" for k, v in angles.items())
+    note = (f"no camera views the walk obliquely (degrees between each line of sight and the walking line: {listed}): "
+            "from beside and in line with the walkway only, which leg is ahead is ambiguous; check the legs where "
+            "they pass each other")  # fmt: skip
+    return (note,)
 
 
 def point_residuals(points: np.ndarray, rate_hz: float, cutoff_hz: float) -> np.ndarray:
@@ -312,7 +438,8 @@ def assess(points: np.ndarray, names: tuple[str, ...], fit: np.ndarray, quality:
     """Signals, verdict and calibrated uncertainty of one run from the tracker's raw points
     (T, P, 3), fit (T,) and quality (T,) (``points_unfiltered``, ``fit``, ``quality`` of
     trajectories.h5); ``body_problems``: see :class:`RunSignals`."""
-    signals = replace(run_signals(points, names, quality, height_m, rig, verdict_cfg.crossed_margin_m),
+    signals = replace(run_signals(points, names, quality, height_m, rig, verdict_cfg.crossed_margin_m,
+                                  rate_hz=rate_hz, exchanged_margin_m=verdict_cfg.exchanged_margin_m),
                       body_problems=body_problems)  # fmt: skip
     verdict = judge(signals, verdict_cfg)
     u = calibrated_uncertainty(points, names, fit, signals, rate_hz, uncertainty_cfg)

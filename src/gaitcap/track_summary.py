@@ -8,6 +8,7 @@ folder that the next run redoes.
 {"status": "ok", "n_frames": 56, "n_flagged": 0, "seconds": 12.3, "gaitcap_version": "0.1.0",
  "session": "sessions/walk01", "message": "",
  "verdict": "doubtful", "verdict_reasons": ["the ankles cross in 14 of 56 frames: a suspected leg swap"],
+ "verdict_notes": [],
  "stages_s": {"setup": 0.2, "kernels": 0.1, "first_frames": 1.1, "initialisation": 0.9, "shape": 5.7,
               "tracking": 3.6, "writing": 0.3},
  "body": {"height_m": 1.7, "height_source": "session.yaml", "shape": "pelvis_height x0.960, ...",
@@ -16,8 +17,10 @@ folder that the next run redoes.
 
 :class:`TrackSummary` is the contract between ``gaitcap.pipeline.run_track`` (one session) and
 ``gaitcap.batch`` (many); the pipeline may re-export it. ``verdict`` (``ok``, ``doubtful`` or
-``failed``) and ``verdict_reasons`` say whether the result can be trusted (gaitcap.quality); a run
-without them (failed before tracking, or written by an older version) has no verdict.
+``failed``) and ``verdict_reasons`` say whether the result can be trusted (gaitcap.quality);
+``verdict_notes`` name what makes an error more likely without being one (a camera layout that
+leaves which leg is ahead ambiguous). A run without them (failed before tracking, or written by an
+older version) has no verdict.
 """
 
 from __future__ import annotations
@@ -58,6 +61,8 @@ class TrackSummary:
             empty when not measured): see ``gaitcap.pipeline.Stages``.
         verdict: ``"ok"``, ``"doubtful"`` or ``"failed"`` (gaitcap.quality.judge); None: not judged.
         verdict_reasons: short sentences naming what was wrong.
+        verdict_notes: short sentences naming what makes an error more likely (not counted in the
+            verdict).
         body: the tracked body: height, how it was obtained, the shape calibration's note and the
             model's segment lengths (``gaitcap.body.measures``); empty for a failed run.
     """
@@ -72,6 +77,7 @@ class TrackSummary:
     stages: dict[str, float] = field(default_factory=dict)
     verdict: str | None = None
     verdict_reasons: list[str] = field(default_factory=list)
+    verdict_notes: list[str] = field(default_factory=list)
     body: dict[str, Any] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
@@ -84,10 +90,14 @@ class TrackSummary:
             "gaitcap_version": __version__,
             "session": str(self.session),
             "message": self.message,
-            **({"verdict": self.verdict, "verdict_reasons": list(self.verdict_reasons)} if self.verdict else {}),
+            **(self._verdict() if self.verdict else {}),
             **({"stages_s": {k: round(float(v), 3) for k, v in self.stages.items()}} if self.stages else {}),
             **({"body": self.body} if self.body else {}),
         }
+
+    def _verdict(self) -> dict[str, Any]:
+        return {"verdict": self.verdict, "verdict_reasons": list(self.verdict_reasons),
+                "verdict_notes": list(self.verdict_notes)}  # fmt: skip
 
 
 @dataclass(frozen=True)

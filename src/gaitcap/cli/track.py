@@ -66,6 +66,9 @@ def command(ctx: click.Context, source: Path, out: Path, tracker: str | None, co
         elif not quiet:
             click.echo(verdict)
         if not quiet:
+            for note in summary.verdict_notes:
+                click.echo(f"note: {note}")
+        if not quiet:
             click.echo(f"results: {out}")
         return
     summaries = run_batch(find_sessions(source), out, jobs=jobs, force=force, scheduler=scheduler, **kwargs)

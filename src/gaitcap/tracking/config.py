@@ -86,6 +86,8 @@ class VerdictConfig(Strict):
     max_flagged_fraction: float = Field(default=0.5, ge=0, le=1)
     max_crossed_fraction: float = Field(default=0.1, gt=0, le=1)
     crossed_margin_m: float = Field(default=0.02, ge=0)
+    min_exchanged_frames: int = Field(default=3, ge=1)
+    exchanged_margin_m: float = Field(default=0.03, ge=0)
     max_floor_offset_m: float = Field(default=0.1, gt=0)
     segment_ratio: tuple[float, float] = (0.75, 1.33)
     min_image_height_px: float = Field(default=60.0, ge=0)
