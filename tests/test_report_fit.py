@@ -78,6 +78,16 @@ def test_verdict_is_read_when_present_and_absent_otherwise():
     assert read_verdict({"verdict": "ok"}).line() == "verdict: ok"
 
 
+def test_verdict_notes_reach_the_banner_as_notes():
+    from gaitcap.report.html import verdict_banner
+
+    v = read_verdict({"verdict": "ok", "verdict_reasons": [], "verdict_notes": ["no camera views the walk <obliquely>"]})
+    assert v is not None and v.notes == ("no camera views the walk <obliquely>",) and v.line() == "verdict: ok"
+    banner = verdict_banner(v)
+    assert "Verdict: ok" in banner and "<i>note: no camera views the walk &lt;obliquely&gt;</i>" in banner
+    assert "<li>" not in verdict_banner(read_verdict({"verdict": "ok"}))
+
+
 def test_angle_bands_grow_with_the_uncertainty_and_are_seeded():
     traj = Walker(duration=2.0, rate_hz=50.0).trajectory()
     direction = analyse(traj).direction

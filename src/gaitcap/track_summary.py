@@ -102,10 +102,12 @@ class TrackSummary:
 
 @dataclass(frozen=True)
 class Verdict:
-    """A run's verdict as ``track.json`` records it (``verdict``, ``verdict_reasons``)."""
+    """A run's verdict as ``track.json`` records it (``verdict``, ``verdict_reasons``,
+    ``verdict_notes``: what makes an error more likely without being counted as one)."""
 
     verdict: str
     reasons: tuple[str, ...] = ()
+    notes: tuple[str, ...] = ()
 
     def line(self) -> str:
         """One line for the terminal."""
@@ -116,10 +118,11 @@ def read_verdict(track_json: dict[str, Any] | None) -> Verdict | None:
     """The verdict of a ``track.json`` document, or None when it has none (runs before verdicts)."""
     if not track_json or not track_json.get("verdict"):
         return None
-    reasons = track_json.get("verdict_reasons") or []
-    if isinstance(reasons, str):
-        reasons = [reasons]
-    return Verdict(str(track_json.get("verdict")), tuple(str(r) for r in reasons))
+    def sentences(key: str) -> tuple[str, ...]:
+        value = track_json.get(key) or []
+        return tuple(str(r) for r in ([value] if isinstance(value, str) else value))
+
+    return Verdict(str(track_json.get("verdict")), sentences("verdict_reasons"), sentences("verdict_notes"))
 
 
 def format_verdict(verdict: str | None, reasons: list[str] | tuple[str, ...] = ()) -> str:

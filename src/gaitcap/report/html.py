@@ -79,11 +79,12 @@ class FitView:
 
 
 def verdict_banner(verdict: Verdict) -> str:
-    """The banner at the top: the verdict and its reasons."""
+    """The banner at the top: the verdict, its reasons, and its notes (in italics, as notes)."""
     kind = verdict.verdict if verdict.verdict in VERDICTS else "doubtful"
     text = {"ok": "the tracking looks reliable", "doubtful": "check the fit below before using these results",
             "failed": "the tracking failed: these results must not be used"}.get(verdict.verdict, "")  # fmt: skip
     reasons = "".join(f"<li>{html.escape(r)}</li>" for r in verdict.reasons)
+    reasons += "".join(f"<li><i>note: {html.escape(n)}</i></li>" for n in verdict.notes)
     return (f"<div class='verdict v-{kind}'><b>Verdict: {html.escape(verdict.verdict)}</b>"
             f"{' — ' + text if text else ''}{f'<ul>{reasons}</ul>' if reasons else ''}</div>")  # fmt: skip
 
