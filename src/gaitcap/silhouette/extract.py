@@ -140,6 +140,11 @@ def _body_components(stats: np.ndarray, min_area: float, relative: float, margin
     return np.flatnonzero((main | near) & (area >= min_area))
 
 
+def _channel_sum(image: np.ndarray) -> np.ndarray:
+    """(h, w) float32 sum of the channels of an (h, w, 3) float32 image."""
+    return cv2.transform(image, np.ones((1, 3), np.float32))
+
+
 def _connected_to(weak: np.ndarray, seeds: np.ndarray, open_kernel: np.ndarray | None) -> np.ndarray:
     """(h, w) uint8 0/255: the 8-connected components of ``weak`` that hold a seed pixel.
 
@@ -161,7 +166,7 @@ def _connected_to(weak: np.ndarray, seeds: np.ndarray, open_kernel: np.ndarray |
     hit = np.zeros(n, np.uint8)
     hit[labels[seed > 0]] = 255
     hit[0] = 0
-    return hit[labels]
+    return np.take(hit, labels)
 
 
 def _disk(radius: int) -> np.ndarray:
@@ -319,13 +324,14 @@ class SilhouetteExtractor:
         h = self.config.foreground.hysteresis
         weak = strength > np.float32(h * h) if h < 1 else candidate
         colour_only = np.zeros_like(weak) if plain2 is d2 else weak & (plain2 <= np.float32(h * h) * self._thr2)
+        si, sb = _channel_sum(img), _channel_sum(bg)
         if self.config.foreground.texture_ncc > -1:
-            weak = weak | self._texture_changed(img, bg, candidate)
+            weak = weak | self._texture_changed(si, sb, candidate)
         if self.config.shadow.enabled:
-            shadow, deep = self._shadow(img, bg, weak)
+            shadow, deep = self._shadow(img, bg, si, sb, weak)
         else:
             shadow, deep = np.zeros_like(candidate), np.zeros_like(candidate)
-        darkening = candidate | self._darker(img, bg, plain2)
+        darkening = candidate | self._darker(si, sb, plain2)
         return FrameEvidence(img, gain, candidate, weak, strength, colour_only, shadow, deep, darkening)
 
     def finish(self, evidence: FrameEvidence, shadow: np.ndarray) -> tuple[np.ndarray, FrameQuality]:
@@ -367,7 +373,21 @@ class SilhouetteExtractor:
         return mask, self._soft(evidence.strength, mask_small, mask), quality
 
     def _soft(self, strength: np.ndarray, mask_small: np.ndarray, mask: np.ndarray) -> np.ndarray:
-        """(H, W) float32 soft silhouette of :meth:`finish_soft` from the working-scale strength."""
+        """(H, W) float32 soft silhouette of :meth:`finish_soft` from the working-scale strength
+        (h, w) float32, the working-scale mask (h, w) uint8 0/255 and the full-resolution one (H, W)
+        uint8 0/1. At full resolution it is computed in the mask's bounding box only (0 elsewhere)."""
+        if (mask_small.shape[1], mask_small.shape[0]) == self._full_size:
+            soft = np.zeros(mask.shape, np.float32)
+            x, y, w, h = cv2.boundingRect(mask_small)
+            if w and h:
+                box = np.s_[y : y + h, x : x + w]
+                soft[box] = self._soft_at_scale(strength[box], mask_small[box], mask[box])
+            return soft
+        return self._soft_at_scale(strength, mask_small, mask)
+
+    def _soft_at_scale(self, strength: np.ndarray, mask_small: np.ndarray, mask: np.ndarray) -> np.ndarray:
+        """:meth:`_soft` over whole arrays: (h, w) ``strength`` and ``mask_small`` -> (H, W), resized to
+        the size of ``mask`` (H, W) when it differs."""
         h = self.config.foreground.hysteresis
         if h < 1:
             conf = (cv2.sqrt(strength) - np.float32(h)) * np.float32(1.0 / (1.0 - h))
@@ -376,9 +396,8 @@ class SilhouetteExtractor:
         np.clip(conf, 0.0, 1.0, out=conf)
         m = np.float32(self.config.foreground.soft_min)
         soft = (m + (np.float32(1.0) - m) * conf) * (mask_small > 0)
-        full = self._full_size
-        if full is not None and (soft.shape[1], soft.shape[0]) != full:
-            soft = cv2.resize(soft, full, interpolation=cv2.INTER_LINEAR)
+        if soft.shape != mask.shape:
+            soft = cv2.resize(soft, (mask.shape[1], mask.shape[0]), interpolation=cv2.INTER_LINEAR)
         return soft * mask
 
     @property
@@ -430,19 +449,20 @@ class SilhouetteExtractor:
             ring = cv2.subtract(raw, cv2.erode(raw, self._ring_k))
             raw[(ring > 0) & colour_only] = 0
 
-    def _darker(self, img: np.ndarray, bg: np.ndarray, d2: np.ndarray) -> np.ndarray:
+    def _darker(self, si: np.ndarray, sb: np.ndarray, d2: np.ndarray) -> np.ndarray:
         """(h, w) bool: darker than the background (brightness ratio below ``shadow.max_ratio``) by
         at least half the weakest foreground (``hysteresis`` times the threshold), whether or not the
-        difference passes it."""
-        ones = np.ones((1, 3), np.float32)
-        darker = cv2.transform(img, ones) < np.float32(self.config.shadow.max_ratio) * cv2.transform(bg, ones)
+        difference passes it. ``si``, ``sb``: (h, w) channel sums of the frame and the background."""
+        darker = si < np.float32(self.config.shadow.max_ratio) * sb
         half = 0.5 * self.config.foreground.hysteresis
         return darker & (d2 > np.float32(half * half) * self._thr2)
 
-    def _shadow(self, img: np.ndarray, bg: np.ndarray, candidate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _shadow(self, img: np.ndarray, bg: np.ndarray, si_full: np.ndarray, sb_full: np.ndarray,
+                candidate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
         """Candidate pixels explained as cast shadow on the background: (h, w) bool each, those in
         ``[min_ratio, max_ratio]`` and the deep ones in ``[floor_min_ratio, min_ratio)`` (a shadow
-        only if the floor check confirms it).
+        only if the floor check confirms it). ``img``, ``bg``: (h, w, 3) frame and background;
+        ``si_full``, ``sb_full``: (h, w) their channel sums.
 
         Computed inside the bounding box of the candidates (plus the texture window) only.
         """
@@ -455,66 +475,73 @@ class SilhouetteExtractor:
         m = s.texture_window
         y0, y1 = max(0, y - m), min(candidate.shape[0], y + h + m)
         x0, x1 = max(0, x - m), min(candidate.shape[1], x + w + m)
-        img_r, bg_r, cand_r = img[y0:y1, x0:x1], bg[y0:y1, x0:x1], candidate[y0:y1, x0:x1]
-        ones = np.ones((1, 3), np.float32)
-        si = cv2.transform(img_r, ones) + np.float32(1.0)  # sum of channels
-        sb = cv2.transform(bg_r, ones) + np.float32(1.0)
+        si = si_full[y0:y1, x0:x1] + np.float32(1.0)  # sum of channels
+        sb = sb_full[y0:y1, x0:x1] + np.float32(1.0)
         ratio = si / sb
         lowest = s.floor_min_ratio if s.floor_check else s.min_ratio
-        darker = cand_r & (ratio >= lowest) & (ratio <= s.max_ratio)
-        # chromaticity only where it matters (candidate pixels in the brightness range)
-        ys, xs = np.nonzero(darker)
-        chroma = np.abs(img_r[ys, xs] / si[ys, xs, None] - bg_r[ys, xs] / sb[ys, xs, None]).max(axis=1)
-        same_colour = np.zeros_like(darker)
-        same_colour[ys, xs] = chroma <= s.max_chroma
-        found = darker & same_colour & self._same_texture(si, sb)
+        darker = candidate[y0:y1, x0:x1] & (ratio >= lowest) & (ratio <= s.max_ratio)
+        # chromaticity, then texture, only where they matter (candidate pixels in the brightness range)
+        at = np.flatnonzero(darker)  # flat indices into the box
+        rows, cols = np.divmod(at, x1 - x0)
+        pixel = (rows + y0) * candidate.shape[1] + cols + x0  # the same pixels, flat indices into the image
+        si_at, sb_at = si.ravel()[at, None], sb.ravel()[at, None]
+        chroma = np.abs(img.reshape(-1, 3)[pixel] / si_at - bg.reshape(-1, 3)[pixel] / sb_at).max(axis=1)
+        at = at[chroma <= s.max_chroma]
+        found = np.zeros_like(darker)
+        found.ravel()[at[self._same_texture(si, sb, at)]] = True
         is_deep = ratio < s.min_ratio
         shadow[y0:y1, x0:x1] = found & ~is_deep
         deep[y0:y1, x0:x1] = found & is_deep
         return shadow, deep
 
-    def _texture_changed(self, img: np.ndarray, bg: np.ndarray, candidate: np.ndarray) -> np.ndarray:
+    def _texture_changed(self, si: np.ndarray, sb: np.ndarray, candidate: np.ndarray) -> np.ndarray:
         """(h, w) bool: the background is textured there and the frame no longer shows its texture
         (local correlation below ``foreground.texture_ncc``): something stands in front of it. Eroded
         by half the window: a window that straddles the person's outline changes too. Tested only in
-        the box of the candidates grown by half its height (the rest cannot join the body)."""
+        the box of the candidates grown by half its height (the rest cannot join the body).
+        ``si``, ``sb``: (h, w) channel sums of the frame and the background."""
         changed = np.zeros_like(candidate)
         x, y, w, h = cv2.boundingRect(candidate.view(np.uint8))
         if w == 0 or h == 0:
             return changed
         g = h // 2
         box = np.s_[max(0, y - g) : y + h + g, max(0, x - g) : x + w + g]
-        ones = np.ones((1, 3), np.float32)
-        ncc, flat = self._texture_ncc(cv2.transform(img[box], ones), cv2.transform(bg[box], ones), min_var=1.0)
+        ncc, flat = self._texture_ncc(si[box], sb[box], min_var=1.0)
         inside = (~flat & (ncc < np.float32(self.config.foreground.texture_ncc))).view(np.uint8)
         k = self.config.shadow.texture_window
         changed[box] = cv2.erode(inside, np.ones((k, k), np.uint8)).view(bool)
         return changed
 
-    def _texture_ncc(self, si: np.ndarray, sb: np.ndarray, min_var: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    def _texture_ncc(self, si: np.ndarray, sb: np.ndarray, min_var: float = 0.0,
+                     at: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
         """Local normalised cross-correlation of channel sums (h, w) float32 over a box window, and
         (h, w) bool where the background is flat (local std below ``texture_min_std``: no texture to test).
         ``min_var`` floors the frame's local variance (a flat patch then correlates with nothing,
-        instead of rounding errors over zero)."""
+        instead of rounding errors over zero). With ``at``, (n,) flat indices into (h, w), both are
+        (n,) arrays at those pixels only."""
         s = self.config.shadow
         k = (s.texture_window, s.texture_window)
-        mi, mb = cv2.blur(si, k), cv2.blur(sb, k)
-        vi = cv2.blur(si * si, k) - mi * mi
+        sums = [cv2.blur(si, k), cv2.blur(sb, k), cv2.blur(si * si, k), cv2.blur(sb * sb, k), cv2.blur(si * sb, k)]
+        if at is not None:
+            sums = [a.ravel()[at] for a in sums]
+        mi, mb, sii, sbb, sib = sums
+        vi = sii - mi * mi
         if min_var > 0:
             vi = np.maximum(vi, np.float32(min_var))
-        vb = cv2.blur(sb * sb, k) - mb * mb
-        cov = cv2.blur(si * sb, k) - mi * mb
+        vb = sbb - mb * mb
+        cov = sib - mi * mb
         ncc = cov / np.sqrt(np.maximum(vi * vb, 1e-6))
         flat = vb < (3.0 * s.texture_min_std) ** 2  # channel sums: 3x the grey-level std
         return ncc, flat
 
-    def _same_texture(self, si: np.ndarray, sb: np.ndarray) -> np.ndarray:
-        """(h, w) bool: the frame keeps the background's local texture (or there is none).
+    def _same_texture(self, si: np.ndarray, sb: np.ndarray, at: np.ndarray) -> np.ndarray:
+        """(n,) bool: the frame keeps the background's local texture (or there is none) at the
+        pixels of flat indices ``at`` (n,) into the (h, w) channel sums ``si``, ``sb``.
 
         Normalised cross-correlation of channel sums over a box window; where the background
         is flat (local std below ``texture_min_std``) the test cannot tell and passes.
         """
-        ncc, flat = self._texture_ncc(si, sb)
+        ncc, flat = self._texture_ncc(si, sb, at=at)
         return flat | (ncc >= self.config.shadow.min_ncc)
 
     def _clean(self, raw: np.ndarray) -> tuple[np.ndarray, int]:
@@ -531,7 +558,7 @@ class SilhouetteExtractor:
         keep = _body_components(stats[1:], c.min_component_fraction * mask.size, c.keep_relative, c.keep_margin) + 1
         lut = np.zeros(n, np.uint8)
         lut[keep] = 255
-        mask = lut[labels]
+        mask = np.take(lut, labels)
         if c.max_hole_fraction > 0:
             mask = self._fill_holes(mask, c.max_hole_fraction)
         return mask, int(keep.size)
