@@ -216,6 +216,8 @@ class SilhouetteExtractor:
         self.name = name
         self._bg: np.ndarray | None = None  # (h, w, 3) float32 working scale
         self._thr2: np.ndarray | None = None  # (h, w) float32 squared threshold
+        self._weak2: np.ndarray | None = None  # (h, w) float32 squared weak level (hysteresis x threshold)
+        self._half_weak2: np.ndarray | None = None  # (h, w) float32 squared half weak level
         self._full_size: tuple[int, int] | None = None  # (W, H)
         self._work_size: tuple[int, int] | None = None  # (w, h)
         self.report: BackgroundReport | None = None
@@ -267,13 +269,24 @@ class SilhouetteExtractor:
     def _set_background(self, bg: Background) -> None:
         self._bg = bg.image.copy()
         self.report = bg.report
-        self._thr2 = None if bg.noise is None else self._threshold2(bg.noise)
+        self._set_threshold2(None if bg.noise is None else self._threshold2(bg.noise))
         self._count = 0
 
     def _threshold2(self, noise: np.ndarray) -> np.ndarray:
         f = self.config.foreground
         thr = np.maximum(f.threshold_sigma * noise, np.float32(f.min_diff)).astype(np.float32)
         return thr * thr
+
+    def _set_threshold2(self, thr2: np.ndarray | None) -> None:
+        """Keep the (h, w) float32 squared threshold and the squared levels derived from it."""
+        self._thr2 = thr2
+        if thr2 is None:
+            self._weak2 = self._half_weak2 = None
+            return
+        h = self.config.foreground.hysteresis
+        half = 0.5 * h
+        self._weak2 = np.float32(h * h) * thr2
+        self._half_weak2 = np.float32(half * half) * thr2
 
     @property
     def background(self) -> np.ndarray:
@@ -317,13 +330,13 @@ class SilhouetteExtractor:
         bg = cv2.multiply(self._bg, _scalar(gain))
         if self._thr2 is None:  # plate without samples: one global noise level from this frame
             g = gain if self.config.background.gain_compensation else global_gain(img, self._bg)
-            self._thr2 = self._threshold2(self._global_noise(img, self._bg * g.reshape(1, 1, 3)))
+            self._set_threshold2(self._threshold2(self._global_noise(img, self._bg * g.reshape(1, 1, 3))))
         d2, plain2 = self._diff2(img, bg)
         strength = cv2.divide(d2, self._thr2)
         candidate = strength > 1.0
         h = self.config.foreground.hysteresis
         weak = strength > np.float32(h * h) if h < 1 else candidate
-        colour_only = np.zeros_like(weak) if plain2 is d2 else weak & (plain2 <= np.float32(h * h) * self._thr2)
+        colour_only = np.zeros_like(weak) if plain2 is d2 else weak & (plain2 <= self._weak2)
         si, sb = _channel_sum(img), _channel_sum(bg)
         if self.config.foreground.texture_ncc > -1:
             weak = weak | self._texture_changed(si, sb, candidate)
@@ -454,8 +467,7 @@ class SilhouetteExtractor:
         at least half the weakest foreground (``hysteresis`` times the threshold), whether or not the
         difference passes it. ``si``, ``sb``: (h, w) channel sums of the frame and the background."""
         darker = si < np.float32(self.config.shadow.max_ratio) * sb
-        half = 0.5 * self.config.foreground.hysteresis
-        return darker & (d2 > np.float32(half * half) * self._thr2)
+        return darker & (d2 > self._half_weak2)
 
     def _shadow(self, img: np.ndarray, bg: np.ndarray, si_full: np.ndarray, sb_full: np.ndarray,
                 candidate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
@@ -498,41 +510,44 @@ class SilhouetteExtractor:
         """(h, w) bool: the background is textured there and the frame no longer shows its texture
         (local correlation below ``foreground.texture_ncc``): something stands in front of it. Eroded
         by half the window: a window that straddles the person's outline changes too. Tested only in
-        the box of the candidates grown by half its height (the rest cannot join the body).
-        ``si``, ``sb``: (h, w) channel sums of the frame and the background."""
+        the box of the candidates grown by half its height (the rest cannot join the body), and there
+        only where the background is textured. ``si``, ``sb``: (h, w) channel sums of the frame and
+        the background."""
         changed = np.zeros_like(candidate)
         x, y, w, h = cv2.boundingRect(candidate.view(np.uint8))
         if w == 0 or h == 0:
             return changed
         g = h // 2
         box = np.s_[max(0, y - g) : y + h + g, max(0, x - g) : x + w + g]
-        ncc, flat = self._texture_ncc(si[box], sb[box], min_var=1.0)
-        inside = (~flat & (ncc < np.float32(self.config.foreground.texture_ncc))).view(np.uint8)
+        si, sb = si[box], sb[box]
         k = self.config.shadow.texture_window
+        mb = cv2.blur(sb, (k, k))
+        vb = cv2.blur(sb * sb, (k, k)) - mb * mb
+        at = np.flatnonzero(~self._flat(vb))
+        ncc = self._texture_ncc(si, sb, at, mb.ravel()[at], vb.ravel()[at], min_var=1.0)
+        inside = np.zeros(vb.shape, np.uint8)
+        inside.ravel()[at[ncc < np.float32(self.config.foreground.texture_ncc)]] = 1
         changed[box] = cv2.erode(inside, np.ones((k, k), np.uint8)).view(bool)
         return changed
 
-    def _texture_ncc(self, si: np.ndarray, sb: np.ndarray, min_var: float = 0.0,
-                     at: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
-        """Local normalised cross-correlation of channel sums (h, w) float32 over a box window, and
-        (h, w) bool where the background is flat (local std below ``texture_min_std``: no texture to test).
-        ``min_var`` floors the frame's local variance (a flat patch then correlates with nothing,
-        instead of rounding errors over zero). With ``at``, (n,) flat indices into (h, w), both are
-        (n,) arrays at those pixels only."""
-        s = self.config.shadow
-        k = (s.texture_window, s.texture_window)
-        sums = [cv2.blur(si, k), cv2.blur(sb, k), cv2.blur(si * si, k), cv2.blur(sb * sb, k), cv2.blur(si * sb, k)]
-        if at is not None:
-            sums = [a.ravel()[at] for a in sums]
-        mi, mb, sii, sbb, sib = sums
-        vi = sii - mi * mi
+    def _flat(self, vb: np.ndarray) -> np.ndarray:
+        """Where the background is flat (local std below ``texture_min_std``: no texture to test), from
+        the local variance ``vb`` of its channel sums (any shape) -> bool of that shape."""
+        return vb < (3.0 * self.config.shadow.texture_min_std) ** 2  # channel sums: 3x the grey-level std
+
+    def _texture_ncc(self, si: np.ndarray, sb: np.ndarray, at: np.ndarray, mb: np.ndarray, vb: np.ndarray,
+                     min_var: float = 0.0) -> np.ndarray:  # fmt: skip
+        """(n,) local normalised cross-correlation of the channel sums ``si``, ``sb`` (h, w) float32
+        over a box window, at the pixels of flat indices ``at`` (n,), given there the background's
+        local mean ``mb`` (n,) and variance ``vb`` (n,). ``min_var`` floors the frame's local variance
+        (a flat patch then correlates with nothing, instead of rounding errors over zero)."""
+        k = (self.config.shadow.texture_window,) * 2
+        mi = cv2.blur(si, k).ravel()[at]
+        vi = cv2.blur(si * si, k).ravel()[at] - mi * mi
         if min_var > 0:
             vi = np.maximum(vi, np.float32(min_var))
-        vb = sbb - mb * mb
-        cov = sib - mi * mb
-        ncc = cov / np.sqrt(np.maximum(vi * vb, 1e-6))
-        flat = vb < (3.0 * s.texture_min_std) ** 2  # channel sums: 3x the grey-level std
-        return ncc, flat
+        cov = cv2.blur(si * sb, k).ravel()[at] - mi * mb
+        return cov / np.sqrt(np.maximum(vi * vb, 1e-6))
 
     def _same_texture(self, si: np.ndarray, sb: np.ndarray, at: np.ndarray) -> np.ndarray:
         """(n,) bool: the frame keeps the background's local texture (or there is none) at the
@@ -541,8 +556,14 @@ class SilhouetteExtractor:
         Normalised cross-correlation of channel sums over a box window; where the background
         is flat (local std below ``texture_min_std``) the test cannot tell and passes.
         """
-        ncc, flat = self._texture_ncc(si, sb, at=at)
-        return flat | (ncc >= self.config.shadow.min_ncc)
+        k = (self.config.shadow.texture_window,) * 2
+        mb = cv2.blur(sb, k).ravel()[at]
+        vb = cv2.blur(sb * sb, k).ravel()[at] - mb * mb
+        flat = self._flat(vb)
+        same = flat.copy()
+        textured = ~flat
+        same[textured] = self._texture_ncc(si, sb, at[textured], mb[textured], vb[textured]) >= self.config.shadow.min_ncc
+        return same
 
     def _clean(self, raw: np.ndarray) -> tuple[np.ndarray, int]:
         """Morphology, component selection and hole filling; (h, w) uint8 0/255 -> same, count."""
