@@ -75,6 +75,17 @@ def _check_stack(frames: np.ndarray, what: str) -> np.ndarray:
     return frames
 
 
+def _median(x: np.ndarray) -> np.floating:
+    """``np.median`` of a 1-D array without NaN, equal to it bit for bit, from one partition: of an
+    even count, numpy partitions at both middle ranks (and checks the end for NaN), three times the
+    work of one partition and the maximum of the lower half."""
+    k = x.size // 2
+    part = np.partition(x, k)
+    if x.size % 2:
+        return part[k]
+    return np.mean(np.array([part[:k].max(), part[k]], dtype=x.dtype))
+
+
 def global_gain(frame: np.ndarray, background: np.ndarray, stride: int = 4) -> np.ndarray:
     """Per-channel global brightness ratio frame / background (robust: a median over pixels).
 
@@ -87,7 +98,7 @@ def global_gain(frame: np.ndarray, background: np.ndarray, stride: int = 4) -> n
     for c in range(3):
         ok = b[:, c] > 16.0
         if ok.sum() > 100:
-            gains[c] = np.median(f[ok, c] / b[ok, c])
+            gains[c] = _median(f[ok, c] / b[ok, c])
     return gains
 
 
