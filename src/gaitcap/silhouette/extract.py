@@ -145,6 +145,13 @@ def _channel_sum(image: np.ndarray) -> np.ndarray:
     return cv2.transform(image, np.ones((1, 3), np.float32))
 
 
+def _label_type(mask: np.ndarray) -> int:
+    """Label type for the connected components of ``mask`` (h, w) uint8: 16-bit labels when they fit
+    (each component holds a pixel: fewer than 2^16 - 1 pixels set), else 32-bit. The labels and
+    statistics are the same; OpenCV computes them with statistics three times faster in 16 bits."""
+    return cv2.CV_16U if cv2.countNonZero(mask) < 2**16 - 1 else cv2.CV_32S
+
+
 def _connected_to(weak: np.ndarray, seeds: np.ndarray, open_kernel: np.ndarray | None) -> np.ndarray:
     """(h, w) uint8 0/255: the 8-connected components of ``weak`` that hold a seed pixel.
 
@@ -162,7 +169,8 @@ def _connected_to(weak: np.ndarray, seeds: np.ndarray, open_kernel: np.ndarray |
     weak = weak.view(np.uint8)
     if open_kernel is not None:  # no thin rings or bridges of weak pixels
         weak = cv2.morphologyEx(weak, cv2.MORPH_OPEN, open_kernel)
-    n, labels = cv2.connectedComponents(weak | seed, connectivity=8)
+    both = weak | seed
+    n, labels = cv2.connectedComponents(both, connectivity=8, ltype=_label_type(both))
     hit = np.zeros(n, np.uint8)
     hit[labels[seed > 0]] = 255
     hit[0] = 0
@@ -574,7 +582,7 @@ class SilhouetteExtractor:
             mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, self._open_k)
         if self._close_k is not None:
             mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, self._close_k)
-        n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+        n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8, ltype=_label_type(mask))
         if n <= 1:
             return np.zeros_like(mask), 0
         keep = _body_components(stats[1:], c.min_component_fraction * mask.size, c.keep_relative, c.keep_margin) + 1
