@@ -387,7 +387,7 @@ class SilhouetteExtractor:
         mask_small, n_comp = self._clean(raw)
         self._adapt(evidence.image, evidence.gain, mask_small, evidence.weak | shadow)
         mask = self._to_full(mask_small)
-        quality = self._quality(mask, float(shadow.mean()), n_comp)
+        quality = self._quality(mask, int(np.count_nonzero(shadow)) / shadow.size, n_comp)  # = shadow.mean(), 10x cheaper
         self._count += 1
         if not soft:
             return mask, None, quality
