@@ -19,7 +19,9 @@ the table gives the medians of:
   and first frames) is shown apart;
 - floor: in this process, the same decoding and silhouettes alone (gaitcap.pipeline's
   observation stream: background fitting, decoding, extraction and preparation of every frame of
-  both cameras, side by side as in a run), and wall / floor.
+  both cameras, side by side as in a run), and wall / floor; floor CPU ms/frame: the process's
+  CPU time over the floor (``time.process_time``, all threads) per frame, a figure that other jobs
+  on the machine disturb far less than wall times.
 """
 
 from __future__ import annotations
@@ -46,16 +48,17 @@ STAGES = {"setup": "setup", "kernels": "kernels", "first_frames": "first frames"
           "shape": "shape", "tracking": "tracking", "verdict": "verdict", "writing": "writing"}  # fmt: skip
 
 
-def floor_seconds(session: Path) -> float:
-    """Wall seconds of the observation stream alone (no tracking) over the whole session."""
+def floor_seconds(session: Path) -> tuple[float, float, int]:
+    """(wall seconds, CPU seconds, frames) of the observation stream alone (no tracking) over the
+    whole session."""
     ses = Session.open(session)
     rig = check_session_videos(ses).rig
     views = tracking_views(rig, load_tracking_config().scale)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     frames = sum(1 for _ in _observations(ses, rig.names, views, SilhouetteConfig.load(), 10**9, Stages()))
     if frames == 0:
         raise SystemExit(f"{session}: no frame decoded")
-    return time.perf_counter() - t0
+    return time.perf_counter() - t0, time.process_time() - c0, frames
 
 
 def measure(session: Path, out: Path, extra: list[str]) -> dict[str, float]:
@@ -65,7 +68,8 @@ def measure(session: Path, out: Path, extra: list[str]) -> dict[str, float]:
     row = {"frames": summary["n_frames"], "wall": wall, "start-up": wall - summary["seconds"]}
     row |= {name: stages.get(key, float("nan")) for key, name in STAGES.items()}
     row["background"] = stages.get("background", float("nan"))
-    row["floor"] = floor_seconds(session)
+    row["floor"], cpu, frames = floor_seconds(session)
+    row["floor CPU ms/frame"] = 1000 * cpu / frames
     return row
 
 
@@ -79,8 +83,8 @@ def main() -> None:
     args = ap.parse_args()
     source = base_session(args.work, args.fps)
     cols = ["wall", "start-up", *STAGES.values(), "background", "floor"]
-    print(f"| clip s | frames | fps | {' | '.join(c + ' s' for c in cols)} | wall / floor |")
-    print("|" + "---|" * (len(cols) + 4))
+    print(f"| clip s | frames | fps | {' | '.join(c + ' s' for c in cols)} | wall / floor | floor CPU ms/frame |")
+    print("|" + "---|" * (len(cols) + 5))
     for seconds in args.seconds:
         n = int(round(seconds * args.fps))
         session = long_session(source, args.work / f"{source.name}-{n}frames", n, args.fps)
@@ -89,9 +93,10 @@ def main() -> None:
             runs.append(measure(session, args.work / f"{session.name}-speed-out", args.extra))
             print(f"<!-- {seconds:g} s, run {k + 1}: wall {runs[-1]['wall']:.1f} s, floor {runs[-1]['floor']:.2f} s -->",
                   flush=True)  # fmt: skip
-        med = {c: statistics.median(r[c] for r in runs) for c in ["frames", *cols]}
+        med = {c: statistics.median(r[c] for r in runs) for c in ["frames", *cols, "floor CPU ms/frame"]}
         print(f"| {seconds:g} | {med['frames']:.0f} | {med['frames'] / med['wall']:.1f} | "
-              + " | ".join(f"{med[c]:.2f}" for c in cols) + f" | {med['wall'] / med['floor']:.0f} |", flush=True)  # fmt: skip
+              + " | ".join(f"{med[c]:.2f}" for c in cols)
+              + f" | {med['wall'] / med['floor']:.0f} | {med['floor CPU ms/frame']:.1f} |", flush=True)  # fmt: skip
 
 
 if __name__ == "__main__":

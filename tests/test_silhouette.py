@@ -11,7 +11,8 @@ from silhouette_scene import grey_body_rig, iou, sway_in_place, walk_across
 from gaitcap.config import model_from_mapping
 from gaitcap.errors import ConfigError, InputError
 from gaitcap.silhouette import SilhouetteConfig, SilhouetteExtractor
-from gaitcap.silhouette.extract import BORDER, EMPTY, NO_BACKGROUND, TOO_LARGE
+from gaitcap.silhouette.background import _channel_mean, _median
+from gaitcap.silhouette.extract import BORDER, EMPTY, NO_BACKGROUND, TOO_LARGE, _label_type
 from gaitcap.camera import Camera
 from gaitcap.silhouette.floor import floor_map, floor_points
 from gaitcap.silhouette.joint import JointExtractor
@@ -382,3 +383,26 @@ def test_a_deep_shadow_is_removed_where_another_camera_confirms_it_on_the_floor(
         assert deep[c][shadow].mean() < 0.05 and deep[c][truth].mean() > 0.9
         assert shallow_only[c][shadow].mean() > 0.5  # too dark for the photometric test
         assert alone[c][shadow].mean() > 0.5  # one camera cannot tell it from dark clothes
+
+
+@pytest.mark.parametrize("shape", [(1,), (2,), (7,), (8,), (31, 5, 4), (30, 6, 3, 3)])
+def test_median_equals_numpys_bit_for_bit(shape):
+    rng = np.random.default_rng(len(shape) * 10 + shape[0])
+    x = (rng.random(shape) * 300).astype(np.float32)
+    x[..., 0] = np.round(x[..., 0])  # ties
+    for axis in [None, *range(x.ndim)]:
+        want, got = np.asarray(np.median(x, axis=axis)), np.asarray(_median(x, axis=axis))
+        assert got.dtype == want.dtype and got.tobytes() == want.tobytes()
+    if shape[-1] == 3:
+        assert _channel_mean(x).tobytes() == x.mean(axis=-1).tobytes()
+
+
+def test_the_16_bit_labels_give_way_to_32_bits_when_they_could_overflow():
+    sparse = np.zeros((300, 400), np.uint8)
+    sparse[::2, ::2] = 1  # 30000 isolated pixels: 30000 components
+    assert _label_type(sparse) == cv2.CV_16U
+    dense = np.zeros((600, 600), np.uint8)
+    dense[::2, ::2] = 1  # 90000 components: more than 16 bits can number
+    assert _label_type(dense) == cv2.CV_32S
+    n, labels = cv2.connectedComponents(dense, connectivity=8, ltype=_label_type(dense))
+    assert n == 90001 and labels.max() == 90000

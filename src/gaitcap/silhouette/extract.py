@@ -140,6 +140,18 @@ def _body_components(stats: np.ndarray, min_area: float, relative: float, margin
     return np.flatnonzero((main | near) & (area >= min_area))
 
 
+def _channel_sum(image: np.ndarray) -> np.ndarray:
+    """(h, w) float32 sum of the channels of an (h, w, 3) float32 image."""
+    return cv2.transform(image, np.ones((1, 3), np.float32))
+
+
+def _label_type(mask: np.ndarray) -> int:
+    """Label type for the connected components of ``mask`` (h, w) uint8: 16-bit labels when they fit
+    (each component holds a pixel: fewer than 2^16 - 1 pixels set), else 32-bit. The labels and
+    statistics are the same; OpenCV computes them with statistics three times faster in 16 bits."""
+    return cv2.CV_16U if cv2.countNonZero(mask) < 2**16 - 1 else cv2.CV_32S
+
+
 def _connected_to(weak: np.ndarray, seeds: np.ndarray, open_kernel: np.ndarray | None) -> np.ndarray:
     """(h, w) uint8 0/255: the 8-connected components of ``weak`` that hold a seed pixel.
 
@@ -157,11 +169,12 @@ def _connected_to(weak: np.ndarray, seeds: np.ndarray, open_kernel: np.ndarray |
     weak = weak.view(np.uint8)
     if open_kernel is not None:  # no thin rings or bridges of weak pixels
         weak = cv2.morphologyEx(weak, cv2.MORPH_OPEN, open_kernel)
-    n, labels = cv2.connectedComponents(weak | seed, connectivity=8)
+    both = weak | seed
+    n, labels = cv2.connectedComponents(both, connectivity=8, ltype=_label_type(both))
     hit = np.zeros(n, np.uint8)
     hit[labels[seed > 0]] = 255
     hit[0] = 0
-    return hit[labels]
+    return np.take(hit, labels)
 
 
 def _disk(radius: int) -> np.ndarray:
@@ -211,6 +224,8 @@ class SilhouetteExtractor:
         self.name = name
         self._bg: np.ndarray | None = None  # (h, w, 3) float32 working scale
         self._thr2: np.ndarray | None = None  # (h, w) float32 squared threshold
+        self._weak2: np.ndarray | None = None  # (h, w) float32 squared weak level (hysteresis x threshold)
+        self._half_weak2: np.ndarray | None = None  # (h, w) float32 squared half weak level
         self._full_size: tuple[int, int] | None = None  # (W, H)
         self._work_size: tuple[int, int] | None = None  # (w, h)
         self.report: BackgroundReport | None = None
@@ -262,13 +277,24 @@ class SilhouetteExtractor:
     def _set_background(self, bg: Background) -> None:
         self._bg = bg.image.copy()
         self.report = bg.report
-        self._thr2 = None if bg.noise is None else self._threshold2(bg.noise)
+        self._set_threshold2(None if bg.noise is None else self._threshold2(bg.noise))
         self._count = 0
 
     def _threshold2(self, noise: np.ndarray) -> np.ndarray:
         f = self.config.foreground
         thr = np.maximum(f.threshold_sigma * noise, np.float32(f.min_diff)).astype(np.float32)
         return thr * thr
+
+    def _set_threshold2(self, thr2: np.ndarray | None) -> None:
+        """Keep the (h, w) float32 squared threshold and the squared levels derived from it."""
+        self._thr2 = thr2
+        if thr2 is None:
+            self._weak2 = self._half_weak2 = None
+            return
+        h = self.config.foreground.hysteresis
+        half = 0.5 * h
+        self._weak2 = np.float32(h * h) * thr2
+        self._half_weak2 = np.float32(half * half) * thr2
 
     @property
     def background(self) -> np.ndarray:
@@ -312,20 +338,21 @@ class SilhouetteExtractor:
         bg = cv2.multiply(self._bg, _scalar(gain))
         if self._thr2 is None:  # plate without samples: one global noise level from this frame
             g = gain if self.config.background.gain_compensation else global_gain(img, self._bg)
-            self._thr2 = self._threshold2(self._global_noise(img, self._bg * g.reshape(1, 1, 3)))
+            self._set_threshold2(self._threshold2(self._global_noise(img, self._bg * g.reshape(1, 1, 3))))
         d2, plain2 = self._diff2(img, bg)
         strength = cv2.divide(d2, self._thr2)
         candidate = strength > 1.0
         h = self.config.foreground.hysteresis
         weak = strength > np.float32(h * h) if h < 1 else candidate
-        colour_only = np.zeros_like(weak) if plain2 is d2 else weak & (plain2 <= np.float32(h * h) * self._thr2)
+        colour_only = np.zeros_like(weak) if plain2 is d2 else weak & (plain2 <= self._weak2)
+        si, sb = _channel_sum(img), _channel_sum(bg)
         if self.config.foreground.texture_ncc > -1:
-            weak = weak | self._texture_changed(img, bg, candidate)
+            weak = weak | self._texture_changed(si, sb, candidate)
         if self.config.shadow.enabled:
-            shadow, deep = self._shadow(img, bg, weak)
+            shadow, deep = self._shadow(img, bg, si, sb, weak)
         else:
             shadow, deep = np.zeros_like(candidate), np.zeros_like(candidate)
-        darkening = candidate | self._darker(img, bg, plain2)
+        darkening = candidate | self._darker(si, sb, plain2)
         return FrameEvidence(img, gain, candidate, weak, strength, colour_only, shadow, deep, darkening)
 
     def finish(self, evidence: FrameEvidence, shadow: np.ndarray) -> tuple[np.ndarray, FrameQuality]:
@@ -360,14 +387,28 @@ class SilhouetteExtractor:
         mask_small, n_comp = self._clean(raw)
         self._adapt(evidence.image, evidence.gain, mask_small, evidence.weak | shadow)
         mask = self._to_full(mask_small)
-        quality = self._quality(mask, float(shadow.mean()), n_comp)
+        quality = self._quality(mask, int(np.count_nonzero(shadow)) / shadow.size, n_comp)  # = shadow.mean(), 10x cheaper
         self._count += 1
         if not soft:
             return mask, None, quality
         return mask, self._soft(evidence.strength, mask_small, mask), quality
 
     def _soft(self, strength: np.ndarray, mask_small: np.ndarray, mask: np.ndarray) -> np.ndarray:
-        """(H, W) float32 soft silhouette of :meth:`finish_soft` from the working-scale strength."""
+        """(H, W) float32 soft silhouette of :meth:`finish_soft` from the working-scale strength
+        (h, w) float32, the working-scale mask (h, w) uint8 0/255 and the full-resolution one (H, W)
+        uint8 0/1. At full resolution it is computed in the mask's bounding box only (0 elsewhere)."""
+        if (mask_small.shape[1], mask_small.shape[0]) == self._full_size:
+            soft = np.zeros(mask.shape, np.float32)
+            x, y, w, h = cv2.boundingRect(mask_small)
+            if w and h:
+                box = np.s_[y : y + h, x : x + w]
+                soft[box] = self._soft_at_scale(strength[box], mask_small[box], mask[box])
+            return soft
+        return self._soft_at_scale(strength, mask_small, mask)
+
+    def _soft_at_scale(self, strength: np.ndarray, mask_small: np.ndarray, mask: np.ndarray) -> np.ndarray:
+        """:meth:`_soft` over whole arrays: (h, w) ``strength`` and ``mask_small`` -> (H, W), resized to
+        the size of ``mask`` (H, W) when it differs."""
         h = self.config.foreground.hysteresis
         if h < 1:
             conf = (cv2.sqrt(strength) - np.float32(h)) * np.float32(1.0 / (1.0 - h))
@@ -376,9 +417,8 @@ class SilhouetteExtractor:
         np.clip(conf, 0.0, 1.0, out=conf)
         m = np.float32(self.config.foreground.soft_min)
         soft = (m + (np.float32(1.0) - m) * conf) * (mask_small > 0)
-        full = self._full_size
-        if full is not None and (soft.shape[1], soft.shape[0]) != full:
-            soft = cv2.resize(soft, full, interpolation=cv2.INTER_LINEAR)
+        if soft.shape != mask.shape:
+            soft = cv2.resize(soft, (mask.shape[1], mask.shape[0]), interpolation=cv2.INTER_LINEAR)
         return soft * mask
 
     @property
@@ -430,19 +470,19 @@ class SilhouetteExtractor:
             ring = cv2.subtract(raw, cv2.erode(raw, self._ring_k))
             raw[(ring > 0) & colour_only] = 0
 
-    def _darker(self, img: np.ndarray, bg: np.ndarray, d2: np.ndarray) -> np.ndarray:
+    def _darker(self, si: np.ndarray, sb: np.ndarray, d2: np.ndarray) -> np.ndarray:
         """(h, w) bool: darker than the background (brightness ratio below ``shadow.max_ratio``) by
         at least half the weakest foreground (``hysteresis`` times the threshold), whether or not the
-        difference passes it."""
-        ones = np.ones((1, 3), np.float32)
-        darker = cv2.transform(img, ones) < np.float32(self.config.shadow.max_ratio) * cv2.transform(bg, ones)
-        half = 0.5 * self.config.foreground.hysteresis
-        return darker & (d2 > np.float32(half * half) * self._thr2)
+        difference passes it. ``si``, ``sb``: (h, w) channel sums of the frame and the background."""
+        darker = si < np.float32(self.config.shadow.max_ratio) * sb
+        return darker & (d2 > self._half_weak2)
 
-    def _shadow(self, img: np.ndarray, bg: np.ndarray, candidate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _shadow(self, img: np.ndarray, bg: np.ndarray, si_full: np.ndarray, sb_full: np.ndarray,
+                candidate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
         """Candidate pixels explained as cast shadow on the background: (h, w) bool each, those in
         ``[min_ratio, max_ratio]`` and the deep ones in ``[floor_min_ratio, min_ratio)`` (a shadow
-        only if the floor check confirms it).
+        only if the floor check confirms it). ``img``, ``bg``: (h, w, 3) frame and background;
+        ``si_full``, ``sb_full``: (h, w) their channel sums.
 
         Computed inside the bounding box of the candidates (plus the texture window) only.
         """
@@ -455,67 +495,84 @@ class SilhouetteExtractor:
         m = s.texture_window
         y0, y1 = max(0, y - m), min(candidate.shape[0], y + h + m)
         x0, x1 = max(0, x - m), min(candidate.shape[1], x + w + m)
-        img_r, bg_r, cand_r = img[y0:y1, x0:x1], bg[y0:y1, x0:x1], candidate[y0:y1, x0:x1]
-        ones = np.ones((1, 3), np.float32)
-        si = cv2.transform(img_r, ones) + np.float32(1.0)  # sum of channels
-        sb = cv2.transform(bg_r, ones) + np.float32(1.0)
+        si = si_full[y0:y1, x0:x1] + np.float32(1.0)  # sum of channels
+        sb = sb_full[y0:y1, x0:x1] + np.float32(1.0)
         ratio = si / sb
         lowest = s.floor_min_ratio if s.floor_check else s.min_ratio
-        darker = cand_r & (ratio >= lowest) & (ratio <= s.max_ratio)
-        # chromaticity only where it matters (candidate pixels in the brightness range)
-        ys, xs = np.nonzero(darker)
-        chroma = np.abs(img_r[ys, xs] / si[ys, xs, None] - bg_r[ys, xs] / sb[ys, xs, None]).max(axis=1)
-        same_colour = np.zeros_like(darker)
-        same_colour[ys, xs] = chroma <= s.max_chroma
-        found = darker & same_colour & self._same_texture(si, sb)
+        darker = candidate[y0:y1, x0:x1] & (ratio >= lowest) & (ratio <= s.max_ratio)
+        # chromaticity, then texture, only where they matter (candidate pixels in the brightness range)
+        at = np.flatnonzero(darker)  # flat indices into the box
+        rows, cols = np.divmod(at, x1 - x0)
+        pixel = (rows + y0) * candidate.shape[1] + cols + x0  # the same pixels, flat indices into the image
+        si_at, sb_at = si.ravel()[at, None], sb.ravel()[at, None]
+        change = np.abs(img.reshape(-1, 3)[pixel] / si_at - bg.reshape(-1, 3)[pixel] / sb_at)  # (n, 3)
+        chroma = np.maximum(np.maximum(change[:, 0], change[:, 1]), change[:, 2])  # (numpy's max(axis=1) is slow on 3 columns)
+        at = at[chroma <= s.max_chroma]
+        found = np.zeros_like(darker)
+        found.ravel()[at[self._same_texture(si, sb, at)]] = True
         is_deep = ratio < s.min_ratio
         shadow[y0:y1, x0:x1] = found & ~is_deep
         deep[y0:y1, x0:x1] = found & is_deep
         return shadow, deep
 
-    def _texture_changed(self, img: np.ndarray, bg: np.ndarray, candidate: np.ndarray) -> np.ndarray:
+    def _texture_changed(self, si: np.ndarray, sb: np.ndarray, candidate: np.ndarray) -> np.ndarray:
         """(h, w) bool: the background is textured there and the frame no longer shows its texture
         (local correlation below ``foreground.texture_ncc``): something stands in front of it. Eroded
         by half the window: a window that straddles the person's outline changes too. Tested only in
-        the box of the candidates grown by half its height (the rest cannot join the body)."""
+        the box of the candidates grown by half its height (the rest cannot join the body), and there
+        only where the background is textured. ``si``, ``sb``: (h, w) channel sums of the frame and
+        the background."""
         changed = np.zeros_like(candidate)
         x, y, w, h = cv2.boundingRect(candidate.view(np.uint8))
         if w == 0 or h == 0:
             return changed
         g = h // 2
         box = np.s_[max(0, y - g) : y + h + g, max(0, x - g) : x + w + g]
-        ones = np.ones((1, 3), np.float32)
-        ncc, flat = self._texture_ncc(cv2.transform(img[box], ones), cv2.transform(bg[box], ones), min_var=1.0)
-        inside = (~flat & (ncc < np.float32(self.config.foreground.texture_ncc))).view(np.uint8)
+        si, sb = si[box], sb[box]
         k = self.config.shadow.texture_window
+        mb = cv2.blur(sb, (k, k))
+        vb = cv2.blur(sb * sb, (k, k)) - mb * mb
+        at = np.flatnonzero(~self._flat(vb))
+        ncc = self._texture_ncc(si, sb, at, mb.ravel()[at], vb.ravel()[at], min_var=1.0)
+        inside = np.zeros(vb.shape, np.uint8)
+        inside.ravel()[at[ncc < np.float32(self.config.foreground.texture_ncc)]] = 1
         changed[box] = cv2.erode(inside, np.ones((k, k), np.uint8)).view(bool)
         return changed
 
-    def _texture_ncc(self, si: np.ndarray, sb: np.ndarray, min_var: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-        """Local normalised cross-correlation of channel sums (h, w) float32 over a box window, and
-        (h, w) bool where the background is flat (local std below ``texture_min_std``: no texture to test).
-        ``min_var`` floors the frame's local variance (a flat patch then correlates with nothing,
-        instead of rounding errors over zero)."""
-        s = self.config.shadow
-        k = (s.texture_window, s.texture_window)
-        mi, mb = cv2.blur(si, k), cv2.blur(sb, k)
-        vi = cv2.blur(si * si, k) - mi * mi
+    def _flat(self, vb: np.ndarray) -> np.ndarray:
+        """Where the background is flat (local std below ``texture_min_std``: no texture to test), from
+        the local variance ``vb`` of its channel sums (any shape) -> bool of that shape."""
+        return vb < (3.0 * self.config.shadow.texture_min_std) ** 2  # channel sums: 3x the grey-level std
+
+    def _texture_ncc(self, si: np.ndarray, sb: np.ndarray, at: np.ndarray, mb: np.ndarray, vb: np.ndarray,
+                     min_var: float = 0.0) -> np.ndarray:  # fmt: skip
+        """(n,) local normalised cross-correlation of the channel sums ``si``, ``sb`` (h, w) float32
+        over a box window, at the pixels of flat indices ``at`` (n,), given there the background's
+        local mean ``mb`` (n,) and variance ``vb`` (n,). ``min_var`` floors the frame's local variance
+        (a flat patch then correlates with nothing, instead of rounding errors over zero)."""
+        k = (self.config.shadow.texture_window,) * 2
+        mi = cv2.blur(si, k).ravel()[at]
+        vi = cv2.blur(si * si, k).ravel()[at] - mi * mi
         if min_var > 0:
             vi = np.maximum(vi, np.float32(min_var))
-        vb = cv2.blur(sb * sb, k) - mb * mb
-        cov = cv2.blur(si * sb, k) - mi * mb
-        ncc = cov / np.sqrt(np.maximum(vi * vb, 1e-6))
-        flat = vb < (3.0 * s.texture_min_std) ** 2  # channel sums: 3x the grey-level std
-        return ncc, flat
+        cov = cv2.blur(si * sb, k).ravel()[at] - mi * mb
+        return cov / np.sqrt(np.maximum(vi * vb, 1e-6))
 
-    def _same_texture(self, si: np.ndarray, sb: np.ndarray) -> np.ndarray:
-        """(h, w) bool: the frame keeps the background's local texture (or there is none).
+    def _same_texture(self, si: np.ndarray, sb: np.ndarray, at: np.ndarray) -> np.ndarray:
+        """(n,) bool: the frame keeps the background's local texture (or there is none) at the
+        pixels of flat indices ``at`` (n,) into the (h, w) channel sums ``si``, ``sb``.
 
         Normalised cross-correlation of channel sums over a box window; where the background
         is flat (local std below ``texture_min_std``) the test cannot tell and passes.
         """
-        ncc, flat = self._texture_ncc(si, sb)
-        return flat | (ncc >= self.config.shadow.min_ncc)
+        k = (self.config.shadow.texture_window,) * 2
+        mb = cv2.blur(sb, k).ravel()[at]
+        vb = cv2.blur(sb * sb, k).ravel()[at] - mb * mb
+        flat = self._flat(vb)
+        same = flat.copy()
+        textured = ~flat
+        same[textured] = self._texture_ncc(si, sb, at[textured], mb[textured], vb[textured]) >= self.config.shadow.min_ncc
+        return same
 
     def _clean(self, raw: np.ndarray) -> tuple[np.ndarray, int]:
         """Morphology, component selection and hole filling; (h, w) uint8 0/255 -> same, count."""
@@ -525,13 +582,13 @@ class SilhouetteExtractor:
             mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, self._open_k)
         if self._close_k is not None:
             mask = cv2.morphologyEx(mask, cv2.MORPH_CLOSE, self._close_k)
-        n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+        n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8, ltype=_label_type(mask))
         if n <= 1:
             return np.zeros_like(mask), 0
         keep = _body_components(stats[1:], c.min_component_fraction * mask.size, c.keep_relative, c.keep_margin) + 1
         lut = np.zeros(n, np.uint8)
         lut[keep] = 255
-        mask = lut[labels]
+        mask = np.take(lut, labels)
         if c.max_hole_fraction > 0:
             mask = self._fill_holes(mask, c.max_hole_fraction)
         return mask, int(keep.size)

@@ -318,7 +318,7 @@ class FactoredIPF(Tracker):
         model = self.model
         base = np.repeat(q[None], n, axis=0)
         X = base[:, idx].copy()
-        clipped = model.clip(base)  # the DOF outside idx, as every layer's clip leaves them
+        clipped = np.repeat(model.clip(q[None]), n, axis=0)  # the DOF outside idx, as every layer's clip leaves them
         prior_dofs = np.union1d(idx, self._held) if alone else idx
         logw = np.zeros(n)
         best_x, best_ll = q[idx].copy(), -np.inf

@@ -10,7 +10,7 @@ intrinsics, so no distortion is evaluated per particle.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import cached_property
+from functools import cached_property, lru_cache
 
 import cv2
 import numpy as np
@@ -75,6 +75,13 @@ class TrackingView:
         return float(0.5 * (self.K[0, 0] + self.K[1, 1]))
 
 
+@lru_cache(maxsize=16)
+def _ones_prefix(shape: tuple[int, int]) -> np.ndarray:
+    """Row prefix sums (h, w + 1) of an (h, w) map of ones, shared by every observation of that size
+    (the same every frame; read, never written)."""
+    return row_prefix(np.ones(shape, np.float32))
+
+
 @dataclass
 class Observation:
     """One frame: the soft silhouettes (h, w) float32 of every camera, and their areas."""
@@ -86,7 +93,7 @@ class Observation:
         """Row prefix sums of camera c's silhouette and of ones (cached)."""
         if c not in self._prefix:
             s = self.silhouettes[c]
-            self._prefix[c] = (row_prefix(s), row_prefix(np.ones_like(s)))
+            self._prefix[c] = (row_prefix(s), _ones_prefix(s.shape))
         return self._prefix[c]
 
     @cached_property
