@@ -97,6 +97,15 @@ class ShadowConfig(Strict):
         description="with the floor check, darker candidates down to this brightness ratio are shadows where "
         "another camera sees their floor point darkened (to one camera they look like dark clothes)",
     )  # fmt: skip
+    floor_same_ratio: bool = Field(
+        default=True,
+        description="with the floor check, another camera confirms a shadow only where it sees the floor point "
+        "darkened by the same brightness ratio (or hidden behind the person): a shoe on the floor is no shadow",
+    )
+    floor_ratio_tolerance: float = Field(
+        default=0.15, gt=0, le=2.0,
+        description="largest difference of log brightness ratio (frame / background) between the two cameras",
+    )
     floor_tolerance: int = Field(
         default=2, ge=0, le=15, description="slack (pixels at working scale) when looking up a floor point in another camera"
     )

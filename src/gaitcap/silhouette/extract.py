@@ -421,6 +421,17 @@ class SilhouetteExtractor:
             soft = cv2.resize(soft, (mask.shape[1], mask.shape[0]), interpolation=cv2.INTER_LINEAR)
         return soft * mask
 
+    def log_brightness(self, evidence: FrameEvidence) -> np.ndarray:
+        """(h, w) float32: log of the frame's brightness over the background's (channel sums, the
+        background scaled by the frame's gain), at working scale: the same at a floor point for
+        every camera when a shadow darkens it (:mod:`gaitcap.silhouette.floor`)."""
+        if self._bg is None:
+            raise InputError(f"{self.name}: fit_background() must be called before extracting silhouettes")
+        ones = np.ones((1, 3), np.float32)
+        si = cv2.transform(evidence.image, ones) + np.float32(1.0)
+        sb = cv2.transform(cv2.multiply(self._bg, _scalar(evidence.gain)), ones) + np.float32(1.0)
+        return cv2.log(cv2.divide(si, sb))
+
     @property
     def work_size(self) -> tuple[int, int]:
         """(w, h) of the working scale (known once the background is fitted)."""

@@ -12,7 +12,18 @@ cameras two geometric facts can:
 
 So a shadow candidate of camera i stays a shadow only where its ray meets the floor and at least
 one other camera that sees that floor point finds it darkened (foreground or darker than its
-background); where no other camera sees the point, camera i's photometric decision stands, except
+background) by the same brightness ratio, or cannot see it behind the person (its foreground there
+is no shadow candidate). The ratio is the check that tells an object on the floor from a shadow:
+
+* a shadow darkens a matte floor by the same factor for every camera (it is the light that
+  changes, not the surface: brightness / background brightness does not depend on the view);
+* a shoe or a foot on the floor is seen from two sides, shaded differently, against two patches
+  of floor: a dark shoe on a lilac floor, grey shoes on a grey floor, shoes the mat's colour are
+  all darker than the floor "like a shadow", at the same floor points in both views, but their
+  ratios differ (on the suite's sessions: |log ratio difference| median 0.25-0.44 on such feet,
+  0.02-0.03 on the true shadows; docs/validation.md).
+
+Where no other camera sees the point, camera i's photometric decision stands, except
 for candidates darker than the photometric test accepts alone (``shadow.floor_min_ratio``), which
 need that confirmation. With several cameras, a shadow must also lie near the capture area (the
 floor two cameras see, grown by ``reach``): a pixel of a wall, back-projected to the floor, lands
@@ -153,7 +164,8 @@ class FloorShadowCheck:
         self._grow = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * tolerance + 1,) * 2) if tolerance > 0 else None
 
     def relabel(self, shadows: Sequence[np.ndarray], darkening: Sequence[np.ndarray],
-                deep: Sequence[np.ndarray] | None = None) -> list[np.ndarray]:  # fmt: skip
+                deep: Sequence[np.ndarray] | None = None, log_ratio: Sequence[np.ndarray] | None = None,
+                body: Sequence[np.ndarray] | None = None, ratio_tolerance: float = 0.15) -> list[np.ndarray]:  # fmt: skip
         """The shadow maps kept by the floor test, one per camera.
 
         Args:
@@ -161,6 +173,13 @@ class FloorShadowCheck:
             darkening: (h_i, w_i) bool per camera, foreground or darker than the background.
             deep: (h_i, w_i) bool per camera, candidates too dark for the photometric test alone
                 (dark clothes look the same to one camera), or None.
+            log_ratio: (h_i, w_i) float32 per camera, log of the frame's brightness over the
+                background's, or None (any darkening confirms). Given, another camera confirms a
+                candidate where it finds the floor point darkened with a log ratio (any within the
+                tolerance window) within ``ratio_tolerance`` of the candidate's, or where it sees
+                ``body`` there.
+            body: (h_i, w_i) bool per camera, its foreground that is no shadow candidate (the
+                person in front of the floor point: the camera cannot tell), with ``log_ratio``.
 
         Returns:
             (h_i, w_i) bool per camera: candidates on the floor near the capture area that another
@@ -170,6 +189,9 @@ class FloorShadowCheck:
         dark = [d.view(np.uint8) for d in darkening]
         if self._grow is not None:
             dark = [cv2.dilate(d, self._grow) for d in dark]
+        if log_ratio is not None:  # the range of each camera's log ratio over the tolerance window
+            low = [cv2.erode(r, self._grow) if self._grow is not None else r for r in log_ratio]
+            high = [cv2.dilate(r, self._grow) if self._grow is not None else r for r in log_ratio]
         out = []
         for i, shadow in enumerate(shadows):
             kept = np.zeros_like(shadow)
@@ -179,10 +201,25 @@ class FloorShadowCheck:
                 box = np.s_[y : y + h, x : x + w]
                 confirmed = np.zeros((h, w), np.uint8)
                 for j, m in self.maps[i]:
-                    confirmed |= cv2.remap(dark[j], m[box], None, cv2.INTER_NEAREST,
-                                           borderMode=cv2.BORDER_CONSTANT, borderValue=0)  # fmt: skip
+                    seen_j = cv2.remap(dark[j], m[box], None, cv2.INTER_NEAREST,
+                                       borderMode=cv2.BORDER_CONSTANT, borderValue=0)  # fmt: skip
+                    if log_ratio is not None:
+                        seen_j &= self._same_ratio(log_ratio[i][box], low[j], high[j], m[box], ratio_tolerance)
+                        if body is not None:
+                            seen_j |= cv2.remap(body[j].view(np.uint8), m[box], None, cv2.INTER_NEAREST,
+                                                borderMode=cv2.BORDER_CONSTANT, borderValue=0)  # fmt: skip
+                    confirmed |= seen_j
                 floor = self.on_floor[i][box] & self.near[i][box]
                 confirmed = confirmed > 0
                 kept[box] = floor & ((shadow[box] & (confirmed | ~self.seen[i][box])) | (deep_i[box] & confirmed))
             out.append(kept)
         return out
+
+    @staticmethod
+    def _same_ratio(mine: np.ndarray, low: np.ndarray, high: np.ndarray, look: np.ndarray, tolerance: float) -> np.ndarray:
+        """(h, w) uint8 0/1: the other camera's log ratio range [``low``, ``high``] at the floor
+        points ``look`` (h, w, 2) comes within ``tolerance`` of ``mine`` (h, w); 0 outside its view."""
+        lo = cv2.remap(low, look, None, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=np.inf)
+        hi = cv2.remap(high, look, None, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=-np.inf)
+        tol = np.float32(tolerance)
+        return ((mine >= lo - tol) & (mine <= hi + tol)).view(np.uint8)

@@ -61,5 +61,12 @@ class JointExtractor:
         evidence = list(self._map(lambda ex, im: ex.observe(im), self.extractors, images))
         shadows = [e.shadow for e in evidence]
         if self.floor is not None:
-            shadows = self.floor.relabel(shadows, [e.darkening for e in evidence], [e.deep_shadow for e in evidence])
+            deep = [e.deep_shadow for e in evidence]
+            cfg = self.extractors[0].config.shadow
+            ratio = body = None
+            if cfg.floor_same_ratio:
+                ratio = list(self._map(lambda ex, e: ex.log_brightness(e), self.extractors, evidence))
+                body = [e.candidate & ~(s | d) for e, s, d in zip(evidence, shadows, deep)]
+            shadows = self.floor.relabel(shadows, [e.darkening for e in evidence], deep, ratio, body,
+                                         cfg.floor_ratio_tolerance)  # fmt: skip
         return evidence, shadows
