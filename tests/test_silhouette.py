@@ -14,7 +14,7 @@ from gaitcap.silhouette import SilhouetteConfig, SilhouetteExtractor
 from gaitcap.silhouette.background import _channel_mean, _median
 from gaitcap.silhouette.extract import BORDER, EMPTY, NO_BACKGROUND, TOO_LARGE, _label_type
 from gaitcap.camera import Camera
-from gaitcap.silhouette.floor import floor_map, floor_points
+from gaitcap.silhouette.floor import FloorShadowCheck, floor_map, floor_points
 from gaitcap.silhouette.joint import JointExtractor
 
 
@@ -406,3 +406,59 @@ def test_the_16_bit_labels_give_way_to_32_bits_when_they_could_overflow():
     assert _label_type(dense) == cv2.CV_32S
     n, labels = cv2.connectedComponents(dense, connectivity=8, ltype=_label_type(dense))
     assert n == 90001 and labels.max() == 90000
+
+
+def _two_floor_views() -> tuple[FloorShadowCheck, list[np.ndarray]]:
+    """Two cameras on either side of a floor (160x120); per camera, the (h, w, 3) floor point of
+    every pixel."""
+    cams = [Camera.look_at(name, (x, -3.0, 1.4), (0.0, 0.0, 0.0), size=(160, 120), focal_px=200.0)
+            for name, x in (("a", -2.0), ("b", 2.0))]  # fmt: skip
+    return FloorShadowCheck(cams, [c.size for c in cams], tolerance=1), [floor_points(c, c.size) for c in cams]
+
+
+def _patch(points: np.ndarray, x0: float, x1: float) -> np.ndarray:
+    """(h, w) bool: the pixels whose floor point lies in the strip x0 <= x < x1, |y| < 0.5 m."""
+    x, y = points[..., 0], points[..., 1]
+    with np.errstate(invalid="ignore"):
+        return (x >= x0) & (x < x1) & (np.abs(y) < 0.5)
+
+
+def test_another_camera_confirms_a_shadow_only_at_the_same_darkening_ratio():
+    """A shadow (x in [-0.9, -0.1)) dims the floor by the same ratio in both views; a shoe on the
+    floor (x in [0.1, 0.9)) is darker than the floor in both, but by different ratios (two sides,
+    two shadings). Both are shadow candidates to each camera alone; the ratio keeps only the shadow,
+    any darkening (the former rule) keeps both."""
+    check, points = _two_floor_views()
+    shadow = [_patch(p, -0.9, -0.1) for p in points]
+    shoe = [_patch(p, 0.1, 0.9) for p in points]
+    candidates = [s | o for s, o in zip(shadow, shoe)]
+    ratio = []
+    for s, o, shoe_ratio in zip(shadow, shoe, (0.55, 0.3)):
+        r = np.zeros(s.shape, np.float32)
+        r[s] = np.log(0.6)
+        r[o] = np.log(shoe_ratio)
+        ratio.append(r)
+    no_body = [np.zeros_like(c) for c in candidates]
+    kept = check.relabel(candidates, candidates, None, ratio, no_body, ratio_tolerance=0.15)
+    old = check.relabel(candidates, candidates)
+    for c in range(2):
+        inner_shadow = cv2.erode(shadow[c].view(np.uint8), np.ones((5, 5), np.uint8)) > 0
+        inner_shoe = cv2.erode(shoe[c].view(np.uint8), np.ones((5, 5), np.uint8)) > 0
+        assert inner_shadow.sum() > 50 and inner_shoe.sum() > 50
+        assert kept[c][inner_shadow].all() and not kept[c][inner_shoe].any()
+        assert old[c][inner_shadow].all() and old[c][inner_shoe].all()
+
+
+def test_a_camera_that_sees_the_person_in_front_of_the_floor_point_still_confirms():
+    """Camera b sees its body (no shadow candidate) over the shadow's floor points, with another
+    ratio: it cannot see the floor there, so it confirms as before instead of refuting."""
+    check, points = _two_floor_views()
+    shadow = [_patch(p, -0.9, -0.1) for p in points]
+    ratio = [np.where(shadow[0], np.log(0.6), 0).astype(np.float32), np.where(shadow[1], np.log(0.2), 0).astype(np.float32)]
+    body = [np.zeros_like(shadow[0]), shadow[1]]  # b: the person stands there, darker than a shadow
+    candidates = [shadow[0], np.zeros_like(shadow[1])]
+    darkening = [shadow[0], shadow[1]]
+    inner = cv2.erode(shadow[0].view(np.uint8), np.ones((5, 5), np.uint8)) > 0
+    assert check.relabel(candidates, darkening, None, ratio, body)[0][inner].all()
+    refuted = check.relabel(candidates, darkening, None, ratio, [np.zeros_like(b) for b in body])[0]
+    assert not refuted[inner].any()  # without the body: b sees the floor at another ratio
