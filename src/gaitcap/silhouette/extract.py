@@ -198,6 +198,8 @@ class FrameEvidence:
             (``shadow.floor_min_ratio``): shadows only if the floor check confirms them.
         darkening: (h, w) bool, candidate or darker than the background (what another camera
             looks up to confirm that a floor point is shadowed).
+        sums: the (h, w) float32 channel sums of the frame and of the background scaled by
+            ``gain`` (their ratio is the pixel's brightness ratio).
     """
 
     image: np.ndarray
@@ -209,6 +211,7 @@ class FrameEvidence:
     shadow: np.ndarray
     deep_shadow: np.ndarray
     darkening: np.ndarray
+    sums: tuple[np.ndarray, np.ndarray]
 
 
 class SilhouetteExtractor:
@@ -353,7 +356,7 @@ class SilhouetteExtractor:
         else:
             shadow, deep = np.zeros_like(candidate), np.zeros_like(candidate)
         darkening = candidate | self._darker(si, sb, plain2)
-        return FrameEvidence(img, gain, candidate, weak, strength, colour_only, shadow, deep, darkening)
+        return FrameEvidence(img, gain, candidate, weak, strength, colour_only, shadow, deep, darkening, (si, sb))
 
     def finish(self, evidence: FrameEvidence, shadow: np.ndarray) -> tuple[np.ndarray, FrameQuality]:
         """Steps 3-4: clean-up of ``candidate & ~shadow`` and background adaptation.
@@ -421,16 +424,14 @@ class SilhouetteExtractor:
             soft = cv2.resize(soft, (mask.shape[1], mask.shape[0]), interpolation=cv2.INTER_LINEAR)
         return soft * mask
 
-    def log_brightness(self, evidence: FrameEvidence) -> np.ndarray:
+    @staticmethod
+    def log_brightness(evidence: FrameEvidence) -> np.ndarray:
         """(h, w) float32: log of the frame's brightness over the background's (channel sums, the
         background scaled by the frame's gain), at working scale: the same at a floor point for
         every camera when a shadow darkens it (:mod:`gaitcap.silhouette.floor`)."""
-        if self._bg is None:
-            raise InputError(f"{self.name}: fit_background() must be called before extracting silhouettes")
-        ones = np.ones((1, 3), np.float32)
-        si = cv2.transform(evidence.image, ones) + np.float32(1.0)
-        sb = cv2.transform(cv2.multiply(self._bg, _scalar(evidence.gain)), ones) + np.float32(1.0)
-        return cv2.log(cv2.divide(si, sb))
+        si, sb = evidence.sums
+        one = np.float32(1.0)
+        return cv2.log(cv2.divide(si + one, sb + one))
 
     @property
     def work_size(self) -> tuple[int, int]:
