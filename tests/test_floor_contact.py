@@ -122,3 +122,17 @@ def test_a_floor_contact_rejects_unknown_keys_and_out_of_range_values():
         Mapping.model_validate({**base, "floor_contacts": {"right": {"marker": "RTOE", "reach": "RANK", "max_height_m": 0.5}}})
     with pytest.raises(ValidationError):
         Mapping.model_validate({**base, "floor_contacts": {"middle": {"marker": "RTOE", "reach": "RANK"}}})
+
+
+@pytest.mark.parametrize("ends_before, found", [(1, True), (2, True), (5, False)])
+def test_a_toe_point_ending_shortly_before_the_release_still_closes_on_it(ends_before, found):
+    """The toe point can end before its marker's hold when another marker it is built from ends
+    first (gait-raw.c3d: RKNE, through the knee and ankle centres); within two samples the release
+    is still the foot off, further away it is not trusted."""
+    traj, last_off = _walker_with_lost_toe(0.0)
+    release = last_off + 0.3 / RATE
+    traj, _ = _walker_with_lost_toe(release)
+    points = traj.points.copy()
+    points[int(np.floor(release * RATE)) + 1 - ends_before :, traj.index("toe_r")] = np.nan
+    cut = Trajectory(traj.names, points, RATE, traj.t0_s, meta=traj.meta)
+    assert any(abs(t - release) < 1e-9 for t in _right_offs(cut)) == found

@@ -252,15 +252,21 @@ def _min_prominence(y: np.ndarray, opt: GaitOptions) -> float:
     return opt.min_prominence * max(float(hi - lo), 1e-9)
 
 
+#: samples by which the toe signal may end before a release and still close on it
+_RELEASE_REACH = 2
+
+
 def _release_offs(toe: np.ndarray, releases: list[float], side: Side, opt: GaitOptions) -> list[_Extremum]:
     """Foot offs where a toe held on the floor through its marker's gap left the foot's reach
     (``Trajectory.meta[TOE_RELEASES]``, :func:`gaitcap.markers.jointcentres.hold_on_floor`).
 
     The held toe's signal ``toe`` (T,) falls until the release and has no sample after it, so the
-    Zeni minimum is the run's last sample, which :func:`_extrema` never takes. A release whose
-    last held sample ends a finite run is taken as a foot off at the release's sub-frame, with the
-    fall since the run's highest point as its prominence, marked ``edge="end"`` so that
-    :func:`_in_rhythm` checks its stance against the others.
+    Zeni minimum is the run's last sample, which :func:`_extrema` never takes. A release is taken
+    as a foot off at its sub-frame when a finite run of the signal ends within
+    :data:`_RELEASE_REACH` samples before it (the toe point may end a little earlier than its
+    marker's hold when another marker it is built from ends first), with the fall since the run's
+    highest point as its prominence, marked ``edge="end"`` so that :func:`_in_rhythm` checks its
+    stance against the others.
     """
     y = -toe
     ok = np.isfinite(y)
@@ -269,8 +275,13 @@ def _release_offs(toe: np.ndarray, releases: list[float], side: Side, opt: GaitO
     min_prom = _min_prominence(y, opt)
     out = []
     for frame in releases:
-        i = int(np.floor(frame))
-        if not (0 <= i < len(y) and ok[i]) or (i + 1 < len(y) and ok[i + 1]):
+        last = min(int(np.floor(frame)), len(y) - 1)
+        if last < 0 or (last + 1 < len(y) and ok[last + 1]):
+            continue  # the signal goes on after the release: the Zeni extremum is interior
+        i = last
+        while i >= 0 and not ok[i] and last - i < _RELEASE_REACH:
+            i -= 1
+        if i < 0 or not ok[i]:
             continue
         start = i
         while start > 0 and ok[start - 1]:
