@@ -29,11 +29,11 @@ FOOT: tuple[str, ...] = ("heel_l", "heel_r", "toe_l", "toe_r")
 Side = Literal["left", "right"]
 EventKind = Literal["foot_strike", "foot_off"]
 SIDES: tuple[Side, Side] = ("left", "right")
+EVENT_KINDS: tuple[EventKind, EventKind] = ("foot_strike", "foot_off")
 
 #: ``Trajectory.meta`` key: side -> sub-frame indices where the toe, held on the floor through a
 #: gap of its marker, was last within the foot's reach (its lift-off; gaitcap.markers.jointcentres)
 TOE_RELEASES = "toe_releases"
-EVENT_KINDS: tuple[EventKind, EventKind] = ("foot_strike", "foot_off")
 
 
 def side_suffix(side: Side) -> str:

@@ -68,7 +68,6 @@ def command(ctx: click.Context, source: Path, out: Path, tracker: str | None, co
         if not quiet:
             for note in summary.verdict_notes:
                 click.echo(f"note: {note}")
-        if not quiet:
             click.echo(f"results: {out}")
         return
     summaries = run_batch(find_sessions(source), out, jobs=jobs, force=force, scheduler=scheduler, **kwargs)

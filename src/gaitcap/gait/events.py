@@ -283,9 +283,7 @@ def _release_offs(toe: np.ndarray, releases: list[float], side: Side, opt: GaitO
             i -= 1
         if i < 0 or not ok[i]:
             continue
-        start = i
-        while start > 0 and ok[start - 1]:
-            start -= 1
+        start = next(a for a, b in finite_runs(ok) if a <= i < b)  # the run the release closes
         prom = float(y[i] - np.min(y[start : i + 1]))
         if prom >= min_prom:
             out.append(_Extremum(float(frame), prom, side, "foot_off", "end"))

@@ -304,6 +304,7 @@ def hold_floor_contacts(markers: Trajectory, contacts: dict[str, FloorContact]) 
     source = markers.meta.get("source", "motion")
     points = markers.points.copy()
     releases: dict[str, list[float]] = {}
+    held_any = False
     for side, contact in contacts.items():
         names = contact.present(markers.names)
         if names is None:
@@ -313,11 +314,12 @@ def hold_floor_contacts(markers: Trajectory, contacts: dict[str, FloorContact]) 
         points[:, i], found = hold_on_floor(markers.points[:, i], markers.point(names[1]), markers.rate_hz, contact)
         count = int((np.isfinite(points[:, i]).all(axis=1) & ~before).sum())
         if count:
+            held_any = True
             log.info("%s: %s: %d frame(s) held on the floor while %s could reach it%s", source, names[0], count,
                      names[1], f"; lifted at frame(s) {', '.join(f'{f:.1f}' for f in found)}" if found else "")  # fmt: skip
         if found:
             releases[side] = found
-    if not releases and np.array_equal(points, markers.points, equal_nan=True):
+    if not (held_any or releases):
         return markers
     meta = {**markers.meta, TOE_RELEASES: releases} if releases else markers.meta
     return replace(markers, points=points, meta=meta)

@@ -145,6 +145,14 @@ def _channel_sum(image: np.ndarray) -> np.ndarray:
     return cv2.transform(image, np.ones((1, 3), np.float32))
 
 
+def _brightness_ratio(si: np.ndarray, sb: np.ndarray) -> np.ndarray:
+    """(h, w) float32 brightness ratio frame / background from their channel sums ``si``, ``sb``
+    (h, w) float32, each plus one (a black pixel divides by one, not zero): the shadow test's ratio,
+    and the floor check's (:meth:`SilhouetteExtractor.log_brightness`)."""
+    one = np.float32(1.0)
+    return (si + one) / (sb + one)
+
+
 def _label_type(mask: np.ndarray) -> int:
     """Label type for the connected components of ``mask`` (h, w) uint8: 16-bit labels when they fit
     (each component holds a pixel: fewer than 2^16 - 1 pixels set), else 32-bit. The labels and
@@ -429,9 +437,7 @@ class SilhouetteExtractor:
         """(h, w) float32: log of the frame's brightness over the background's (channel sums, the
         background scaled by the frame's gain), at working scale: the same at a floor point for
         every camera when a shadow darkens it (:mod:`gaitcap.silhouette.floor`)."""
-        si, sb = evidence.sums
-        one = np.float32(1.0)
-        return cv2.log(cv2.divide(si + one, sb + one))
+        return cv2.log(_brightness_ratio(*evidence.sums))
 
     @property
     def work_size(self) -> tuple[int, int]:
@@ -509,7 +515,7 @@ class SilhouetteExtractor:
         x0, x1 = max(0, x - m), min(candidate.shape[1], x + w + m)
         si = si_full[y0:y1, x0:x1] + np.float32(1.0)  # sum of channels
         sb = sb_full[y0:y1, x0:x1] + np.float32(1.0)
-        ratio = si / sb
+        ratio = _brightness_ratio(si_full[y0:y1, x0:x1], sb_full[y0:y1, x0:x1])
         lowest = s.floor_min_ratio if s.floor_check else s.min_ratio
         darker = candidate[y0:y1, x0:x1] & (ratio >= lowest) & (ratio <= s.max_ratio)
         # chromaticity, then texture, only where they matter (candidate pixels in the brightness range)
@@ -542,14 +548,20 @@ class SilhouetteExtractor:
         box = np.s_[max(0, y - g) : y + h + g, max(0, x - g) : x + w + g]
         si, sb = si[box], sb[box]
         k = self.config.shadow.texture_window
-        mb = cv2.blur(sb, (k, k))
-        vb = cv2.blur(sb * sb, (k, k)) - mb * mb
+        mb, vb = self._local_stats(sb)
         at = np.flatnonzero(~self._flat(vb))
         ncc = self._texture_ncc(si, sb, at, mb.ravel()[at], vb.ravel()[at], min_var=1.0)
         inside = np.zeros(vb.shape, np.uint8)
         inside.ravel()[at[ncc < np.float32(self.config.foreground.texture_ncc)]] = 1
         changed[box] = cv2.erode(inside, np.ones((k, k), np.uint8)).view(bool)
         return changed
+
+    def _local_stats(self, sb: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The background's local mean and variance (h, w) float32 each, over the texture window,
+        of its channel sums ``sb`` (h, w) float32."""
+        k = (self.config.shadow.texture_window,) * 2
+        mb = cv2.blur(sb, k)
+        return mb, cv2.blur(sb * sb, k) - mb * mb
 
     def _flat(self, vb: np.ndarray) -> np.ndarray:
         """Where the background is flat (local std below ``texture_min_std``: no texture to test), from
@@ -577,9 +589,7 @@ class SilhouetteExtractor:
         Normalised cross-correlation of channel sums over a box window; where the background
         is flat (local std below ``texture_min_std``) the test cannot tell and passes.
         """
-        k = (self.config.shadow.texture_window,) * 2
-        mb = cv2.blur(sb, k).ravel()[at]
-        vb = cv2.blur(sb * sb, k).ravel()[at] - mb * mb
+        mb, vb = (v.ravel()[at] for v in self._local_stats(sb))
         flat = self._flat(vb)
         same = flat.copy()
         textured = ~flat
