@@ -16,7 +16,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -31,6 +31,7 @@ from gaitcap.body.model import load_body_model
 from gaitcap.errors import OutputError, TrackingError
 from gaitcap.io.atomic import write_text_atomic
 from gaitcap.io.silhouettes_h5 import SILHOUETTES_FILE, SilhouetteWriter
+from gaitcap.io.spool import FrameSpool
 from gaitcap.io.track_h5 import (QUALITY_NOT_INITIALISED, QUALITY_OK, QUALITY_OUT_OF_VIEW, QUALITY_POOR_FIT,
                                  TrackWriter, proportions_attrs)  # fmt: skip
 from gaitcap.io.trc import write_trc
@@ -41,7 +42,9 @@ from gaitcap.session_check import check_session_videos, check_silhouettes_meet
 from gaitcap.silhouette.config import SilhouetteConfig
 from gaitcap.silhouette.joint import JointExtractor
 from gaitcap.silhouette.run import Source, camera_attrs, file_attrs, prepare_extractor, quality_row
+from gaitcap.timeseries import finite_runs
 from gaitcap.track_summary import TrackSummary, is_finished, write_track_json
+from gaitcap.tracking.backward import choose_backward, leg_points
 from gaitcap.tracking.condensation import Condensation
 from gaitcap.tracking.config import TrackingConfig, load_tracking_config
 from gaitcap.tracking.factored_ipf import FactoredIPF
@@ -346,9 +349,15 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
     writer = TrackWriter(out / "trajectories.h5", model.point_names, model.dof_names, videos.fps, attrs)
     timing = FrameTiming()
     try:
-        with stages.timed("tracking"):
-            tracked = _track_frames(filt, likelihood, views, cfg, head.take(head.limit), stream, writer, n_frames,
-                                    progress, timing, on_frame, start, settled)  # fmt: skip
+        with ExitStack() as stack:
+            spool = stack.enter_context(FrameSpool()) if cfg.backward.enabled else None
+            with stages.timed("tracking"):
+                tracked = _track_frames(filt, likelihood, views, cfg, head.take(head.limit), stream, writer, n_frames,
+                                        progress, timing, on_frame, start, settled, spool)  # fmt: skip
+            if spool is not None:
+                with stages.timed("backward"):
+                    replaced = _backward_pass(_new_tracker(cfg, filt.model, likelihood), spool, writer, cfg)
+                log.info("backward pass: %d of %d frames taken from it", replaced, tracked)
         t_writing = time.perf_counter()
         raw, quality = writer.read_back()
         if not np.any((quality == QUALITY_OK) | (quality == QUALITY_POOR_FIT)):
@@ -498,10 +507,11 @@ def _concurrent_kernels() -> bool:
 
 def _track_frames(filt, likelihood, views, cfg: TrackingConfig, first, stream: Iterator[Observation],
                   writer: TrackWriter, n_frames: int, progress: bool, timing: FrameTiming, on_frame,
-                  start=None, settled: bool = False) -> int:  # fmt: skip
+                  start=None, settled: bool = False, spool: FrameSpool | None = None) -> int:  # fmt: skip
     """The per-frame loop (streaming): observe, (re)initialise, track, flag, append. ``start``: the
     first frame's pose when already known (shape calibration); ``settled``: whether its leg
-    assignment was settled over several frames (else the first frame weighs its mirror too).
+    assignment was settled over several frames (else the first frame weighs its mirror too);
+    ``spool``: every frame's observation is also stored there, for :func:`_backward_pass`.
     ``timing.total_s`` also counts the time spent waiting for the next observation."""
     model = filt.model
     bar = tqdm(total=n_frames, desc=f"tracking ({cfg.tracker})", unit="frame", disable=not progress, leave=False)
@@ -521,6 +531,8 @@ def _track_frames(filt, likelihood, views, cfg: TrackingConfig, first, stream: I
     count = 0
     for obs in observations():
         t0 = time.perf_counter()
+        if spool is not None:
+            spool.append(obs.silhouettes)
         in_view = bool(np.all(obs.fractions() >= cfg.quality.min_silhouette_fraction))
         quality = QUALITY_OK
         if not in_view:
@@ -561,6 +573,28 @@ def _track_frames(filt, likelihood, views, cfg: TrackingConfig, first, stream: I
             break
     bar.close()
     return count
+
+
+def _backward_pass(tracker, spool: FrameSpool, writer: TrackWriter, cfg: TrackingConfig) -> int:
+    """Track every run of tracked frames again from its last frame to its first (``tracker``, a
+    fresh one, started from the forward pass's last pose of the run) and overwrite in ``writer``
+    the frames :func:`~gaitcap.tracking.backward.choose_backward` gives to the backward pass.
+    Returns how many frames were overwritten. Memory: one run's estimates (a few hundred bytes a frame)."""
+    raw, quality = writer.read_back()
+    poses, fit = writer.read_poses(), writer.read_fit()
+    legs = leg_points(tracker.model.point_names)
+    replaced = 0
+    for s, e in finite_runs((quality == QUALITY_OK) | (quality == QUALITY_POOR_FIT)):
+        tracker.start(poses[e - 1], fresh=False)
+        back = [tracker.step(Observation(spool.read(t))) for t in range(e - 1, s - 1, -1)][::-1]
+        take = choose_backward(raw[s:e, legs], np.array([b.points[legs] for b in back]), fit[s:e],
+                               np.array([b.fit for b in back]), cfg.backward.agree_m)  # fmt: skip
+        for i in np.flatnonzero(take):
+            b = back[i]
+            flag = QUALITY_OK if b.fit >= cfg.quality.min_fit else QUALITY_POOR_FIT
+            writer.replace(s + int(i), b.points, b.uncertainty, b.q, b.log_likelihood, b.fit, flag)
+        replaced += int(take.sum())
+    return replaced
 
 
 def _finish_points(raw: np.ndarray, quality: np.ndarray, rate_hz: float, cfg: TrackingConfig) -> tuple[np.ndarray, str]:

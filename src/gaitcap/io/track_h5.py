@@ -75,12 +75,19 @@ class TrackWriter:
                quality: int) -> None:  # fmt: skip
         """One frame: points (P, 3), uncertainty (P,) (the particles' spread), pose (D,)."""
         i = self.n
+        for key in self._ds:
+            self._ds[key].resize(i + 1, axis=0)
+        self.n += 1
+        self.replace(i, points, uncertainty, pose, likelihood, fit, quality)
+
+    def replace(self, i: int, points: np.ndarray, uncertainty: np.ndarray, pose: np.ndarray, likelihood: float,
+                fit: float, quality: int) -> None:  # fmt: skip
+        """Overwrite frame ``i`` (already written) with another estimate, as :meth:`append` takes it."""
+        if not 0 <= i < self.n:
+            raise IndexError(f"frame {i} not written yet ({self.n} frames)")
         for key, value in (("points_unfiltered", points), ("spread", uncertainty), ("poses", pose),
                            ("likelihood", likelihood), ("fit", fit), ("quality", quality)):  # fmt: skip
-            ds = self._ds[key]
-            ds.resize(i + 1, axis=0)
-            ds[i] = value
-        self.n += 1
+            self._ds[key][i] = value
 
     def read_back(self) -> tuple[np.ndarray, np.ndarray]:
         """(points_unfiltered (T, P, 3), quality (T,)) written so far."""
@@ -89,6 +96,10 @@ class TrackWriter:
     def read_fit(self) -> np.ndarray:
         """The fit (T,) written so far."""
         return self._ds["fit"][()]
+
+    def read_poses(self) -> np.ndarray:
+        """The poses (T, D) written so far."""
+        return self._ds["poses"][()]
 
     def finish(self, points: np.ndarray, filter_note: str, uncertainty: np.ndarray | None = None) -> None:
         """Write ``/points`` (T, P, 3) (flagged frames NaN), ``/times`` and ``/uncertainty`` (T, P)

@@ -258,6 +258,13 @@ class SmoothingConfig(Strict):
     order: int = Field(default=4, ge=1, le=8)
 
 
+class BackwardConfig(Strict):
+    """The second pass over the clip, backwards in time (tracking/backward.py)."""
+
+    enabled: bool = True
+    agree_m: float = Field(default=0.03, gt=0, le=0.5)
+
+
 class TrackingConfig(Strict):
     tracker: TrackerName = "factored-ipf"
     scale: float = Field(default=0.5, gt=0.05, le=1)
@@ -274,6 +281,7 @@ class TrackingConfig(Strict):
     init: InitConfig = Field(default_factory=InitConfig)
     smoothing: SmoothingConfig = Field(default_factory=SmoothingConfig)
     shape: ShapeConfig = Field(default_factory=ShapeConfig)
+    backward: BackwardConfig = Field(default_factory=BackwardConfig)
     threads: int | None = Field(default=None, ge=1)
     seed: int = 0
 
