@@ -33,7 +33,7 @@ from gaitcap.io.atomic import write_text_atomic
 from gaitcap.io.silhouettes_h5 import SILHOUETTES_FILE, SilhouetteWriter
 from gaitcap.io.spool import FrameSpool
 from gaitcap.io.track_h5 import (QUALITY_NOT_INITIALISED, QUALITY_OK, QUALITY_OUT_OF_VIEW, QUALITY_POOR_FIT,
-                                 TrackWriter, proportions_attrs)  # fmt: skip
+                                 TrackWriter, proportions_attrs, tracked_frames)  # fmt: skip
 from gaitcap.io.trc import write_trc
 from gaitcap.prefetch import Head, Prefetched
 from gaitcap.quality import assess
@@ -360,7 +360,7 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
                 log.info("backward pass: %d of %d frames taken from it", replaced, tracked)
         t_writing = time.perf_counter()
         raw, quality = writer.read_back()
-        if not np.any((quality == QUALITY_OK) | (quality == QUALITY_POOR_FIT)):
+        if not np.any(tracked_frames(quality)):
             raise TrackingError(
                 f"{session}: the subject was not found in any of the {tracked} frames (every camera needs a "
                 f"silhouette covering at least {100 * cfg.quality.min_silhouette_fraction:.1f} % of its image)"
@@ -560,7 +560,7 @@ def _track_frames(filt, likelihood, views, cfg: TrackingConfig, first, stream: I
                               np.full(model.n_dofs, np.nan), np.nan, 0.0, quality)  # fmt: skip
             else:
                 est = filt.step(obs)
-                quality = QUALITY_OK if est.fit >= cfg.quality.min_fit else QUALITY_POOR_FIT
+                quality = _fit_quality(est.fit, cfg)
                 writer.append(est.points, est.uncertainty, est.q, est.log_likelihood, est.fit, quality)
         dt = time.perf_counter() - t0
         timing.tracking_s += dt
@@ -575,24 +575,28 @@ def _track_frames(filt, likelihood, views, cfg: TrackingConfig, first, stream: I
     return count
 
 
+def _fit_quality(fit: float, cfg: TrackingConfig) -> int:
+    """A tracked frame's quality flag: ok, or poor fit below ``quality.min_fit``."""
+    return QUALITY_OK if fit >= cfg.quality.min_fit else QUALITY_POOR_FIT
+
+
 def _backward_pass(tracker, spool: FrameSpool, writer: TrackWriter, cfg: TrackingConfig) -> int:
     """Track every run of tracked frames again from its last frame to its first (``tracker``, a
     fresh one, started from the forward pass's last pose of the run) and overwrite in ``writer``
     the frames :func:`~gaitcap.tracking.backward.choose_backward` gives to the backward pass.
-    Returns how many frames were overwritten. Memory: one run's estimates (a few hundred bytes a frame)."""
+    Returns how many frames were overwritten. Memory: one run's estimates (about a kilobyte a frame)."""
     raw, quality = writer.read_back()
     poses, fit = writer.read_poses(), writer.read_fit()
     legs = leg_points(tracker.model.point_names)
     replaced = 0
-    for s, e in finite_runs((quality == QUALITY_OK) | (quality == QUALITY_POOR_FIT)):
+    for s, e in finite_runs(tracked_frames(quality)):
         tracker.start(poses[e - 1], fresh=False)
         back = [tracker.step(Observation(spool.read(t))) for t in range(e - 1, s - 1, -1)][::-1]
         take = choose_backward(raw[s:e, legs], np.array([b.points[legs] for b in back]), fit[s:e],
                                np.array([b.fit for b in back]), cfg.backward.agree_m)  # fmt: skip
         for i in np.flatnonzero(take):
             b = back[i]
-            flag = QUALITY_OK if b.fit >= cfg.quality.min_fit else QUALITY_POOR_FIT
-            writer.replace(s + int(i), b.points, b.uncertainty, b.q, b.log_likelihood, b.fit, flag)
+            writer.replace(s + int(i), b.points, b.uncertainty, b.q, b.log_likelihood, b.fit, _fit_quality(b.fit, cfg))
         replaced += int(take.sum())
     return replaced
 

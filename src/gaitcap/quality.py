@@ -65,7 +65,7 @@ import numpy as np
 
 from gaitcap.body.measures import model_lengths, segment_lengths
 from gaitcap.body.model import load_body_model
-from gaitcap.io.track_h5 import QUALITY_OK, QUALITY_POOR_FIT
+from gaitcap.io.track_h5 import QUALITY_OK, tracked_frames
 from gaitcap.tracking.smoothing import lowpass
 
 if TYPE_CHECKING:
@@ -333,7 +333,7 @@ def run_signals(points: np.ndarray, names: tuple[str, ...], quality: np.ndarray,
     ``crossed_margin_m`` and out of the stride's rhythm beyond ``exchanged_margin_m`` (metres)."""
     points, quality = np.asarray(points, float), np.asarray(quality)
     _check_shapes(points, names, quality)
-    tracked = (quality == QUALITY_OK) | (quality == QUALITY_POOR_FIT)
+    tracked = tracked_frames(quality)
     pts = points[tracked]
     crossed = crossed_ankles(points, names, crossed_margin_m) & tracked
     return RunSignals(

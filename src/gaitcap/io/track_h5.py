@@ -42,6 +42,12 @@ QUALITY_NAMES = {QUALITY_OK: "ok", QUALITY_POOR_FIT: "poor_fit", QUALITY_OUT_OF_
                  QUALITY_NOT_INITIALISED: "not_initialised"}  # fmt: skip
 
 
+def tracked_frames(quality: np.ndarray) -> np.ndarray:
+    """(T,) bool: the frames the tracker estimated (quality ok or poor fit) among ``quality`` (T,)."""
+    quality = np.asarray(quality)
+    return (quality == QUALITY_OK) | (quality == QUALITY_POOR_FIT)
+
+
 class TrackWriter:
     """Append per-frame results; ``finish`` completes and renames the file."""
 
