@@ -476,10 +476,12 @@ def _search_shape(model, likelihood, refit_cfg: TrackingConfig, first: list[Obse
     """The shape calibration (:func:`~gaitcap.tracking.shape.calibrate_shape`: every candidate re-fitted),
     ``shape.repeats`` times side by side with their own random streams, the factors averaged."""
 
+    def refitter(m) -> FactoredIPF:  # the re-fits read the pose and the fit only: no uncertainty
+        return FactoredIPF(m, likelihood, refit_cfg, np.random.default_rng(cfg.seed), uncertainty=False)
+
     def calibrate(k: int, workers: int) -> ShapeResult:  # the k-th calibration, its own random streams
         return calibrate_shape(
-            model, lambda m: FactoredIPF(m, likelihood, refit_cfg, np.random.default_rng(cfg.seed)), first,
-            poses, cfg.shape.parameters, cfg.shape.steps, cfg.shape.bounds, cfg.shape.samples,
+            model, refitter, first, poses, cfg.shape.parameters, cfg.shape.steps, cfg.shape.bounds, cfg.shape.samples,
             cfg.seed + _REPEAT_SEED_STEP * k, cfg.shape.max_moves, cfg.shape.planted, cfg.shape.random_candidates,
             cfg.shape.random_sigma, retrack if cfg.shape.retrack else None, workers, setup, cfg.shape.limits_of(),
         )  # fmt: skip

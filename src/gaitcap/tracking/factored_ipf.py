@@ -52,8 +52,11 @@ from gaitcap.tracking.resampling import ess, normalise_log_weights, systematic
 class FactoredIPF(Tracker):
     name = "factored-ipf"
 
-    def __init__(self, *args, **kwargs) -> None:  # type: ignore[no-untyped-def]
+    def __init__(self, *args, uncertainty: bool = True, **kwargs) -> None:  # type: ignore[no-untyped-def]
+        """``uncertainty`` False: the estimates' ``uncertainty`` is NaN, the particles' points are not
+        computed (the shape calibration's re-fits read the pose and the fit only)."""
         super().__init__(*args, **kwargs)
+        self.uncertainty = uncertainty
         self.order = self.config.order_indices(self.model)
         self.subtrees = subtrees(self.model)
         self._explored = self.config.explored_dofs(self.model, self.subtrees)
@@ -298,26 +301,28 @@ class FactoredIPF(Tracker):
                 if p > 0:
                     free = self.likelihood.free_prefixes(obs, self._placed_outside(q, s, obs))
                 alone = p > 0 and s == self._root and cfg.root_refine == "alone"
-                q, W, pts = self._node(obs, q, self._explored[s], sub, free, n, widen, layers, alone)
+                q, logw, Q = self._node(obs, q, self._explored[s], sub, free, n, widen, layers, alone)
                 evaluations += n * len(layers)
                 spread = np.zeros(model.n_points)
-                spread[sub.points] = weighted_spread(pts, W)
+                if self.uncertainty:  # the spread of the particles' subtree points (N, P_sub, 3)
+                    pts = self.projector.points(Q, sub.points)
+                    spread[sub.points] = weighted_spread(pts, normalise_log_weights(logw))
                 spreads.append(spread)
                 variance += spread
                 if p == 0:  # Img_n+1: the segment placed, the free pixels' sums updated on its rows
                     self.likelihood.refresh_free(obs, placed, free, self._draw(q, sub.own_capsules, placed))
         ll, fit = self.full_fit(obs, q)
         points = self.projector.points(q[None])[0]
-        return (Estimate(q=q, points=points, uncertainty=np.sqrt(variance), log_likelihood=ll, fit=fit,
-                        evaluations=evaluations), spreads)  # fmt: skip
+        uncertainty = np.sqrt(variance) if self.uncertainty else np.full(model.n_points, np.nan)
+        return (Estimate(q=q, points=points, uncertainty=uncertainty, log_likelihood=ll, fit=fit,
+                         evaluations=evaluations), spreads)  # fmt: skip
 
     def _node(self, obs, q, idx: np.ndarray, sub, free, n: int, widen: float, layers, alone: bool = False):
         """Diffuse, weight, resample and keep the best for one node. Returns the new estimate,
-        the final weights (N,) and the particles' subtree points (N, P_sub, 3). ``alone`` (the
+        the last layer's log-weights (N,) and particles (N, D). ``alone`` (the
         root only): the segments attached to the root keep their world orientation."""
         model = self.model
-        base = np.repeat(q[None], n, axis=0)
-        X = base[:, idx].copy()
+        X = np.repeat(q[None, idx], n, axis=0)
         clipped = np.repeat(model.clip(q[None]), n, axis=0)  # the DOF outside idx, as every layer's clip leaves them
         prior_dofs = np.union1d(idx, self._held) if alone else idx
         logw = np.zeros(n)
@@ -342,7 +347,7 @@ class FactoredIPF(Tracker):
         q[idx] = best_x
         if alone:
             q[self._held] = best_held
-        return q, normalise_log_weights(logw), self.projector.points(Q, sub.points)
+        return q, logw, Q
 
     def _held_angles(self, q: np.ndarray, Q: np.ndarray) -> np.ndarray:
         """Joint angles (N, len(_held)) for the root taking the pose of Q (N, D) while what it carries
