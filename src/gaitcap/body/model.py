@@ -140,6 +140,7 @@ class BodyModel:
         self.lower = np.asarray(lower)
         self.upper = np.asarray(upper)
         self.wrap = np.asarray(wrap)
+        self._clip_limits: dict[tuple[str, bytes] | None, tuple] = {}  # clip's masks and limits per selection
         self.is_rotation = np.asarray(is_rot)
 
         # points: joints (at a segment origin) and landmarks
@@ -226,15 +227,22 @@ class BodyModel:
         with ``dofs`` (M,), q (N, M) holds only those DOF (each DOF is clipped on its own, so this
         equals the same columns of a clipped full pose)."""
         q = np.array(q, dtype=np.float64, copy=True)
-        if dofs is None:
-            wrap, lower, upper = self.wrap, self.lower, self.upper
-        else:
-            wrap, lower, upper = self.wrap[dofs], self.lower[dofs], self.upper[dofs]
-        if wrap.any():
+        wrap, nw, lower, upper = self._limits_of(dofs)
+        if wrap is not None:
             q[..., wrap] = (q[..., wrap] + np.pi) % (2 * np.pi) - np.pi
-        nw = ~wrap
-        q[..., nw] = np.clip(q[..., nw], lower[nw], upper[nw])
+        q[..., nw] = np.clip(q[..., nw], lower, upper)
         return q
+
+    def _limits_of(self, dofs: np.ndarray | None) -> tuple[np.ndarray | None, np.ndarray, np.ndarray, np.ndarray]:
+        """For :meth:`clip` of the DOF ``dofs`` (None: all): the wrapping columns' mask (None: none),
+        the other columns' mask and their lower and upper limits, built once per selection (the
+        trackers clip the same few selections thousands of times a frame)."""
+        key = None if dofs is None else (np.asarray(dofs).dtype.str, np.asarray(dofs).tobytes())
+        if key not in self._clip_limits:
+            wrap = self.wrap if dofs is None else self.wrap[dofs]
+            lower, upper = (self.lower, self.upper) if dofs is None else (self.lower[dofs], self.upper[dofs])
+            self._clip_limits[key] = (wrap if wrap.any() else None, ~wrap, lower[~wrap], upper[~wrap])
+        return self._clip_limits[key]
 
     def within_limits(self, q: np.ndarray, tol: float = 1e-9) -> np.ndarray:
         """Boolean (N,) mask: every non-wrapping DOF within its limits."""

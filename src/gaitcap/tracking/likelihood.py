@@ -79,7 +79,7 @@ class SilhouetteLikelihood:
 
     def _log_likelihood(self, I: np.ndarray, M: np.ndarray, obs: Observation) -> np.ndarray:
         areas = np.maximum(obs.areas, 1.0)[:, None]
-        return self.beta * np.mean((2 * I - M) / areas, axis=0)
+        return self.beta * (np.add.reduce((2 * I - M) / areas, axis=0) / len(areas))  # the mean over the cameras
 
     @staticmethod
     def _fit(I: np.ndarray, M: np.ndarray, obs: Observation) -> np.ndarray:
