@@ -57,6 +57,8 @@ class FactoredIPF(Tracker):
         computed (the shape calibration's re-fits read the pose and the fit only)."""
         super().__init__(*args, **kwargs)
         self.uncertainty = uncertainty
+        #: the views' sizes and dtypes, their placed masks and free prefix sums' arrays (:meth:`_scratch`)
+        self._buffers: tuple[tuple, list[np.ndarray], tuple[np.ndarray, np.ndarray] | None] | None = None
         self.order = self.config.order_indices(self.model)
         self.subtrees = subtrees(self.model)
         self._explored = self.config.explored_dofs(self.model, self.subtrees)
@@ -291,15 +293,17 @@ class FactoredIPF(Tracker):
             variance = prior.copy()
             spreads = []
             if p == 0:  # Img_n: the segments placed so far (those before from_node at the start)
-                placed = [np.zeros_like(s) for s in obs.silhouettes]
+                placed, into = self._scratch(obs)
                 for s in self.order[:from_node]:
                     self._draw(q, self.subtrees[s].own_capsules, placed)
-                free = self.likelihood.free_prefixes(obs, placed)
+                free = self.likelihood.free_prefixes(obs, placed, into)
             for s in self.order[from_node:]:
                 sub = self.subtrees[s]
                 n = cfg.root_particles if model.segments[s].parent < 0 else cfg.particles
                 if p > 0:
-                    free = self.likelihood.free_prefixes(obs, self._placed_outside(q, s, obs))
+                    placed, into = self._scratch(obs)
+                    self._draw(q, self._outside[s], placed)  # all segments outside s's subtree
+                    free = self.likelihood.free_prefixes(obs, placed, into)
                 alone = p > 0 and s == self._root and cfg.root_refine == "alone"
                 q, logw, Q = self._node(obs, q, self._explored[s], sub, free, n, widen, layers, alone)
                 evaluations += n * len(layers)
@@ -386,11 +390,21 @@ class FactoredIPF(Tracker):
                 out[:, seg.dofs] = model.local_angles(seg, np.swapaxes(R_new, 1, 2) @ world)
         return model.clip(out[:, self._held], self._held)
 
-    def _placed_outside(self, q: np.ndarray, s: int, obs: Observation) -> list[np.ndarray]:
-        """All segments outside segment s's subtree, drawn at the estimate, per view (1 inside)."""
-        placed = [np.zeros_like(m) for m in obs.silhouettes]
-        self._draw(q, self._outside[s], placed)
-        return placed
+    def _scratch(self, obs: Observation) -> tuple[list[np.ndarray], tuple[np.ndarray, np.ndarray] | None]:
+        """Zeroed placed masks (one per view, as the silhouettes) and two (C, h, w + 1) arrays for the
+        free pixels' prefix sums (None: views of different sizes), the same arrays from node to node
+        and from search to search: new arrays of this size cost more in page faults than the work
+        written into them. Valid until the next call."""
+        sizes = tuple((m.shape, m.dtype.str) for m in obs.silhouettes)
+        if self._buffers is None or self._buffers[0] != sizes:
+            placed = [np.zeros_like(m) for m in obs.silhouettes]
+            (h, w), C = obs.silhouettes[0].shape, len(placed)
+            into = (np.empty((C, h, w + 1)), np.empty((C, h, w + 1))) if len({m.shape for m in placed}) == 1 else None
+            self._buffers = (sizes, placed, into)
+        _, placed, into = self._buffers
+        for m in placed:
+            m.fill(0)
+        return placed, into
 
     def _draw(self, q: np.ndarray, caps: np.ndarray, masks: list[np.ndarray]) -> list[tuple[int, int]]:
         """Fill capsules ``caps`` at pose q into every view's mask; returns, per view, the first and

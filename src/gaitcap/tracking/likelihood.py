@@ -39,12 +39,14 @@ class SilhouetteLikelihood:
         return a, b, f * radii[:, 0] / za, f * radii[:, 1] / zb
 
     @staticmethod
-    def free_prefixes(obs: Observation, placed: list[np.ndarray]) -> list[tuple[np.ndarray, np.ndarray]]:
+    def free_prefixes(obs: Observation, placed: list[np.ndarray], into: tuple[np.ndarray, np.ndarray] | None = None
+                      ) -> list[tuple[np.ndarray, np.ndarray]]:  # fmt: skip
         """Row prefix sums of (silhouette x free, free) per camera, free = 1 - placed (placed: the
-        pixels already explained, (h, w) float32 0/1 masks, one per camera), for :meth:`terms`."""
+        pixels already explained, (h, w) float32 0/1 masks, one per camera), for :meth:`terms`.
+        ``into``: two (C, h, w + 1) arrays to write them into (views of one size only; else ignored)."""
         if len({s.shape for s in obs.silhouettes}) > 1:  # views of different sizes: one by one
             return [free_prefixes(s, p) for s, p in zip(obs.silhouettes, placed)]
-        C1, C2 = free_prefixes_views(tuple(obs.silhouettes), tuple(placed))
+        C1, C2 = free_prefixes_views(tuple(obs.silhouettes), tuple(placed), into)
         return list(zip(C1, C2))
 
     def projected(self, A: np.ndarray, B: np.ndarray, radii: np.ndarray) -> Projected:
