@@ -125,6 +125,9 @@ def test_free_prefixes_are_the_row_sums_of_the_free_silhouette():
         want = (row_prefix(sil[c] * (np.float32(1) - placed[c])), row_prefix(np.float32(1) - placed[c]))
         for got_views, got_one, w in zip((C1[c], C2[c]), one, want):
             assert np.array_equal(got_one, w) and np.array_equal(got_views, w)
+    into = (np.full_like(C1, np.nan), np.full_like(C2, np.nan))  # reused arrays: every element written
+    assert all(r is i for r, i in zip(free_prefixes_views(tuple(sil), tuple(placed), into), into))
+    assert np.array_equal(into[0], C1) and np.array_equal(into[1], C2)
 
 
 def test_free_prefixes_refreshed_on_the_filled_rows_equal_new_ones():

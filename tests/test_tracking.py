@@ -1181,3 +1181,30 @@ def test_the_initialisation_starts_before_the_shape_window_is_read(embedded_sess
     assert len(head.items) == 10
     assert tracker is filt and start is None and not settled and problems == []
     assert shape_note == note
+
+
+def test_factored_ipf_without_uncertainty_tracks_the_same(embedded_session):
+    """``uncertainty=False`` (the shape re-fits) leaves the poses, points and fits as they were, the
+    uncertainty NaN; a tracker reusing its scratch arrays over frames equals one started afresh."""
+    from gaitcap.tracking.factored_ipf import FactoredIPF
+
+    truth, rig, model = _truth_setup(embedded_session.session)
+    cfg = load_tracking_config()
+    views = tracking_views(rig, cfg.scale)
+    lik = SilhouetteLikelihood(views, cfg.beta)
+    obs = [observe(views, [truth.mask(c, t) for c in rig.names]) for t in (10, 11)]
+    kept, plain = (FactoredIPF(model, lik, cfg, np.random.default_rng(0), uncertainty=u) for u in (True, False))
+    for tracker in (kept, plain):
+        tracker.start(truth.poses[9], fresh=False)
+    for o in obs:
+        a, b = kept.step(o), plain.step(o)
+        assert np.array_equal(a.q, b.q) and np.array_equal(a.points, b.points) and a.fit == b.fit
+        assert np.all(np.isfinite(a.uncertainty)) and np.all(np.isnan(b.uncertainty))
+    fresh = FactoredIPF(model, lik, cfg, np.random.default_rng(0))
+    fresh.start(truth.poses[9], fresh=False)
+    fresh.step(obs[0])
+    again = FactoredIPF(model, lik, cfg, np.random.default_rng(0))
+    again.start(truth.poses[9], fresh=False)
+    again.step(obs[0])
+    again._scratch(obs[0])[0][0][:] = 1.0  # stale masks are zeroed before use
+    assert np.array_equal(fresh.step(obs[1]).q, again.step(obs[1]).q)
