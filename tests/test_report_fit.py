@@ -20,6 +20,7 @@ from gait_walker import Walker
 from gaitcap.cli.main import cli
 from gaitcap.gait.analysis import analyse
 from gaitcap.io.track_h5 import QUALITY_POOR_FIT, TrackRecord
+from gaitcap.io.truth_folder import read_events_csv
 from gaitcap.io.trajectories_h5 import write_trajectory
 from gaitcap.report.fit import (MAX_ATTENTION_FRAMES, UNCERTAIN_MM, FitRecord, angle_bands, attention_frames,
                                 load_fit_record, select_frames)  # fmt: skip
@@ -183,7 +184,12 @@ def test_report_of_a_tracked_run_embeds_the_contact_sheet_and_the_banner(tracked
     images = _decoded_images(html)
     jpegs = [img for mime, img in images if mime == "image/jpeg"]
     n_cells = html.count("<div class='cell")
-    assert n_cells >= 3 and len(jpegs) == 2 * n_cells  # one thumbnail per camera and frame
+    assert len(jpegs) == 2 * n_cells  # one thumbnail per camera and frame
+    # one cell per frame the sheet chooses for the report's own events (and the frames needing a look)
+    events = list(read_events_csv(root / "g1" / "events.csv"))
+    chosen = [f.index for f in select_frames(load_fit_record(root / "run" / "trajectories.h5"), events)]
+    assert events and [int(t) for t in re.findall(r"<b>#(\d+)</b>", html)] == chosen
+    assert n_cells == len(chosen) and {int(round(e.time_s * 25.0)) for e in events} <= set(chosen)
     assert all(img.shape[0] == 240 for img in jpegs)
     assert len(html) < 3_000_000 and "http" not in html.replace("http-equiv", "")
     assert "tracked body model (capsules)" in html

@@ -1117,6 +1117,8 @@ def test_track_json_records_the_stage_times(tracked_session):
     _, out, summary = tracked_session
     stages = json.loads((out / "track.json").read_text())["stages_s"]
     main_thread = ["setup", "kernels", "first_frames", "initialisation", "shape", "tracking", "verdict", "writing"]
+    if load_tracking_config().backward.enabled:
+        main_thread.append("backward")
     assert set(stages) == set(main_thread) | {"background"}
     assert all(v >= 0 for v in stages.values())
     # the main thread's stages follow one another: together they take (nearly) the whole run

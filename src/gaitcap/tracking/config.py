@@ -261,7 +261,7 @@ class SmoothingConfig(Strict):
 class BackwardConfig(Strict):
     """The second pass over the clip, backwards in time (tracking/backward.py)."""
 
-    enabled: bool = False
+    enabled: bool = True
     agree_m: float = Field(default=0.03, gt=0, le=0.5)
 
 
