@@ -355,7 +355,8 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
                 tracked = _track_frames(filt, likelihood, views, cfg, head.take(head.limit), stream, writer, n_frames,
                                         progress, timing, on_frame, start, settled, spool)  # fmt: skip
             if spool is not None:
-                with stages.timed("backward"):
+                # the videos are read and the prefetch thread idle: the kernels take every core
+                with stages.timed("backward"), kernel_threads(None):
                     replaced = _backward_pass(_new_tracker(cfg, filt.model, likelihood), spool, writer, cfg)
                 log.info("backward pass: %d of %d frames taken from it", replaced, tracked)
         t_writing = time.perf_counter()
