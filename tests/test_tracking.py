@@ -612,51 +612,6 @@ def test_initialise_reports_the_fit_of_the_pose_it_returns(embedded_session, mon
     assert abs(other - result.fit) > 1e-3  # the two assignments fit differently: reporting the wrong one shows
 
 
-def test_shanks_exchanged_keeps_the_thighs_and_swaps_the_shanks_angles(embedded_session):
-    """The crossed-shanks hypothesis: hips and everything but the knees and ankles unchanged, each
-    shank's sagittal angle (hip flexion - knee flexion) the other's, the ankles exchanged; done
-    twice it gives the pose back."""
-    truth, rig, views, tracker, hips, apart = _swap_setup(embedded_session.session)
-    model = tracker.model
-    knees = (model.dof_index("knee_flexion_l"), model.dof_index("knee_flexion_r"))
-    ankles = [i for i, n in enumerate(model.dof_names) if n.startswith("ankle_")]
-    moved = np.array(list(knees) + ankles)
-    checked = 0
-    for t in range(0, len(apart), 3):
-        q = truth.poses[t]
-        x = tracker._shanks_exchanged(q)
-        np.testing.assert_array_equal(np.delete(x, moved), np.delete(q, moved))
-        np.testing.assert_array_equal(x[tracker._ankle_l], q[tracker._ankle_r])
-        np.testing.assert_array_equal(x[tracker._ankle_r], q[tracker._ankle_l])
-        gap = q[hips[0]] - q[hips[1]]
-        unclipped = q.copy()
-        unclipped[list(knees)] = q[knees[1]] + gap, q[knees[0]] - gap
-        if model.within_limits(unclipped[None])[0]:  # else the knees were clipped
-            checked += 1
-            assert x[hips[0]] - x[knees[0]] == pytest.approx(q[hips[1]] - q[knees[1]])
-            assert x[hips[1]] - x[knees[1]] == pytest.approx(q[hips[0]] - q[knees[0]])
-            np.testing.assert_allclose(tracker._shanks_exchanged(x), q, atol=1e-12)
-    assert checked >= 3
-
-
-@pytest.mark.parametrize("shanks", [True, False])
-def test_shank_hypothesis_uncrosses_legs_crossed_below_the_knees(embedded_session, shanks):
-    """A previous estimate with the thighs right and the shanks crossed (as the OpenSim walk's
-    2-5 frame swaps were) while the legs are close: with ``swap_shanks`` the ankles come back to
-    their own sides; without it they stay on the other's, so the check can fail."""
-    truth, rig, views, tracker, hips, apart = _swap_setup(embedded_session.session, swap_shanks=shanks,
-                                                          swap_fit_drop=None)  # fmt: skip
-    model = tracker.model
-    ankles = (model.point_names.index("ankle_l"), model.point_names.index("ankle_r"))
-    t = next(i for i in range(5, len(apart)) if apart[i - 1] < 20 and apart[i] < 20)
-    _previous_estimate(tracker, truth, views, rig, t, tracker._shanks_exchanged(truth.poses[t - 1]))  # not a fresh start
-    est = tracker.step(observe(views, [truth.mask(c, t) for c in rig.names]))
-    true_points = model.forward(truth.poses[t][None])[0]
-    own = [np.linalg.norm(est.points[a] - true_points[a]) for a in ankles]
-    other = [np.linalg.norm(est.points[a] - true_points[b]) for a, b in zip(ankles, ankles[::-1])]
-    assert (own[0] < other[0] and own[1] < other[1]) == shanks
-
-
 @pytest.mark.parametrize("fit_drop", [0.04, None])
 def test_fit_drop_searches_the_mirror_with_the_legs_apart(embedded_session, fit_drop):
     """Legs swapped while far apart (no mirror by closeness): a first pass fitting worse than the

@@ -66,9 +66,6 @@ class FactoredIPF(Tracker):
         self._outside = [np.setdiff1d(everything, sub.capsules) for sub in self.subtrees]
         self._hip_flex = (self.model.dof_index("hip_flexion_l"), self.model.dof_index("hip_flexion_r"))
         self._knee_flex = (self.model.dof_index("knee_flexion_l"), self.model.dof_index("knee_flexion_r"))
-        names = self.model.dof_names
-        self._ankle_l = np.array([i for i in self.left_leg if names[i].startswith("ankle_")], int)
-        self._ankle_r = np.array([i for i in self.right_leg if names[i].startswith("ankle_")], int)
         self._fits: deque[float] = deque(maxlen=self.config.factored_ipf.swap_fit_frames)  # first-pass fits
         self._fresh = True  # no frame tracked since the last start
         self._before: np.ndarray | None = None  # the estimate of the frame before the previous one
@@ -128,17 +125,13 @@ class FactoredIPF(Tracker):
         With ``keep_previous`` the previous estimate, unchanged, competes with the first pass (the
         drift step keeps the best, and a greedy walk of the chain can end below where it started).
 
-        With ``swap_shanks``, while the legs are close a third hypothesis keeps the thighs and
-        exchanges the shanks and feet (:meth:`_shanks_exchanged`), walked from the legs like the
-        mirror: legs that crossed below the knees only.
-
         A first pass that still fits ``swap_fit_drop`` below the recent frames is searched again
         on widened intervals (``recover_widen``, :meth:`_recover`).
 
-        Whatever beat the first hypothesis on the first pass (the mirror, the exchanged shanks, a
-        recovered pose) replaces it only if it still fits ``swap_margin`` better once both have had
-        the further passes: a first pass's fit is a noisy judge of two leg assignments. Such wins
-        are rare, so the second refinement costs little.
+        Whatever beat the first hypothesis on the first pass (the mirror, a recovered pose) replaces
+        it only if it still fits ``swap_margin`` better once both have had the further passes: a
+        first pass's fit is a noisy judge of two leg assignments. Such wins are rare, so the second
+        refinement costs little.
 
         With ``swap_continuity``, two hypotheses within ``swap_margin`` of each other are a tie
         that the silhouettes cannot break (seen from the side or from the front, which leg is
@@ -170,10 +163,6 @@ class FactoredIPF(Tracker):
             else:
                 other, _ = self._search(obs, mirrored, widen, 0, 1)
             evaluations = best.evaluations + other.evaluations
-            if cfg.swap_shanks and not fresh and not dropped and self._legs_close(start):
-                third = self._search_legs(obs, self._shanks_exchanged(start), best, spreads, widen)
-                evaluations += third.evaluations
-                other = third if third.fit > other.fit else other
             best = self._preferred(best, other, start, 0.0 if fresh else cfg.swap_margin, continuity)
             best.evaluations = evaluations
         if cfg.recover_widen is not None and widen <= 1.0 and self._fit_dropped(best.fit):
@@ -229,18 +218,6 @@ class FactoredIPF(Tracker):
         q[self._not_legs] = first.q[self._not_legs]
         before = np.sum(spreads[: self._legs_from], axis=0)
         return self._search(obs, q, widen, 0, 1, from_node=self._legs_from, variance=before)[0]
-
-    def _shanks_exchanged(self, q: np.ndarray) -> np.ndarray:
-        """Pose q (D,) with the thighs kept and the shanks and feet exchanged: each knee flexion set so
-        that its shank takes the other shank's sagittal angle (hip flexion - knee flexion), the
-        ankles' angles exchanged. The legs can cross below the knees only (the thighs on their own
-        sides, the ankles on the other's): the whole-leg mirror cannot undo that."""
-        out = q.copy()
-        (hl, hr), (kl, kr) = self._hip_flex, self._knee_flex
-        gap = q[hl] - q[hr]
-        out[kl], out[kr] = q[kr] + gap, q[kl] - gap
-        out[self._ankle_l], out[self._ankle_r] = q[self._ankle_r], q[self._ankle_l]
-        return self.model.clip(out[None])[0]
 
     def _recover(self, obs: Observation, start: np.ndarray, best: Estimate) -> Estimate:
         """A first pass that still fits ``swap_fit_drop`` below the recent frames after the mirrored
