@@ -141,7 +141,9 @@ class FactoredIPF(Tracker):
         particles are still drawn around the previous estimate alone, and the extrapolation only
         orders two poses the image scores alike.
 
-        The runs behind these choices are in docs/tuning_history.md (``factored_ipf`` keys).
+        The runs behind these choices are in docs/tuning_history.md (``factored_ipf`` keys); with the
+        pipeline's backward pass on, switching them off was measured on the whole suite and made the
+        tails worse (docs/validation.md, "The step's swap mechanisms with the backward pass in place").
         """
         start = self.q.copy()
         cfg = self.config.factored_ipf
