@@ -187,9 +187,10 @@ def test_report_of_a_tracked_run_embeds_the_contact_sheet_and_the_banner(tracked
     assert len(jpegs) == 2 * n_cells  # one thumbnail per camera and frame
     # one cell per frame the sheet chooses for the report's own events (and the frames needing a look)
     events = list(read_events_csv(root / "g1" / "events.csv"))
-    chosen = [f.index for f in select_frames(load_fit_record(root / "run" / "trajectories.h5"), events)]
+    fit = load_fit_record(root / "run" / "trajectories.h5")
+    chosen = [f.index for f in select_frames(fit, events)]
     assert events and [int(t) for t in re.findall(r"<b>#(\d+)</b>", html)] == chosen
-    assert n_cells == len(chosen) and {int(round(e.time_s * 25.0)) for e in events} <= set(chosen)
+    assert n_cells == len(chosen) and {int(round(e.time_s * fit.record.rate_hz)) for e in events} <= set(chosen)
     assert all(img.shape[0] == 240 for img in jpegs)
     assert len(html) < 3_000_000 and "http" not in html.replace("http-equiv", "")
     assert "tracked body model (capsules)" in html

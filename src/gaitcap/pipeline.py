@@ -16,7 +16,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
-from contextlib import ExitStack, contextmanager
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -349,8 +349,7 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
     writer = TrackWriter(out / "trajectories.h5", model.point_names, model.dof_names, videos.fps, attrs)
     timing = FrameTiming()
     try:
-        with ExitStack() as stack:
-            spool = stack.enter_context(FrameSpool()) if cfg.backward.enabled else None
+        with FrameSpool() if cfg.backward.enabled else nullcontext() as spool:
             with stages.timed("tracking"):
                 tracked = _track_frames(filt, likelihood, views, cfg, head.take(head.limit), stream, writer, n_frames,
                                         progress, timing, on_frame, start, settled, spool)  # fmt: skip
