@@ -239,6 +239,22 @@ def test_a_head_cut_off_at_a_thin_neck_is_kept_a_far_speck_is_not():
     assert q.components == 2
 
 
+def test_a_foot_below_a_trunk_whose_legs_were_lost_is_kept_specks_beside_or_far_below_are_not():
+    plate = np.full((240, 200, 3), 128, np.uint8)
+    frame = plate.copy()
+    frame[20:100, 80:120] = 30  # head and trunk (3200 px): the legs, the floor's colour, were not found
+    frame[150:160, 95:115] = 30  # a shoe (200 px), 50 rows (0.63 box heights) below the trunk
+    frame[60:70, 170:180] = 30  # a speck beside the body, beyond the margin (100 px)
+    frame[225:235, 95:105] = 30  # a speck 1.6 box heights below the trunk (100 px)
+    for below, shoe in ((0.0, 0), (1.0, 1)):
+        ex = SilhouetteExtractor(_config(cleanup={"keep_below": below}))
+        ex.fit_background(plate=plate)
+        mask, q = ex.process(frame)
+        assert mask[60, 100] == 1 and mask[155, 105] == shoe
+        assert mask[65, 175] == 0 and mask[230, 100] == 0
+        assert q.components == 1 + shoe
+
+
 def test_floor_map_sends_a_floor_point_to_where_the_other_camera_sees_it():
     cams = [
         Camera.look_at(name, (x, -3.0, 1.4), (0.0, 0.0, 0.5), size=(160, 120), focal_px=120.0, dist=(-0.2, 0.05, 0, 0))

@@ -141,6 +141,10 @@ class CleanupConfig(Strict):
         default=0.15, ge=0, le=2,
         description="smaller components are kept within this fraction of the main parts' box height from the box",
     )
+    keep_below: float = Field(
+        default=1.0, ge=0, le=3,
+        description="and below the box within this fraction of its height (a foot whose leg the foreground lost)",
+    )
 
 
 class QualityConfig(Strict):

@@ -40,7 +40,8 @@ frame's global per-channel brightness ratio to it (lighting drift and jumps):
 3. clean-up: opening, closing; components smaller than ``min_component_fraction`` of the image
    dropped, and smaller than ``keep_relative`` of the largest dropped unless near the main
    parts (within ``keep_margin`` of their box's height: a head or a foot cut off at the neck or
-   ankle stays); holes up to ``max_hole_fraction`` of their component filled;
+   ankle stays; below the box within ``keep_below`` of its height: a foot whose leg was lost);
+   holes up to ``max_hole_fraction`` of their component filled;
 4. background adaptation: ``B <- (1 - a) B + a I / g`` where the (dilated) mask is off and the
    pixel does not differ even weakly (shadows included): a part the mask missed does not fade
    into the background.
@@ -114,19 +115,22 @@ def _scalar(values: np.ndarray) -> tuple[float, float, float, float]:
     return (float(values[0]), float(values[1]), float(values[2]), 0.0)
 
 
-def _body_components(stats: np.ndarray, min_area: float, relative: float, margin: float) -> np.ndarray:
+def _body_components(stats: np.ndarray, min_area: float, relative: float, margin: float,
+                     below: float = 0.0) -> np.ndarray:  # fmt: skip
     """Indices of the components that belong to the person.
 
     The main parts are the components of at least ``relative`` of the largest one's area; a
     smaller component is kept when it touches their common bounding box grown by ``margin`` of
-    its height on every side (a head or a foot cut off at the neck or ankle), and dropped when it
-    lies away from the body. Nothing below ``min_area`` pixels is kept.
+    its height on every side (a head or a foot cut off at the neck or ankle), or by ``below`` of
+    its height downwards if that is more (a foot whose leg the foreground lost, below the trunk),
+    and dropped when it lies away from the body. Nothing below ``min_area`` pixels is kept.
 
     Args:
         stats: (n, 5) ``cv2.connectedComponentsWithStats`` rows (x, y, w, h, area), background excluded.
         min_area: least area in pixels.
         relative: fraction of the largest area that makes a main part.
         margin: growth of the main parts' box, as a fraction of its height.
+        below: growth of the box downwards (image rows increasing), as a fraction of its height.
 
     Returns:
         (k,) int indices into ``stats`` of the kept components.
@@ -136,7 +140,8 @@ def _body_components(stats: np.ndarray, min_area: float, relative: float, margin
     x0, y0 = x[main].min(), y[main].min()
     x1, y1 = (x + w)[main].max(), (y + h)[main].max()
     grow = margin * (y1 - y0)
-    near = (x + w >= x0 - grow) & (x <= x1 + grow) & (y + h >= y0 - grow) & (y <= y1 + grow)
+    down = max(margin, below) * (y1 - y0)
+    near = (x + w >= x0 - grow) & (x <= x1 + grow) & (y + h >= y0 - grow) & (y <= y1 + down)
     return np.flatnonzero((main | near) & (area >= min_area))
 
 
@@ -607,7 +612,8 @@ class SilhouetteExtractor:
         n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8, ltype=_label_type(mask))
         if n <= 1:
             return np.zeros_like(mask), 0
-        keep = _body_components(stats[1:], c.min_component_fraction * mask.size, c.keep_relative, c.keep_margin) + 1
+        keep = _body_components(stats[1:], c.min_component_fraction * mask.size, c.keep_relative, c.keep_margin,
+                                c.keep_below) + 1
         lut = np.zeros(n, np.uint8)
         lut[keep] = 255
         mask = np.take(lut, labels)
