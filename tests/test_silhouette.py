@@ -14,7 +14,7 @@ from gaitcap.silhouette import SilhouetteConfig, SilhouetteExtractor
 from gaitcap.silhouette.background import _channel_mean, _median
 from gaitcap.silhouette.extract import BORDER, EMPTY, NO_BACKGROUND, TOO_LARGE, _label_type
 from gaitcap.camera import Camera
-from gaitcap.silhouette.floor import FloorShadowCheck, floor_map, floor_points
+from gaitcap.silhouette.floor import FloorShadowCheck, floor_map, floor_points, floor_rows, head_top
 from gaitcap.silhouette.joint import JointExtractor
 
 
@@ -253,6 +253,56 @@ def test_a_foot_below_a_trunk_whose_legs_were_lost_is_kept_specks_beside_or_far_
         assert mask[60, 100] == 1 and mask[155, 105] == shoe
         assert mask[65, 175] == 0 and mask[230, 100] == 0
         assert q.components == 1 + shoe
+
+
+def test_the_floor_row_keeps_a_foot_whose_leg_was_lost_and_drops_a_shadow_piece_below_found_feet():
+    plate = np.full((240, 200, 3), 128, np.uint8)
+    lost = plate.copy()
+    lost[20:100, 70:130] = 30  # head and trunk (4800 px): the legs were not found
+    lost[150:160, 95:115] = 30  # a shoe 50 rows below the trunk, on the floor (row 160)
+    lost[160:180, 100:120] = 30  # its cast shadow on the floor, joined to it (with the shoe, 600 px: no main part)
+    found = plate.copy()
+    found[20:160, 80:120] = 30  # the whole body down to the feet on the floor (row 160)
+    found[185:195, 70:90] = 30  # a piece of its cast shadow that the shadow test missed, 25 rows below
+    ex = SilhouetteExtractor(SilhouetteConfig())
+    ex.fit_background(plate=plate)
+    mask, _ = ex.finish(ex.observe(lost), np.zeros((240, 200), bool), floor_row=160.0)
+    assert mask[155, 105] == 1 and mask[165, 110] == 1  # the foot, and the floor row's slack (8 % of 140 rows)
+    assert not mask[175:].any()  # past it, the shadow joined to the foot is cut off
+    mask, q = ex.finish(ex.observe(found), np.zeros((240, 200), bool), floor_row=160.0)
+    assert mask[190, 80] == 0 and q.components == 1
+    mask, q = ex.finish(ex.observe(found), np.zeros((240, 200), bool))  # no floor row: one box height
+    assert mask[190, 80] == 1 and q.components == 2
+
+
+def _person_masks(cams, at, height=1.7, radius=0.2):
+    """Full-size masks of an upright cylinder (a person) standing at floor point ``at`` (x, y)."""
+    t = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+    ring = np.stack([at[0] + radius * np.cos(t), at[1] + radius * np.sin(t)], axis=1)
+    pts = np.concatenate([np.c_[ring, np.zeros(len(t))], np.c_[ring, np.full(len(t), height)]])
+    masks = []
+    for cam in cams:
+        px = cam.project(pts)
+        m = np.zeros(cam.size[::-1], np.uint8)
+        cv2.fillConvexPoly(m, cv2.convexHull(np.round(px).astype(np.int32)), 1)
+        masks.append(m)
+    return masks
+
+
+def test_floor_rows_put_the_floor_beneath_the_person_where_each_camera_sees_it():
+    cams = [Camera.look_at(name, pos, (0.0, 0.0, 0.9), size=(320, 240), focal_px=260.0, dist=(-0.1, 0.02, 0, 0))
+            for name, pos in (("side", (0.0, -4.0, 1.2)), ("front", (4.0, 0.5, 1.5)), ("oblique", (-3.0, -3.0, 2.0)))]
+    at = (0.3, -0.2)
+    rows = floor_rows(cams, _person_masks(cams, at))
+    truth = [cam.project(np.array([[*at, 0.0]]))[0, 1] for cam in cams]
+    assert all(r is not None for r in rows)
+    assert np.max(np.abs(np.array(rows) - truth)) < 0.03 * 240  # the head's top is the cylinder's rim
+    masks = _person_masks(cams, at)
+    assert floor_rows(cams[:1], masks[:1]) == [None]  # one camera cannot triangulate
+    masks[1][:] = 0
+    masks[2][:5] = 1  # the top at the image's edge: the head is cut off there
+    assert floor_rows(cams, masks) == [None, None, None]
+    assert head_top(np.zeros((10, 10), np.uint8)) is None
 
 
 def test_floor_map_sends_a_floor_point_to_where_the_other_camera_sees_it():

@@ -115,34 +115,50 @@ def _scalar(values: np.ndarray) -> tuple[float, float, float, float]:
     return (float(values[0]), float(values[1]), float(values[2]), 0.0)
 
 
-def _body_components(stats: np.ndarray, min_area: float, relative: float, margin: float,
-                     below: float = 0.0) -> np.ndarray:  # fmt: skip
+#: below the main parts, smaller components are kept down to the floor beneath the person's head and
+#: this fraction of the person's height (head top to that floor row) further: a foot half a stride
+#: ahead of the head lies lower in the image (up to 11 of 175 pixels on the suite's s11_c3dorg)
+_FLOOR_SLACK = 0.08
+
+
+def _body_components(stats: np.ndarray, min_area: float, relative: float, margin: float, below: float = 0.0,
+                     floor_row: float | None = None) -> tuple[np.ndarray, np.ndarray, int | None]:  # fmt: skip
     """Indices of the components that belong to the person.
 
     The main parts are the components of at least ``relative`` of the largest one's area; a
     smaller component is kept when it touches their common bounding box grown by ``margin`` of
-    its height on every side (a head or a foot cut off at the neck or ankle), or by ``below`` of
-    its height downwards if that is more (a foot whose leg the foreground lost, below the trunk),
-    and dropped when it lies away from the body. Nothing below ``min_area`` pixels is kept.
+    its height on every side (a head or a foot cut off at the neck or ankle) and, downwards, by
+    ``below`` of its height if that is more (a foot whose leg the foreground lost, below the
+    trunk), but not past ``floor_row``, the image row of the floor beneath the person, when it is
+    known (plus :data:`_FLOOR_SLACK` of the person's height there: a foot half a stride ahead
+    of the head), where only the floor and the person's shadow are: the smaller components' pixels
+    past that row are dropped too (a cast shadow joined to the foot). A component is dropped when
+    it lies away from the body. Nothing below ``min_area`` pixels is kept.
 
     Args:
         stats: (n, 5) ``cv2.connectedComponentsWithStats`` rows (x, y, w, h, area), background excluded.
         min_area: least area in pixels.
         relative: fraction of the largest area that makes a main part.
         margin: growth of the main parts' box, as a fraction of its height.
-        below: growth of the box downwards (image rows increasing), as a fraction of its height.
+        below: largest growth of the box downwards (image rows increasing), as a fraction of its height.
+        floor_row: the row (same pixels as ``stats``) of the floor beneath the person, or None.
 
     Returns:
-        (k,) int indices into ``stats`` of the kept components.
+        (k,) int indices into ``stats`` of the kept components, (m,) those of the main parts, and
+        the first row past the floor (None: no ``floor_row``).
     """
     x, y, w, h, area = (stats[:, i].astype(np.float64) for i in range(5))
     main = area >= relative * area.max()
     x0, y0 = x[main].min(), y[main].min()
     x1, y1 = (x + w)[main].max(), (y + h)[main].max()
     grow = margin * (y1 - y0)
-    down = max(margin, below) * (y1 - y0)
+    down, cut = below * (y1 - y0), None
+    if floor_row is not None:  # down to the floor, give or take the feet's place along the stride
+        floor = floor_row + _FLOOR_SLACK * (floor_row - y0)
+        down, cut = min(down, floor - y1), max(int(np.floor(floor)) + 1, 0)
+    down = max(grow, down)
     near = (x + w >= x0 - grow) & (x <= x1 + grow) & (y + h >= y0 - grow) & (y <= y1 + down)
-    return np.flatnonzero((main | near) & (area >= min_area))
+    return np.flatnonzero((main | near) & (area >= min_area)), np.flatnonzero(main), cut
 
 
 def _channel_sum(image: np.ndarray) -> np.ndarray:
@@ -371,20 +387,25 @@ class SilhouetteExtractor:
         darkening = candidate | self._darker(si, sb, plain2)
         return FrameEvidence(img, gain, candidate, weak, strength, colour_only, shadow, deep, darkening, (si, sb))
 
-    def finish(self, evidence: FrameEvidence, shadow: np.ndarray) -> tuple[np.ndarray, FrameQuality]:
+    def finish(self, evidence: FrameEvidence, shadow: np.ndarray,
+               floor_row: float | None = None) -> tuple[np.ndarray, FrameQuality]:  # fmt: skip
         """Steps 3-4: clean-up of ``candidate & ~shadow`` and background adaptation.
 
         Args:
             evidence: this camera's :meth:`observe` of the frame.
             shadow: (h, w) bool, the pixels finally taken as cast shadow.
+            floor_row: the image row (full resolution) of the floor beneath the person, when the
+                cameras' calibration tells it (:class:`~gaitcap.silhouette.joint.JointExtractor`):
+                below the main parts, smaller components are kept down to it (``cleanup.keep_below``).
 
         Returns:
             ``(mask, quality)`` as :meth:`process`.
         """
-        mask, _, quality = self._finish(evidence, shadow, soft=False)
+        mask, _, quality = self._finish(evidence, shadow, soft=False, floor_row=floor_row)
         return mask, quality
 
-    def finish_soft(self, evidence: FrameEvidence, shadow: np.ndarray) -> tuple[np.ndarray, np.ndarray, FrameQuality]:
+    def finish_soft(self, evidence: FrameEvidence, shadow: np.ndarray,
+                    floor_row: float | None = None) -> tuple[np.ndarray, np.ndarray, FrameQuality]:  # fmt: skip
         """As :meth:`finish`, with the soft silhouette too.
 
         Returns:
@@ -394,13 +415,15 @@ class SilhouetteExtractor:
             pixels the clean-up filled in), linear in between. The likelihood counts 0.5 as neither
             silhouette nor background, 1 as silhouette.
         """
-        return self._finish(evidence, shadow, soft=True)
+        return self._finish(evidence, shadow, soft=True, floor_row=floor_row)
 
-    def _finish(self, evidence: FrameEvidence, shadow: np.ndarray,
-                soft: bool) -> tuple[np.ndarray, np.ndarray | None, FrameQuality]:  # fmt: skip
+    def _finish(self, evidence: FrameEvidence, shadow: np.ndarray, soft: bool,
+                floor_row: float | None = None) -> tuple[np.ndarray, np.ndarray | None, FrameQuality]:  # fmt: skip
         raw = _connected_to(evidence.weak & ~shadow, evidence.candidate & ~shadow, self._open_k)
         self._trim_outline(raw, evidence.colour_only)
-        mask_small, n_comp = self._clean(raw)
+        if floor_row is not None and self._full_size is not None:  # full resolution -> working scale
+            floor_row = (floor_row + 0.5) * raw.shape[0] / self._full_size[1] - 0.5
+        mask_small, n_comp = self._clean(raw, floor_row)
         self._adapt(evidence.image, evidence.gain, mask_small, evidence.weak | shadow)
         mask = self._to_full(mask_small)
         quality = self._quality(mask, int(np.count_nonzero(shadow)) / shadow.size, n_comp)  # = shadow.mean(), 10x cheaper
@@ -601,8 +624,9 @@ class SilhouetteExtractor:
         same[textured] = self._texture_ncc(si, sb, at[textured], mb[textured], vb[textured]) >= self.config.shadow.min_ncc
         return same
 
-    def _clean(self, raw: np.ndarray) -> tuple[np.ndarray, int]:
-        """Morphology, component selection and hole filling; (h, w) uint8 0/255 -> same, count."""
+    def _clean(self, raw: np.ndarray, floor_row: float | None = None) -> tuple[np.ndarray, int]:
+        """Morphology, component selection and hole filling; (h, w) uint8 0/255 -> same, count.
+        ``floor_row``: the floor's row beneath the person at working scale (:func:`_body_components`)."""
         c = self.config.cleanup
         mask = raw
         if self._open_k is not None:
@@ -612,11 +636,16 @@ class SilhouetteExtractor:
         n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8, ltype=_label_type(mask))
         if n <= 1:
             return np.zeros_like(mask), 0
-        keep = _body_components(stats[1:], c.min_component_fraction * mask.size, c.keep_relative, c.keep_margin,
-                                c.keep_below) + 1
+        keep, main, cut = _body_components(stats[1:], c.min_component_fraction * mask.size, c.keep_relative,
+                                           c.keep_margin, c.keep_below, floor_row)  # fmt: skip
+        keep += 1
         lut = np.zeros(n, np.uint8)
         lut[keep] = 255
         mask = np.take(lut, labels)
+        if cut is not None and cut < mask.shape[0]:  # past the floor: the main parts only
+            lut[:] = 0
+            lut[main + 1] = 255
+            mask[cut:] = np.take(lut, labels[cut:])
         if c.max_hole_fraction > 0:
             mask = self._fill_holes(mask, c.max_hole_fraction)
         return mask, int(keep.size)

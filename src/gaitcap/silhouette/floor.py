@@ -40,7 +40,7 @@ from collections.abc import Sequence
 import cv2
 import numpy as np
 
-from gaitcap.camera import Camera
+from gaitcap.camera import Camera, dlt_point
 
 # a floor point farther than this from camera i is too near the horizon to be looked up
 _MAX_FLOOR_DISTANCE_M = 50.0
@@ -223,3 +223,51 @@ class FloorShadowCheck:
         hi = cv2.remap(high, look, None, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=-np.inf)
         tol = np.float32(tolerance)
         return ((mine >= lo - tol) & (mine <= hi + tol)).view(np.uint8)
+
+
+#: a triangulated head top outside these heights (metres above the floor) is no person's: no floor row
+_HEAD_TOP_M = (0.7, 2.5)
+
+
+def head_top(mask: np.ndarray, rows: int = 3) -> np.ndarray | None:
+    """The top of a mask (H, W) uint8/bool, the person's head: (2,) pixel (x, y), x the mean column of
+    its first ``rows`` rows; None when the mask is empty or touches the image's top edge (the head
+    cut off: its top is not the head's)."""
+    filled = np.flatnonzero(np.any(mask, axis=1))
+    if filled.size == 0 or filled[0] == 0:
+        return None
+    y = int(filled[0])
+    cols = np.flatnonzero(np.any(mask[y : y + rows], axis=0))
+    return np.array([float(cols.mean()), float(y)])
+
+
+def floor_rows(cameras: Sequence[Camera], masks: Sequence[np.ndarray]) -> list[float | None]:
+    """The image row of the floor beneath the person, per camera, from the masks of one frame.
+
+    The masks' tops (:func:`head_top`) are triangulated (DLT, undistorted pixels, every camera
+    that sees the top); the floor point straight below, (X, Y, 0), is projected into each camera.
+    None for every camera when fewer than two see the top or the point is no person's head
+    (height outside 0.7-2.5 m); None for a camera that the floor point is behind.
+
+    Args:
+        cameras: the calibrated cameras (world z up, floor z = 0).
+        masks: (H_c, W_c) full-resolution masks, one per camera.
+
+    Returns:
+        Per camera, the row (full-resolution pixels) or None.
+    """
+    tops = [head_top(m) for m in masks]
+    seen = [i for i, t in enumerate(tops) if t is not None]
+    none: list[float | None] = [None] * len(cameras)
+    if len(seen) < 2:
+        return none
+    ideal = [cameras[i].undistort_pixels(tops[i][None])[0] for i in seen]
+    top = dlt_point([cameras[i].projection_matrix() for i in seen], ideal)
+    if top is None or not _HEAD_TOP_M[0] <= top[2] <= _HEAD_TOP_M[1]:
+        return none
+    foot = np.array([[top[0], top[1], 0.0]])
+    rows: list[float | None] = []
+    for cam in cameras:
+        in_front = cam.to_camera(foot)[0, 2] > 0
+        rows.append(float(cam.project(foot)[0, 1]) if in_front else None)
+    return rows

@@ -1,5 +1,8 @@
 """The silhouettes of one frame of every camera together: per-camera tests, the floor-shadow
-check across cameras (:mod:`gaitcap.silhouette.floor`), then each camera's clean-up."""
+check across cameras (:mod:`gaitcap.silhouette.floor`), then each camera's clean-up, which keeps
+small components below the body down to the floor beneath the person (a foot whose leg the
+foreground lost), that floor's row in each camera found from the previous frame's masks
+(:func:`~gaitcap.silhouette.floor.floor_rows`: their head tops triangulated)."""
 
 from __future__ import annotations
 
@@ -11,7 +14,7 @@ import numpy as np
 from gaitcap.camera import Camera
 from gaitcap.errors import InputError
 from gaitcap.silhouette.extract import FrameEvidence, FrameQuality, SilhouetteExtractor
-from gaitcap.silhouette.floor import FloorShadowCheck
+from gaitcap.silhouette.floor import FloorShadowCheck, floor_rows
 
 MapFn = Callable[..., Iterable[Any]]
 
@@ -31,6 +34,9 @@ class JointExtractor:
         self.extractors = list(extractors)
         self._map = map_fn
         self.floor: FloorShadowCheck | None = None
+        self.cameras = list(cameras) if cameras is not None else None
+        #: per camera, the floor's row beneath the person in the previous frame (None: not known)
+        self._floor_rows: list[float | None] = [None] * len(self.extractors)
         if cameras is None or not self.extractors:
             return
         if len(cameras) != len(self.extractors):
@@ -48,13 +54,25 @@ class JointExtractor:
     def process(self, images: Sequence[np.ndarray]) -> list[tuple[np.ndarray, FrameQuality]]:
         """Masks of one frame: ``images`` (H_c, W_c, 3) uint8 BGR per camera -> (mask, quality) per camera."""
         evidence, shadows = self._observe(images)
-        return list(self._map(lambda ex, e, s: ex.finish(e, s), self.extractors, evidence, shadows))
+        out = list(self._map(lambda ex, e, s, r: ex.finish(e, s, r), self.extractors, evidence, shadows,
+                             self._floor_rows))  # fmt: skip
+        self._follow([m for m, _ in out])
+        return out
 
     def process_soft(self, images: Sequence[np.ndarray]) -> list[tuple[np.ndarray, np.ndarray, FrameQuality]]:
         """As :meth:`process`, with each camera's soft silhouette: (mask, soft, quality) per camera
         (:meth:`SilhouetteExtractor.finish_soft`)."""
         evidence, shadows = self._observe(images)
-        return list(self._map(lambda ex, e, s: ex.finish_soft(e, s), self.extractors, evidence, shadows))
+        out = list(self._map(lambda ex, e, s, r: ex.finish_soft(e, s, r), self.extractors, evidence, shadows,
+                             self._floor_rows))  # fmt: skip
+        self._follow([m for m, _, _ in out])
+        return out
+
+    def _follow(self, masks: list[np.ndarray]) -> None:
+        """The floor's row beneath the person in each camera, from this frame's masks, for the next
+        frame (the person moves a few centimetres from frame to frame)."""
+        if self.cameras is not None and len(self.cameras) > 1:
+            self._floor_rows = floor_rows(self.cameras, masks)
 
     def _observe(self, images: Sequence[np.ndarray]) -> tuple[list[FrameEvidence], list[np.ndarray]]:
         """Every camera's per-pixel evidence and its shadow map after the floor check."""
