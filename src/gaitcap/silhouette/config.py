@@ -143,7 +143,8 @@ class CleanupConfig(Strict):
     )
     keep_below: float = Field(
         default=1.0, ge=0, le=3,
-        description="and below the box within this fraction of its height (a foot whose leg the foreground lost)",
+        description="and below the box within this fraction of its height (a foot whose leg the foreground lost; "
+                    "calibrated cameras: not past the floor beneath the person)",
     )
 
 
