@@ -21,7 +21,6 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-from numba import prange
 
 from gaitcap.jit import cached_njit
 
@@ -90,7 +89,7 @@ def _world(R: np.ndarray, o: np.ndarray, n: int, s: int, loc: np.ndarray, k: int
     return o[n, s, i] + R[n, s, i, 0] * loc[k, 0] + R[n, s, i, 1] * loc[k, 1] + R[n, s, i, 2] * loc[k, 2]
 
 
-@cached_njit(parallel=True, nogil=True)
+@cached_njit(nogil=True)
 def _project(Q, need, parent, origin, dof_start, dof_stop, axis, sign, trans, cap_seg, cap_a, cap_b, cap_r,
              cam_R, cam_t, cam_k):  # fmt: skip
     N, K, C, S = Q.shape[0], cap_seg.shape[0], cam_R.shape[0], parent.shape[0]
@@ -100,7 +99,7 @@ def _project(Q, need, parent, origin, dof_start, dof_stop, axis, sign, trans, ca
     rb = np.empty((C, N, K))
     R = np.empty((N, S, 3, 3))
     o = np.empty((N, S, 3))
-    for n in prange(N):
+    for n in range(N):
         _frames(Q, n, need, parent, origin, dof_start, dof_stop, axis, sign, trans, R, o)
         for k in range(K):
             s = cap_seg[k]
@@ -120,13 +119,13 @@ def _project(Q, need, parent, origin, dof_start, dof_stop, axis, sign, trans, ca
     return a, b, ra, rb
 
 
-@cached_njit(parallel=True, nogil=True)
+@cached_njit(nogil=True)
 def _points(Q, need, parent, origin, dof_start, dof_stop, axis, sign, trans, pt_seg, pt_local):  # fmt: skip
     N, P, S = Q.shape[0], pt_seg.shape[0], parent.shape[0]
     out = np.empty((N, P, 3))
     R = np.empty((N, S, 3, 3))
     o = np.empty((N, S, 3))
-    for n in prange(N):
+    for n in range(N):
         _frames(Q, n, need, parent, origin, dof_start, dof_stop, axis, sign, trans, R, o)
         for p in range(P):
             for i in range(3):
