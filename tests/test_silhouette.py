@@ -305,6 +305,27 @@ def test_floor_rows_put_the_floor_beneath_the_person_where_each_camera_sees_it()
     assert head_top(np.zeros((10, 10), np.uint8)) is None
 
 
+def test_joint_extractor_follows_the_floor_beneath_the_person_from_frame_to_frame():
+    cams = [Camera.look_at(name, pos, (0.0, 0.0, 0.9), size=(320, 240), focal_px=260.0)
+            for name, pos in (("side", (0.0, -4.0, 1.2)), ("front", (4.0, 0.5, 1.5)))]
+    at = (0.3, -0.2)
+    plates = [np.full((240, 320, 3), 128, np.uint8) for _ in cams]
+    frames = [np.where(m[..., None] > 0, np.uint8(40), p) for m, p in zip(_person_masks(cams, at), plates)]
+    extractors = []
+    for plate in plates:
+        ex = SilhouetteExtractor(_config(shadow={"enabled": False}))
+        ex.fit_background(plate=plate)
+        extractors.append(ex)
+    joint = JointExtractor(extractors, cams)
+    assert joint._floor_rows == [None, None]  # nothing seen yet
+    joint.process(frames)
+    truth = [cam.project(np.array([[*at, 0.0]]))[0, 1] for cam in cams]
+    assert np.max(np.abs(np.array(joint._floor_rows) - truth)) < 0.03 * 240
+    alone = JointExtractor(extractors[:1], None)  # no calibration: no floor row
+    alone.process(frames[:1])
+    assert alone._floor_rows == [None]
+
+
 def test_floor_map_sends_a_floor_point_to_where_the_other_camera_sees_it():
     cams = [
         Camera.look_at(name, (x, -3.0, 1.4), (0.0, 0.0, 0.5), size=(160, 120), focal_px=120.0, dist=(-0.2, 0.05, 0, 0))
