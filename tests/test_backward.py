@@ -2,13 +2,24 @@
 
 from __future__ import annotations
 
+import itertools
+from dataclasses import dataclass
+
 import numpy as np
 import pytest
 
 from gaitcap.errors import ConfigError
 from gaitcap.io.spool import FrameSpool
 from gaitcap.io.track_h5 import QUALITY_OK, TrackWriter
-from gaitcap.tracking.backward import choose_backward, leg_points
+from gaitcap.tracking.backward import (
+    CROSSING_WINDOW_S,
+    alternating_stretches,
+    choose_backward,
+    crossing_frames,
+    leg_points,
+    order_legs,
+    order_sign,
+)
 from gaitcap.tracking.config import load_tracking_config
 
 RNG = np.random.default_rng(11)
@@ -105,6 +116,151 @@ def test_backward_config_is_checked(tmp_path) -> None:
     bad.write_text("backward:\n  agree_m: 0.0\n")
     with pytest.raises(ConfigError, match="agree_m"):
         load_tracking_config(bad)
+    bad.write_text("backward:\n  crossing_m: 0.0\n")
+    with pytest.raises(ConfigError, match="crossing_m"):
+        load_tracking_config(bad)
+    bad.write_text("backward:\n  order_fit_tolerance: -0.01\n")
+    with pytest.raises(ConfigError, match="order_fit_tolerance"):
+        load_tracking_config(bad)
     bad.write_text("backward:\n  enable: false\n")
     with pytest.raises(ConfigError, match="enable"):
         load_tracking_config(bad)
+
+
+# ---------------------------------------------------------------- the leading leg alternates
+
+RATE = 25.0
+
+
+def _lead(T: int = 75, stride_hz: float = 1.0, phase: float = 0.3) -> np.ndarray:
+    """A walk's fore-aft separation of the ankles, left minus right (T,) metres: the feet pass
+    each other twice a stride."""
+    return 0.4 * np.sin(2 * np.pi * stride_hz * np.arange(T) / RATE + phase)
+
+
+def test_crossing_frames_are_where_the_feet_pass() -> None:
+    d = _lead()
+    found = crossing_frames(np.abs(d), RATE, 0.1)
+    passes = np.flatnonzero(np.sign(d[1:]) != np.sign(d[:-1]))  # d changes sign between t and t + 1
+    assert len(found) == len(passes) == 6
+    assert all(abs(f - (p + 0.5)) <= 0.5 for f, p in zip(found, passes))  # the frame nearer the passing
+    assert crossing_frames(np.abs(d) + 0.2, RATE, 0.1) == []  # the feet never come close
+    flat = np.full(40, 0.05)  # standing with the feet together: one minimum per window at most
+    found = crossing_frames(flat, RATE, 0.1)
+    assert all(b - a > round(CROSSING_WINDOW_S * RATE) for a, b in itertools.pairwise(found))
+
+
+def test_order_sign_reads_the_leading_ankle() -> None:
+    assert order_sign(np.array([0.1, 0.3, 0.2, 0.01]), 0.03) == (1, True)
+    assert order_sign(np.array([-0.1, -0.3, 0.2, -0.2]), 0.03) == (-1, False)  # one frame exchanged
+    assert order_sign(np.array([0.01, -0.02, np.nan]), 0.03) == (0, False)  # never apart
+
+
+def test_alternating_stretches_follow_the_passings_and_change_the_fewest_frames() -> None:
+    truth = _lead()
+    bounced = np.abs(truth) * np.sign(truth[0])  # a pass whose legs bounce off each other: never exchanged order
+    crossings = crossing_frames(np.abs(truth), RATE, 0.1)
+    stretches = alternating_stretches(bounced, truth, truth, RATE, 0.1, 0.03)
+    covered = sorted({t for a, b, _ in stretches for t in range(a, b)} | set(crossings))
+    assert covered == list(range(len(truth))) and len(stretches) >= 6  # every frame but the passings
+    for a, b, sign in stretches:  # each stretch's sign is the truth's, though the forward pass never alternates
+        assert order_sign(truth[a:b], 0.03) == (sign, True)
+    # the merged passes follow the truth but in one stretch: the signs are still the truth's ...
+    merged = truth.copy()
+    a, b, _ = stretches[2]
+    merged[a:b] *= -1
+    assert alternating_stretches(bounced, truth, merged, RATE, 0.1, 0.03) == stretches
+    # ... even when the forward pass started with the legs exchanged
+    assert alternating_stretches(-bounced, truth, merged, RATE, 0.1, 0.03) == stretches
+    # the merge exchanged everywhere: the fewest frames change with the other sequence of signs
+    flipped = alternating_stretches(bounced, truth, -truth, RATE, 0.1, 0.03)
+    assert [(a, b, -sign) for a, b, sign in flipped] == stretches
+    # a tie (no frame with a leading ankle in the merge) goes to the forward pass's start
+    tie = alternating_stretches(-bounced, truth, np.zeros_like(truth), RATE, 0.1, 0.03)
+    assert [(a, b, -sign) for a, b, sign in tie] == stretches
+    assert alternating_stretches(np.zeros(20), np.zeros(20), np.zeros(20), RATE, 0.1, 0.03) == []  # nobody leads
+    with pytest.raises(ValueError, match="alike"):
+        alternating_stretches(truth, truth[:-1], truth, RATE, 0.1, 0.03)
+
+
+NAMES = ("pelvis", "ankle_l", "ankle_r")
+
+
+@dataclass
+class _Est:
+    q: np.ndarray
+    points: np.ndarray
+    fit: float
+
+
+def _walk(d: np.ndarray) -> np.ndarray:
+    """Points (T, 3, 3) of NAMES for a walk along x at 1.2 m/s whose ankles lead by d (T,)."""
+    T = len(d)
+    x = 1.2 * np.arange(T) / RATE
+    pts = np.zeros((T, 3, 3))
+    pts[:, 0, 0] = x
+    pts[:, 1, 0], pts[:, 1, 1] = x + d / 2, 0.1
+    pts[:, 2, 0], pts[:, 2, 1] = x - d / 2, -0.1
+    return pts
+
+
+def _ests(d: np.ndarray, fit: float, tag: float) -> list[_Est]:
+    return [_Est(np.full(2, tag), p, fit) for p in _walk(d)]
+
+
+def _order(truth_lead: np.ndarray, forward_lead: np.ndarray, back_lead: np.ndarray, redo_lead: np.ndarray,
+           fits: tuple[float, float, float], tolerance: float = 0.03):  # fmt: skip
+    """order_legs over a run; returns the source of each frame ('f', 'b', 'r') and the restarts' poses."""
+    back = _ests(back_lead, fits[1], 2.0)
+    redo = _ests(redo_lead, fits[2], 3.0)
+    starts = []
+
+    def again(q0, a, b, backwards):
+        starts.append((q0.copy(), a, b))
+        assert backwards == (a == 0)  # a first stretch is tracked back from the passing after it
+        return redo[a:b]
+
+    chosen: dict = {}
+    cfg = load_tracking_config().backward.model_copy(update={"order_fit_tolerance": tolerance})
+    order_legs(chosen, _walk(forward_lead), np.full(len(truth_lead), fits[0]), np.ones((len(truth_lead), 2)), back,
+               NAMES, RATE, again, lambda q: -q, cfg, 0.03)  # fmt: skip
+    source = "".join("f" if t not in chosen else "br"[int(chosen[t].q[0] == 3.0)] for t in range(len(truth_lead)))
+    return source, starts
+
+
+def _exchanged(truth: np.ndarray, k: int) -> np.ndarray:
+    """The fore-aft separation with the legs exchanged over the k-th stretch between passings."""
+    out = truth.copy()
+    a, b, _ = alternating_stretches(truth, truth, truth, RATE, 0.1, 0.03)[k]
+    out[a:b] *= -1
+    return out
+
+
+def test_order_legs_takes_the_pass_that_alternates() -> None:
+    truth = _lead()
+    forward = _exchanged(truth, 1)  # the legs bounced at the first passing and jumped back at the second
+    source, starts = _order(truth, forward, truth, forward, (0.80, 0.79, 0.79))
+    stretches = alternating_stretches(forward, truth, forward, RATE, 0.1, 0.03)
+    for k, (a, b, sign) in enumerate(stretches):
+        assert sign == order_sign(truth[a:b], 0.03)[0]
+        assert set(source[a:b]) == {"b" if k == 1 else "f"}, (a, b, source)
+    assert starts == []  # nothing tracked again where a pass alternates
+
+
+def test_order_legs_tracks_a_stretch_again_when_neither_pass_alternates() -> None:
+    truth = _lead()
+    for k in (0, 1):  # the first stretch is tracked back from the passing after it, the others forwards
+        forward = _exchanged(truth, k)
+        source, starts = _order(truth, forward, forward, truth, (0.80, 0.80, 0.79))
+        a, b, _ = alternating_stretches(forward, forward, forward, RATE, 0.1, 0.03)[k]
+        assert source == "f" * a + "r" * (b - a) + "f" * (len(truth) - b)
+        assert len(starts) == 1 and starts[0][1:] == (a, b) and np.array_equal(starts[0][0], -np.ones(2))
+
+
+def test_order_legs_leaves_a_stretch_the_silhouettes_prefer() -> None:
+    truth = _lead()
+    forward = _exchanged(truth, 1)
+    source, _ = _order(truth, forward, truth, truth, (0.80, 0.74, 0.74))  # the alternating ones fit 0.06 worse
+    assert set(source) == {"f"}
+    source, _ = _order(truth, truth, forward, forward, (0.80, 0.80, 0.80))  # the forward pass alternates already
+    assert set(source) == {"f"}

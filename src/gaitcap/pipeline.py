@@ -44,7 +44,7 @@ from gaitcap.silhouette.joint import JointExtractor
 from gaitcap.silhouette.run import Source, camera_attrs, file_attrs, prepare_extractor, quality_row
 from gaitcap.timeseries import finite_runs
 from gaitcap.track_summary import TrackSummary, is_finished, write_track_json
-from gaitcap.tracking.backward import choose_backward, leg_points
+from gaitcap.tracking.backward import choose_backward, leg_points, order_legs
 from gaitcap.tracking.condensation import Condensation
 from gaitcap.tracking.config import TrackingConfig, load_tracking_config
 from gaitcap.tracking.factored_ipf import FactoredIPF
@@ -356,8 +356,9 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
             if spool is not None:
                 # the videos are read and the prefetch thread idle: the kernels take every core
                 with stages.timed("backward"), kernel_threads(None):
-                    replaced = _backward_pass(_new_tracker(cfg, filt.model, likelihood), spool, writer, cfg)
-                log.info("backward pass: %d of %d frames taken from it", replaced, tracked)
+                    replaced = _backward_pass(_new_tracker(cfg, filt.model, likelihood), spool, writer, cfg,
+                                              videos.fps)
+                log.info("backward pass and leg order: %d of %d frames replaced", replaced, tracked)
         t_writing = time.perf_counter()
         raw, quality = writer.read_back()
         if not np.any(tracked_frames(quality)):
@@ -582,24 +583,37 @@ def _fit_quality(fit: float, cfg: TrackingConfig) -> int:
     return QUALITY_OK if fit >= cfg.quality.min_fit else QUALITY_POOR_FIT
 
 
-def _backward_pass(tracker, spool: FrameSpool, writer: TrackWriter, cfg: TrackingConfig) -> int:
+def _backward_pass(tracker, spool: FrameSpool, writer: TrackWriter, cfg: TrackingConfig, rate_hz: float) -> int:
     """Track every run of tracked frames again from its last frame to its first (``tracker``, a
     fresh one, started from the forward pass's last pose of the run) and overwrite in ``writer``
-    the frames :func:`~gaitcap.tracking.backward.choose_backward` gives to the backward pass.
-    Returns how many frames were overwritten. Memory: one run's estimates (about a kilobyte a frame)."""
+    the frames :func:`~gaitcap.tracking.backward.choose_backward` gives to the backward pass; then,
+    with ``backward.leg_order``, put right the stretches whose leading leg does not alternate
+    (:func:`~gaitcap.tracking.backward.order_legs`). Returns how many frames were overwritten.
+    Memory: one run's estimates (about a kilobyte a frame)."""
     raw, quality = writer.read_back()
     poses, fit = writer.read_poses(), writer.read_fit()
-    legs = leg_points(tracker.model.point_names)
+    names = tracker.model.point_names
+    legs = leg_points(names)
     replaced = 0
     for s, e in finite_runs(tracked_frames(quality)):
         tracker.start(poses[e - 1], fresh=False)
         back = [tracker.step(Observation(spool.read(t))) for t in range(e - 1, s - 1, -1)][::-1]
         take = choose_backward(raw[s:e, legs], np.array([b.points[legs] for b in back]), fit[s:e],
                                np.array([b.fit for b in back]), cfg.backward.agree_m)  # fmt: skip
-        for i in np.flatnonzero(take):
-            b = back[i]
-            writer.replace(s + int(i), b.points, b.uncertainty, b.q, b.log_likelihood, b.fit, _fit_quality(b.fit, cfg))
-        replaced += int(take.sum())
+        chosen = {int(i): back[i] for i in np.flatnonzero(take)}  # frame of the run -> its estimate (else forward)
+        if cfg.backward.leg_order:
+
+            def again(q0: np.ndarray, a: int, b: int, backwards: bool, s: int = s) -> list:  # frames a..b-1 from q0
+                tracker.start(q0, fresh=False)
+                frames = range(b - 1, a - 1, -1) if backwards else range(a, b)
+                ests = [tracker.step(Observation(spool.read(s + t))) for t in frames]
+                return ests[::-1] if backwards else ests
+
+            order_legs(chosen, raw[s:e], fit[s:e], poses[s:e], back, names, rate_hz, again, tracker.mirrored,
+                       cfg.backward, cfg.verdict.exchanged_margin_m)  # fmt: skip
+        for i, b in chosen.items():
+            writer.replace(s + i, b.points, b.uncertainty, b.q, b.log_likelihood, b.fit, _fit_quality(b.fit, cfg))
+        replaced += len(chosen)
     return replaced
 
 

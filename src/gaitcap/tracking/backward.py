@@ -12,13 +12,33 @@ and every run of frames where they do not agree takes the pass whose fit, summed
 the higher (a whole leg assignment, never a mixture within the run); a frame where they agree
 takes the better fit of the two. This is the choice a clip-level smoother makes between two
 hypotheses, with the silhouettes as the only judge.
+
+Where the silhouettes cannot judge (every camera beside or along the walkway: the two legs'
+assignments fit alike), both passes can keep the same leg ahead where the feet meet, a bounce
+instead of a pass, and carry the legs exchanged until the next passing. Walking, the leading ankle
+changes at every passing, twice a stride, which such an exchange leaves visible in the ankles'
+fore-aft order. :func:`order_legs` breaks the ties with it: between the passings (the minima of
+the ankles' fore-aft distance, which an exchange leaves unchanged) the leading ankle alternates,
+and a stretch of the merge that leads the other way takes a pass, or the stretch tracked again
+from the mirrored legs, that leads as it must, if that fits nearly as well. This assumes that the
+feet pass each other; a step-to gait (the trailing foot brought up to the leading one, not past it)
+breaks it, and should be tracked with ``backward.leg_order: false``.
 """
 
 from __future__ import annotations
 
+import itertools
+import logging
+from collections.abc import Callable
+from typing import Protocol
+
 import numpy as np
 
+from gaitcap.quality import fore_aft, walking_line
 from gaitcap.timeseries import finite_runs
+from gaitcap.tracking.config import BackwardConfig
+
+log = logging.getLogger("gaitcap.tracking.backward")
 
 #: the points that decide whether the two passes agree: the legs below the hips
 LEG_POINT_PREFIXES = ("knee_", "ankle_", "heel_", "toe_")
@@ -51,3 +71,153 @@ def choose_backward(forward: np.ndarray, backward: np.ndarray, fit_forward: np.n
     for s, e in finite_runs(disagree):
         choice[s:e] = np.sum(fit_b[s:e]) > np.sum(fit_f[s:e])
     return choice
+
+
+#: half-width of the window in which a foot passing is the closest approach (seconds): the feet pass
+#: each other twice a stride, at least 0.3 s apart even running, and once per approach
+CROSSING_WINDOW_S = 0.12
+
+
+def crossing_frames(separation: np.ndarray, rate_hz: float, cross_m: float) -> list[int]:
+    """The frames where the feet pass each other (or meet): local minima of the fore-aft distance
+    between the ankles ``separation`` (T,) metres (NaN: unknown) within +-``CROSSING_WINDOW_S``,
+    closer than ``cross_m``; at most one per window."""
+    w = max(1, round(CROSSING_WINDOW_S * rate_hz))
+    s = np.where(np.isfinite(separation), separation, np.inf)
+    out: list[int] = []
+    for t in np.flatnonzero(s < cross_m):
+        if s[t] <= s[max(0, t - w) : t + w + 1].min() and (not out or t - out[-1] > w):
+            out.append(int(t))
+    return out
+
+
+def order_sign(d: np.ndarray, margin_m: float) -> tuple[int, bool]:
+    """Which ankle leads over a stretch of frames, from their fore-aft separation d (n,) (left minus
+    right along the walking line, metres): the sign (+1: the left, -1: the right, 0: the ankles
+    never more than ``margin_m`` apart) of the median over the frames where they are further apart
+    than ``margin_m``, and whether every such frame has that sign (no exchange within the stretch)."""
+    apart = d[np.isfinite(d) & (np.abs(d) > margin_m)]
+    if not len(apart):
+        return 0, False
+    sign = int(np.sign(np.median(apart)))
+    return sign, bool(np.all(np.sign(apart) == sign))
+
+
+def alternating_stretches(d_forward: np.ndarray, d_backward: np.ndarray, d_merged: np.ndarray, rate_hz: float,
+                          cross_m: float, margin_m: float) -> list[tuple[int, int, int]]:  # fmt: skip
+    """The stretches of frames between the feet's passings and the ankle that must lead in each:
+    (start, stop, sign), sign +1 the left ankle ahead, -1 the right one.
+
+    Walking, the feet pass each other twice a stride, so the leading ankle changes from one
+    stretch to the next. A tracker that keeps the same leg ahead where the feet meet (the two leg
+    assignments fit the silhouettes alike, seen from beside or along the walkway) exchanges the legs
+    for the whole next stretch. The passings are found from the fore-aft distance between the
+    ankles, which such an exchange leaves unchanged: :func:`crossing_frames` of the mean of the two
+    passes' |d|. Of the two alternating sequences of signs, the one that the merged passes follow in
+    more frames (the ankles further apart than ``margin_m``) is kept: it changes the fewest frames
+    of what the silhouettes chose; a tie goes to the forward pass's first stretch with a leading
+    ankle (its start was settled over the first frames: :func:`gaitcap.tracking.init.settle_legs`).
+
+    Args:
+        d_forward, d_backward, d_merged: (T,) the two passes' and their merge's fore-aft separation of
+            the ankles, left minus right along the walking line, metres (NaN: unknown).
+        rate_hz: frame rate.
+        cross_m: the feet pass where they come closer than this (metres).
+        margin_m: the ankles lead where they are further apart than this (metres).
+
+    Returns:
+        The stretches in order, crossing frames left out; empty when no stretch has a leading ankle.
+    """
+    d_forward, d_backward, d_merged = (np.asarray(d, float) for d in (d_forward, d_backward, d_merged))
+    if not d_forward.shape == d_backward.shape == d_merged.shape or d_forward.ndim != 1:
+        raise ValueError(f"d_forward, d_backward and d_merged must be (T,) alike, got {d_forward.shape}, "
+                         f"{d_backward.shape} and {d_merged.shape}")  # fmt: skip
+    with np.errstate(invalid="ignore"):
+        separation = np.nanmean(np.abs(np.stack([d_forward, d_backward])), axis=0)
+    bounds = [-1, *crossing_frames(separation, rate_hz, cross_m), len(d_forward)]
+    stretches = [(a + 1, b) for a, b in itertools.pairwise(bounds) if b - a > 1]
+    first = next(((k, sign) for k, (a, b) in enumerate(stretches) if (sign := order_sign(d_forward[a:b], margin_m)[0])),
+                 None)  # fmt: skip
+    if first is None:
+        return []
+    k0, sign0 = first
+    signs = [sign0 * (-1) ** (k - k0) for k in range(len(stretches))]
+    with np.errstate(invalid="ignore"):
+        votes = sum(int(np.sum(d_merged[a:b] * sign > margin_m) - np.sum(d_merged[a:b] * sign < -margin_m))
+                    for (a, b), sign in zip(stretches, signs))  # fmt: skip
+    flip = -1 if votes < 0 else 1
+    return [(a, b, flip * sign) for (a, b), sign in zip(stretches, signs)]
+
+
+class _Estimate(Protocol):  # what order_legs reads of an estimate (gaitcap.tracking.base.Estimate)
+    q: np.ndarray
+    points: np.ndarray
+    fit: float
+
+
+def order_legs(chosen: dict[int, _Estimate], forward: np.ndarray, fit: np.ndarray, poses: np.ndarray,
+               back: list[_Estimate], names: tuple[str, ...], rate_hz: float,
+               again: Callable[[np.ndarray, int, int, bool], list[_Estimate]], mirrored: Callable[[np.ndarray], np.ndarray],
+               cfg: BackwardConfig, margin_m: float) -> None:  # fmt: skip
+    """Put right, in ``chosen``, the stretches of a merged run whose leading ankle does not alternate.
+
+    Between the feet's passings (:func:`alternating_stretches`), a stretch of the merged passes whose
+    ankles lead the other way, or change places within it, takes instead, among those that lead as
+    they must throughout, the better-fitting of the forward and the backward pass; failing those, the
+    stretch tracked again from the leg-swapped mirror of the pose where the feet passed before it
+    (for the first stretch: after it, tracking back in time), if it leads so throughout; failing
+    that, a pass leading so over most of it. The replacement must fit within ``cfg.order_fit_tolerance``
+    of what it replaces (mean fit over the stretch), so that the silhouettes still decide where they
+    can: the rule only breaks their ties.
+
+    Args:
+        chosen: frame of the run -> the estimate it takes (absent: the forward pass's); updated in place.
+        forward: (n, P, 3) the forward pass's points over the run; ``fit`` (n,) and ``poses`` (n, D) its fits and poses.
+        back: the backward pass's n estimates.
+        names: the point names (P,).
+        again: (start pose (D,), a, b, backwards) -> the estimates of frames a..b-1 (in that order) tracked
+            from that pose, from frame a onwards, or with ``backwards`` from frame b - 1 back to a.
+        mirrored: a pose (D,) -> the same with the legs exchanged.
+        margin_m: the ankles lead where they are further apart than this (metres).
+    """
+    line = walking_line(forward, names)
+    if line is None:
+        return
+    d_forward = fore_aft(forward, names, line)
+    d_back = fore_aft(np.array([b.points for b in back]), names, line)
+    d_merged = np.where([t in chosen for t in range(len(forward))], d_back, d_forward)
+
+    def lead(ests: list[_Estimate]) -> tuple[int, bool]:
+        return order_sign(fore_aft(np.array([x.points for x in ests]), names, line), margin_m)
+
+    for a, b, sign in alternating_stretches(d_forward, d_back, d_merged, rate_hz, cfg.crossing_m, margin_m):
+        now = [chosen.get(t) for t in range(a, b)]
+        now_fit = float(np.mean([m.fit if m is not None else fit[a + k] for k, m in enumerate(now)]))
+        now_d = np.array([d_forward[a + k] if m is None else fore_aft(m.points[None], names, line)[0]
+                          for k, m in enumerate(now)])  # fmt: skip
+        if order_sign(now_d, margin_m) == (sign, True):
+            continue
+        steady, mostly = [], []  # (mean fit, estimates (None: the forward pass's)) leading as they must
+        for d, ests, fits in ((d_forward[a:b], [None] * (b - a), fit[a:b]),
+                              (d_back[a:b], back[a:b], [x.fit for x in back[a:b]])):  # fmt: skip
+            leads, throughout = order_sign(d, margin_m)
+            if leads == sign:
+                (steady if throughout else mostly).append((float(np.mean(fits)), ests))
+        if not steady and (a > 0 or b < len(forward)):  # the stretch again, from the mirror of the pose where
+            # the feet passed before it (forwards), or after it for a first stretch (backwards)
+            at = a - 1 if a > 0 else b
+            there = chosen.get(at)
+            redone = again(mirrored(there.q if there is not None else poses[at]), a, b, a == 0)
+            if lead(redone) == (sign, True):
+                steady.append((float(np.mean([x.fit for x in redone])), redone))
+        best = max(steady or mostly, key=lambda c: c[0], default=None)
+        log.debug("leg order: frames %d-%d, %s ankle must lead (fit %.4f): %d candidates leading so throughout, "
+                  "%d mostly; best fit %s", a, b - 1, "left" if sign > 0 else "right", now_fit, len(steady),
+                  len(mostly), "-" if best is None else f"{best[0]:.4f}")  # fmt: skip
+        if best is None or best[0] < now_fit - cfg.order_fit_tolerance:
+            continue
+        for k, est in enumerate(best[1]):
+            if est is None:
+                chosen.pop(a + k, None)
+            else:
+                chosen[a + k] = est

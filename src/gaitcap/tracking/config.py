@@ -262,6 +262,9 @@ class BackwardConfig(Strict):
 
     enabled: bool = True
     agree_m: float = Field(default=0.03, gt=0, le=0.5)
+    leg_order: bool = True
+    crossing_m: float = Field(default=0.10, gt=0, le=0.5)
+    order_fit_tolerance: float = Field(default=0.015, ge=0, le=1)
 
 
 class TrackingConfig(Strict):
