@@ -34,7 +34,7 @@ class JointExtractor:
         self.extractors = list(extractors)
         self._map = map_fn
         self.floor: FloorShadowCheck | None = None
-        self.cameras = list(cameras) if cameras is not None else None
+        self._cameras = list(cameras) if cameras is not None else None
         #: per camera, the floor's row beneath the person in the previous frame (None: not known)
         self._floor_rows: list[float | None] = [None] * len(self.extractors)
         if cameras is None or not self.extractors:
@@ -71,8 +71,8 @@ class JointExtractor:
     def _follow(self, masks: list[np.ndarray]) -> None:
         """The floor's row beneath the person in each camera, from this frame's masks, for the next
         frame (the person moves a few centimetres from frame to frame)."""
-        if self.cameras is not None and len(self.cameras) > 1:
-            self._floor_rows = floor_rows(self.cameras, masks)
+        if self._cameras is not None and len(self._cameras) > 1:
+            self._floor_rows = floor_rows(self._cameras, masks)
 
     def _observe(self, images: Sequence[np.ndarray]) -> tuple[list[FrameEvidence], list[np.ndarray]]:
         """Every camera's per-pixel evidence and its shadow map after the floor check."""

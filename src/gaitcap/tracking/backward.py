@@ -185,18 +185,19 @@ def order_legs(chosen: dict[int, _Estimate], forward: np.ndarray, fit: np.ndarra
         return
     d_forward = fore_aft(forward, names, line)
     d_back = fore_aft(np.array([b.points for b in back]), names, line)
-    d_merged = np.where([t in chosen for t in range(len(forward))], d_back, d_forward)
+    # the merge as it enters (``chosen`` holds backward estimates only); stretches do not overlap, so
+    # a stretch's frames are still so when it is reached
+    merged = np.array([t in chosen for t in range(len(forward))], bool)
+    d_merged = np.where(merged, d_back, d_forward)
+    fit_merged = np.where(merged, [x.fit for x in back], fit)
 
     def lead(ests: list[_Estimate]) -> tuple[int, bool]:
         return order_sign(fore_aft(np.array([x.points for x in ests]), names, line), margin_m)
 
     for a, b, sign in alternating_stretches(d_forward, d_back, d_merged, rate_hz, cfg.crossing_m, margin_m):
-        now = [chosen.get(t) for t in range(a, b)]
-        now_fit = float(np.mean([m.fit if m is not None else fit[a + k] for k, m in enumerate(now)]))
-        now_d = np.array([d_forward[a + k] if m is None else fore_aft(m.points[None], names, line)[0]
-                          for k, m in enumerate(now)])  # fmt: skip
-        if order_sign(now_d, margin_m) == (sign, True):
+        if order_sign(d_merged[a:b], margin_m) == (sign, True):
             continue
+        now_fit = float(np.mean(fit_merged[a:b]))
         steady, mostly = [], []  # (mean fit, estimates (None: the forward pass's)) leading as they must
         for d, ests, fits in ((d_forward[a:b], [None] * (b - a), fit[a:b]),
                               (d_back[a:b], back[a:b], [x.fit for x in back[a:b]])):  # fmt: skip
