@@ -150,6 +150,22 @@ def test_crossing_frames_are_where_the_feet_pass() -> None:
     assert all(b - a > round(CROSSING_WINDOW_S * RATE) for a, b in itertools.pairwise(found))
 
 
+def test_crossing_frames_fill_in_a_passing_the_rhythm_expects() -> None:
+    d = _lead()
+    strict = crossing_frames(np.abs(d), RATE, 0.1)
+    for k in (0, 3, len(strict) - 1):  # a passing where one pass has a leg misplaced: the mean stays above 0.1 m
+        sep = np.abs(d)
+        t = strict[k]
+        sep[t - 3 : t + 4] += 0.07
+        assert crossing_frames(sep, RATE, 0.1) == strict, k  # found again, where the rhythm expects it
+        sep[t - 3 : t + 4] += 0.15  # the feet never come near: no passing
+        assert crossing_frames(sep, RATE, 0.1) == [f for f in strict if f != t], k
+    # the feet stop passing (a stop, a step-to gait): no passing made up from the rhythm
+    stopped = np.abs(d)
+    stopped[40:] = 0.3
+    assert crossing_frames(stopped, RATE, 0.1) == [f for f in strict if f < 40]
+
+
 def test_order_sign_reads_the_leading_ankle() -> None:
     assert order_sign(np.array([0.1, 0.3, 0.2, 0.01]), 0.03) == (1, True)
     assert order_sign(np.array([-0.1, -0.3, 0.2, -0.2]), 0.03) == (-1, False)  # one frame exchanged

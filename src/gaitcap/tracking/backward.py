@@ -81,13 +81,58 @@ CROSSING_WINDOW_S = 0.12
 def crossing_frames(separation: np.ndarray, rate_hz: float, cross_m: float) -> list[int]:
     """The frames where the feet pass each other (or meet): local minima of the fore-aft distance
     between the ankles ``separation`` (T,) metres (NaN: unknown) within +-``CROSSING_WINDOW_S``,
-    closer than ``cross_m``; at most one per window."""
+    closer than ``cross_m``; at most one per window. Then the passings the rhythm of the others
+    expects (:func:`_rhythm_crossings`)."""
     w = max(1, round(CROSSING_WINDOW_S * rate_hz))
     s = np.where(np.isfinite(separation), separation, np.inf)
     out: list[int] = []
     for t in np.flatnonzero(s < cross_m):
         if s[t] <= s[max(0, t - w) : t + w + 1].min() and (not out or t - out[-1] > w):
             out.append(int(t))
+    return _rhythm_crossings(s, out, w, cross_m)
+
+
+#: a stretch between passings longer than this many times the median interval hides a passing
+RHYTHM_GAP = 1.5
+#: ... which is then accepted where the ankles come closer than this many times ``cross_m``
+RHYTHM_CROSS = 2.0
+
+
+def _rhythm_crossings(s: np.ndarray, found: list[int], w: int, cross_m: float) -> list[int]:
+    """``found`` (sorted frames of passings) with the passings their rhythm expects: the feet pass
+    every half stride, so where a stretch (before the first, between two, after the last) lasts
+    more than ``RHYTHM_GAP`` times the median interval P between the passings found, the closest
+    approach within +-w frames of P frames after (or, before the first, before) its neighbour is
+    one too, if closer than ``RHYTHM_CROSS`` x ``cross_m``: where one of the two passes has the legs
+    misplaced, the mean distance at a passing stays above ``cross_m``. Needs two passings found.
+
+    Args:
+        s: (T,) the separation, metres (inf: unknown).
+        found: the passings found, sorted.
+        w: the half-width of a passing's window (frames).
+        cross_m: the distance below which the feet pass (metres).
+    """
+    if len(found) < 2:
+        return found
+    period = float(np.median(np.diff(found)))
+    out = list(found)
+
+    def closest(centre: float) -> int | None:
+        lo, hi = max(0, round(centre) - w), min(len(s), round(centre) + w + 1)
+        if hi <= lo:
+            return None
+        t = lo + int(np.argmin(s[lo:hi]))
+        return t if s[t] < RHYTHM_CROSS * cross_m else None
+
+    k = 0
+    while k < len(out):  # forwards: after each passing, up to the next one or the end
+        nxt = out[k + 1] if k + 1 < len(out) else len(s) - 1
+        if nxt - out[k] > RHYTHM_GAP * period and (t := closest(out[k] + period)) is not None and \
+                out[k] + w < t < nxt - w:
+            out.insert(k + 1, t)
+        k += 1
+    while out[0] > RHYTHM_GAP * period and (t := closest(out[0] - period)) is not None and w < t < out[0] - w:
+        out.insert(0, t)  # backwards from the first
     return out
 
 
