@@ -549,3 +549,56 @@ def test_a_camera_that_sees_the_person_in_front_of_the_floor_point_still_confirm
     assert check.relabel(candidates, darkening, None, ratio, body)[0][inner].all()
     refuted = check.relabel(candidates, darkening, None, ratio, [np.zeros_like(b) for b in body])[0]
     assert not refuted[inner].any()  # without the body: b sees the floor at another ratio
+
+
+def _covered_rectangle(x0: float, x1: float, y0: float, y1: float, size=(80, 60), up: int = 10) -> np.ndarray:
+    """(h, w) float32: the fraction of each pixel a rectangle (pixel units, sub-pixel edges) covers."""
+    h, w = size[1], size[0]
+    fine = np.zeros((h * up, w * up), np.float32)
+    fine[round(y0 * up) : round(y1 * up), round(x0 * up) : round(x1 * up)] = 1.0
+    return cv2.resize(fine, (w, h), interpolation=cv2.INTER_AREA)
+
+
+def test_matte_outline_keeps_the_pixels_the_person_covers_at_least_half():
+    from gaitcap.silhouette.extract import matte_outline
+
+    cover = _covered_rectangle(20.7, 41.3, 10.2, 50.6)  # edge pixels covered 0.3, 0.3, 0.8, 0.6
+    background = np.full((*cover.shape, 3), (90.0, 110.0, 100.0), np.float32)
+    person = np.array([200.0, 60.0, 150.0], np.float32)
+    image = background + cover[..., None] * (person - background)
+    halo = cover > 0.05  # a threshold on the difference: every pixel the person touches
+    mask = matte_outline(image, background, np.where(halo, 255, 0).astype(np.uint8), np.zeros(halo.shape, bool), 18.0)
+    assert np.array_equal(mask > 0, cover >= 0.5)
+    thin = np.where(cover >= 0.5, 255, 0).astype(np.uint8)  # a mask one ring too thin gets its ring back
+    again = matte_outline(image, background, cv2.erode(thin, np.ones((3, 3), np.uint8)), np.zeros(halo.shape, bool), 18.0)
+    assert np.array_equal(again > 0, cover >= 0.5)
+
+
+def test_matte_outline_leaves_low_contrast_and_shadow_pixels_as_they_were():
+    from gaitcap.silhouette.extract import matte_outline
+
+    cover = _covered_rectangle(20.7, 41.3, 10.2, 50.6)
+    background = np.full((*cover.shape, 3), 100.0, np.float32)
+    halo = np.where(cover > 0.05, 255, 0).astype(np.uint8)
+    faint = background + cover[..., None] * 12.0  # person within 12 grey levels of the background
+    assert np.array_equal(matte_outline(faint, background, halo, np.zeros(cover.shape, bool), 18.0), halo)
+    image = background + cover[..., None] * 100.0
+    inside = np.where(cover >= 0.99, 255, 0).astype(np.uint8)  # the mask lost its outline ...
+    shadow = np.zeros(cover.shape, bool)
+    shadow[:, :31] = True  # ... and its left half's outline is a cast shadow: not added back
+    out = matte_outline(image, background, inside, shadow, 18.0) > 0
+    assert np.array_equal(out[:, 31:], (cover >= 0.5)[:, 31:])
+    assert np.array_equal(out[:, :31], (inside > 0)[:, :31])
+
+
+def test_the_extractor_mattes_a_blurred_outline_to_the_covered_half():
+    cover = _covered_rectangle(60.4, 100.3, 20.8, 110.5, size=(160, 140))
+    plate = np.full((*cover.shape, 3), (70, 90, 80), np.uint8)
+    frame = (plate + cover[..., None] * (np.array([190.0, 170.0, 60.0]) - plate)).round().astype(np.uint8)
+    truth = cover >= 0.5
+    scores = {}
+    for matte in (False, True):
+        ex = SilhouetteExtractor(_config(cleanup={"matte_outline": matte}))
+        ex.fit_background(plate=plate)
+        scores[matte] = iou(ex.process(frame)[0], truth)
+    assert scores[True] > 0.99 and scores[True] > scores[False]

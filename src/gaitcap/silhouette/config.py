@@ -146,6 +146,11 @@ class CleanupConfig(Strict):
         description="and below the box within this fraction of its height (a foot whose leg the foreground lost; "
                     "calibrated cameras: not past the floor beneath the person)",
     )
+    matte_outline: bool = Field(
+        default=True,
+        description="re-decide the outline's pixels (1 outside, 1 inside) by the fraction of the pixel the person "
+                    "covers, estimated against the background and the person's nearby colour (kept at 1/2 or more)",
+    )
 
 
 class QualityConfig(Strict):

@@ -41,7 +41,11 @@ frame's global per-channel brightness ratio to it (lighting drift and jumps):
    dropped, and smaller than ``keep_relative`` of the largest dropped unless near the main
    parts (within ``keep_margin`` of their box's height: a head or a foot cut off at the neck or
    ankle stays; below the box within ``keep_below`` of its height: a foot whose leg was lost);
-   holes up to ``max_hole_fraction`` of their component filled;
+   holes up to ``max_hole_fraction`` of their component filled; then the outline matted
+   (``matte_outline``, :func:`matte_outline`): its pixels are the person's where the person covers
+   at least half of the pixel, judged from the background's colour and the person's colour just
+   inside, not from the difference's strength (which also takes the halo of pixels the person
+   covers a little: the blur of the optics, the video's half-resolution colour);
 4. background adaptation: ``B <- (1 - a) B + a I / g`` where the (dilated) mask is off and the
    pixel does not differ even weakly (shadows included): a part the mask missed does not fade
    into the background.
@@ -204,6 +208,55 @@ def _connected_to(weak: np.ndarray, seeds: np.ndarray, open_kernel: np.ndarray |
     hit[labels[seed > 0]] = 255
     hit[0] = 0
     return np.take(hit, labels)
+
+
+#: the person's colour next to an outline pixel is the mean over the mask's interior in this window (pixels)
+_MATTE_WINDOW = 5
+#: the outline re-decided by the matte: this many rings outside the mask, and inside it (the interior starts past them)
+_MATTE_OUT, _MATTE_IN = 1, 1
+_RING_K = np.ones((3, 3), np.uint8)
+
+
+def matte_outline(image: np.ndarray, background: np.ndarray, mask: np.ndarray, keep_out: np.ndarray,
+                  min_contrast: float) -> np.ndarray:  # fmt: skip
+    """The mask with its outline re-decided by how much of each pixel the person covers.
+
+    A pixel on the outline mixes the person's colour ``F`` and the background's ``B``:
+    ``I = a F + (1 - a) B``. With ``F`` the mean colour of the mask's interior (more than
+    ``_MATTE_IN`` pixels inside) within ``_MATTE_WINDOW``, ``a = (I - B).(F - B) / |F - B|^2``, and
+    the pixel is the person's when ``a >= 1/2``: a threshold on the colour difference alone also
+    takes the pixels the person covers a little (blur, the video's half-resolution colour), a
+    one-pixel halo. The pixels re-decided lie up to ``_MATTE_OUT`` outside the mask and ``_MATTE_IN``
+    inside it; where no interior pixel is near, or ``F`` and ``B`` differ by less than
+    ``min_contrast`` (RMS over channels, grey levels), the mask's decision stands.
+
+    Args:
+        image: (h, w, 3) float32 frame.
+        background: (h, w, 3) float32 background, scaled to the frame's lighting.
+        mask: (h, w) uint8 0/255.
+        keep_out: (h, w) bool pixels never added (cast shadows).
+        min_contrast: grey levels.
+
+    Returns:
+        (h, w) uint8 0/255, a new array.
+    """
+    inner = cv2.erode(mask, _RING_K, iterations=_MATTE_IN)
+    ring = (cv2.dilate(mask, _RING_K, iterations=_MATTE_OUT) > 0) & (inner == 0)
+    box = (_MATTE_WINDOW, _MATTE_WINDOW)
+    count = cv2.boxFilter((inner > 0).astype(np.float32), -1, box, normalize=False)
+    colour_sum = cv2.boxFilter(cv2.bitwise_and(image, image, mask=inner), -1, box, normalize=False)
+    at = ring & (count > 0)
+    fb = colour_sum[at] / count[at, None] - background[at]  # (n, 3) F - B
+    n2 = np.einsum("ij,ij->i", fb, fb)
+    alpha = np.einsum("ij,ij->i", image[at] - background[at], fb) / np.maximum(n2, 1e-6)
+    decide = n2 >= 3.0 * min_contrast**2
+    person = (alpha >= 0.5)[decide]
+    ys, xs = np.nonzero(at)
+    ys, xs = ys[decide], xs[decide]
+    person &= (mask[ys, xs] > 0) | ~keep_out[ys, xs]
+    out = mask.copy()
+    out[ys, xs] = np.where(person, 255, 0).astype(np.uint8)
+    return out
 
 
 def _disk(radius: int) -> np.ndarray:
@@ -424,6 +477,8 @@ class SilhouetteExtractor:
         if floor_row is not None and self._full_size is not None:  # full resolution -> working scale
             floor_row = (floor_row + 0.5) * raw.shape[0] / self._full_size[1] - 0.5
         mask_small, n_comp = self._clean(raw, floor_row)
+        if self.config.cleanup.matte_outline:
+            mask_small = self._matte(evidence, mask_small, shadow)
         self._adapt(evidence.image, evidence.gain, mask_small, evidence.weak | shadow)
         mask = self._to_full(mask_small)
         quality = self._quality(mask, int(np.count_nonzero(shadow)) / shadow.size, n_comp)  # = shadow.mean(), 10x cheaper
@@ -431,6 +486,18 @@ class SilhouetteExtractor:
         if not soft:
             return mask, None, quality
         return mask, self._soft(evidence.strength, mask_small, mask), quality
+
+    def _matte(self, evidence: FrameEvidence, mask: np.ndarray, shadow: np.ndarray) -> np.ndarray:
+        """:func:`matte_outline` of ``mask`` (h, w) uint8 0/255 in its bounding box (plus the window)."""
+        x, y, w, h = cv2.boundingRect(mask)
+        if not w or not h:
+            return mask
+        pad = _MATTE_WINDOW + _MATTE_OUT
+        box = np.s_[max(y - pad, 0) : y + h + pad, max(x - pad, 0) : x + w + pad]
+        bg = cv2.multiply(self._bg[box], _scalar(evidence.gain))
+        out = mask.copy()
+        out[box] = matte_outline(evidence.image[box], bg, mask[box], shadow[box], self.config.foreground.min_diff)
+        return out
 
     def _soft(self, strength: np.ndarray, mask_small: np.ndarray, mask: np.ndarray) -> np.ndarray:
         """(H, W) float32 soft silhouette of :meth:`finish_soft` from the working-scale strength
