@@ -214,6 +214,7 @@ def _connected_to(weak: np.ndarray, seeds: np.ndarray, open_kernel: np.ndarray |
 _MATTE_WINDOW = 5
 #: the outline re-decided by the matte: this many rings outside the mask, and inside it (the interior starts past them)
 _MATTE_OUT, _MATTE_IN = 1, 1
+#: one ring of pixels per erosion or dilation: the outline's rings (the matte, the trim of the colour-only ones)
 _RING_K = np.ones((3, 3), np.uint8)
 
 
@@ -270,6 +271,7 @@ class FrameEvidence:
     Attributes:
         image: (h, w, 3) float32 frame at working scale.
         gain: (3,) the frame's global per-channel brightness ratio to the background.
+        background: (h, w, 3) float32 background scaled by ``gain`` (what the frame is compared with).
         candidate: (h, w) bool, differs from the background by more than the threshold.
         weak: (h, w) bool, differs by more than ``hysteresis`` times the threshold (includes ``candidate``).
         strength: (h, w) float32, squared difference / squared threshold (``(d / t)^2``).
@@ -286,6 +288,7 @@ class FrameEvidence:
 
     image: np.ndarray
     gain: np.ndarray
+    background: np.ndarray
     candidate: np.ndarray
     weak: np.ndarray
     strength: np.ndarray
@@ -319,7 +322,6 @@ class SilhouetteExtractor:
         self._open_k = _disk(c.open_radius) if c.open_radius > 0 else None
         self._close_k = _disk(c.close_radius) if c.close_radius > 0 else None
         self._adapt_k = _disk(max(2, c.close_radius))
-        self._ring_k = np.ones((3, 3), np.uint8)
 
     # -- background ---------------------------------------------------------------------------
     def _work(self, image: np.ndarray) -> np.ndarray:
@@ -438,7 +440,7 @@ class SilhouetteExtractor:
         else:
             shadow, deep = np.zeros_like(candidate), np.zeros_like(candidate)
         darkening = candidate | self._darker(si, sb, plain2)
-        return FrameEvidence(img, gain, candidate, weak, strength, colour_only, shadow, deep, darkening, (si, sb))
+        return FrameEvidence(img, gain, bg, candidate, weak, strength, colour_only, shadow, deep, darkening, (si, sb))
 
     def finish(self, evidence: FrameEvidence, shadow: np.ndarray,
                floor_row: float | None = None) -> tuple[np.ndarray, FrameQuality]:  # fmt: skip
@@ -494,9 +496,8 @@ class SilhouetteExtractor:
             return mask
         pad = _MATTE_WINDOW + _MATTE_OUT
         box = np.s_[max(y - pad, 0) : y + h + pad, max(x - pad, 0) : x + w + pad]
-        bg = cv2.multiply(self._bg[box], _scalar(evidence.gain))
         out = mask.copy()
-        out[box] = matte_outline(evidence.image[box], bg, mask[box], shadow[box], self.config.foreground.min_diff)
+        out[box] = matte_outline(evidence.image[box], evidence.background[box], mask[box], shadow[box], self.config.foreground.min_diff)
         return out
 
     def _soft(self, strength: np.ndarray, mask_small: np.ndarray, mask: np.ndarray) -> np.ndarray:
@@ -580,7 +581,7 @@ class SilhouetteExtractor:
         ``foreground.chroma_edge`` rings of ``raw`` (h, w) uint8 0/255: the half-resolution colour
         of video bleeds past the outline, the brightness does not."""
         for _ in range(self.config.foreground.chroma_edge):
-            ring = cv2.subtract(raw, cv2.erode(raw, self._ring_k))
+            ring = cv2.subtract(raw, cv2.erode(raw, _RING_K))
             raw[(ring > 0) & colour_only] = 0
 
     def _darker(self, si: np.ndarray, sb: np.ndarray, d2: np.ndarray) -> np.ndarray:
