@@ -63,6 +63,8 @@ METRICS = (
     ("cadence_pct", "cadence abs. error (%)"), ("stride_pct", "stride length abs. error (%)"), ("seconds", "seconds per session"),
 )  # fmt: skip
 HIGHER_IS_BETTER = {"iou", "iou_p10"}
+#: the points whose systematic error (eval.json's bias_mm: mean signed error in the walking frame) is tabled
+BIAS_POINTS = ("hip_", "knee_", "ankle_", "heel_", "toe_")
 
 
 def gaitcap(*args: str, check: bool = True) -> subprocess.CompletedProcess:
@@ -110,11 +112,16 @@ def longest_run(runs: list) -> int:
 
 
 def measure(session: Path, truth: Path, truth_masks: Path, run: Path, reuse: bool = False,
-            silhouettes_only: bool = False, config: Path | None = None) -> dict:  # fmt: skip
-    """Track, evaluate and score one session (``reuse``: the row of an earlier run, if it finished)."""
+            silhouettes_only: bool = False, config: Path | None = None, re_eval: bool = False) -> dict:  # fmt: skip
+    """Track, evaluate and score one session (``reuse``: the row of an earlier run, if it finished;
+    with ``re_eval`` its tracking scored again by the current ``gaitcap eval``)."""
     row_file = run / "suite_row.json"
     if reuse and row_file.exists() and not silhouettes_only:
-        return json.loads(row_file.read_text())
+        row = json.loads(row_file.read_text())
+        if re_eval and not str(row.get("status", "")).startswith("track failed"):  # scored by the current eval
+            row.update(evaluate_run(run, truth))
+            row_file.write_text(json.dumps(row, default=str))
+        return row
     row = _measure(session, truth, truth_masks, run, silhouettes_only, config)
     if silhouettes_only:
         return row
@@ -167,10 +174,16 @@ def _measure(session: Path, truth: Path, truth_masks: Path, run: Path,
     if tr.returncode != 0:
         row["status"] = f"track failed (exit {tr.returncode}): " + ((tr.stderr or tr.stdout).strip().splitlines() or [""])[-1]
         return row
+    row.update(evaluate_run(run, truth))
+    return row
+
+
+def evaluate_run(run: Path, truth: Path) -> dict:
+    """``gaitcap eval`` of a finished run against its truth: the suite's metrics, or the status
+    ``lost: ...`` when eval fails."""
     ev = gaitcap("eval", str(run), "--truth", str(truth), "-o", str(run / "eval.json"), "--force", check=False)
     if ev.returncode != 0:
-        row["status"] = "lost: " + ((ev.stderr or ev.stdout).strip().splitlines() or [""])[-1].removeprefix("Error: ")
-        return row
+        return {"status": "lost: " + ((ev.stderr or ev.stdout).strip().splitlines() or [""])[-1].removeprefix("Error: ")}
     d = json.loads((run / "eval.json").read_text())
     lower = (d["positions_mm"].get("lower_limb") or {}).get("mpjpe_mm")
     knees = [d["angles_rmse_deg"].get(k) for k in ("knee_flexion_l", "knee_flexion_r")]
@@ -189,13 +202,14 @@ def _measure(session: Path, truth: Path, truth_masks: Path, run: Path,
         per_side = [abs(s[name]["diff_pct"]) for s in sides.values() if (s.get(name) or {}).get("diff_pct") is not None]
         return float(np.mean(per_side)) if per_side else None
 
-    row.update(
+    return dict(
         lower_mm=lower, knee_deg=float(np.mean(knees)) if knees else None, swap_frames=swaps.get("n_frames"),
         longest_swap=longest_run(swaps.get("runs") or []), event_ms=events.get("mean_abs_ms"),
         events_missed=events.get("n_missed"), cadence_pct=pct("cadence_steps_per_min"), stride_pct=pct("stride_length_m"),
         flagged=d["frames"]["flagged"], frames=d["frames"]["total"],
+        bias_mm={k: v for k, v in (d.get("bias_mm") or {}).items() if k.startswith(BIAS_POINTS)},
+        lengths=d.get("segment_lengths") or {},
     )  # fmt: skip
-    return row
 
 
 def own_sessions(args: argparse.Namespace) -> list[dict]:
@@ -292,6 +306,7 @@ def print_tables(rows: list[dict]) -> None:
                 med, _, worst = stats([value(r, m) for r in sub], m in HIGHER_IS_BETTER)
                 cells.append(f"{fmt(med)} [{fmt(worst)}]")
             print(f"| {gname} = {level} | {len(sub)} | " + " | ".join(cells) + " |")
+    print_bias(rows)
     print("\n## Per session\n")
     print("| session | walk | height m | cams | legs | contrast | lower mm | knee deg | swaps | IoU | events ms | s |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
@@ -302,6 +317,33 @@ def print_tables(rows: list[dict]) -> None:
               f"{fmt(r.get('iou'))} | {fmt(r.get('event_ms'))} | {fmt(r.get('seconds'))} |")  # fmt: skip
 
 
+def print_bias(rows: list[dict]) -> None:
+    """The systematic part of the errors over the sessions: each joint's mean signed error (left and
+    right pooled) along the walk, outwards and up, and the calibrated thigh and shank against the truth's."""
+    with_bias = [r for r in rows if r.get("bias_mm")]
+    if not with_bias:
+        return
+    print(f"\n## Systematic part of the error over {len(with_bias)} sessions (mean signed error per session, mm: "
+          "median [10th, 90th pct] over sessions; share: |mean error| / mean |error|)\n")
+    print("| joint | forward | outward | up | share |")
+    print("|---|---|---|---|---|")
+    for joint in BIAS_POINTS:
+        cells = []
+        for axis in ("forward", "outward", "up", "share"):
+            v = [np.nanmean([b[axis] for k, b in r["bias_mm"].items() if k.startswith(joint) and b[axis] is not None])
+                 for r in with_bias if any(k.startswith(joint) for k in r["bias_mm"])]  # fmt: skip
+            v = np.asarray([x for x in v if np.isfinite(x)])
+            digits = 2 if axis == "share" else 1
+            cells.append(f"{np.median(v):.{digits}f} [{np.percentile(v, 10):.{digits}f}, {np.percentile(v, 90):.{digits}f}]"
+                         if len(v) else "-")  # fmt: skip
+        print(f"| {joint.rstrip('_')} | " + " | ".join(cells) + " |")
+    for seg in ("thigh", "shank", "leg"):
+        v = np.asarray([r["lengths"][seg]["diff_pct"] for r in with_bias if seg in (r.get("lengths") or {})])
+        if len(v):
+            print(f"\n{seg} length, calibrated vs truth (%): median {np.median(v):+.1f}, 10th-90th pct "
+                  f"[{np.percentile(v, 10):+.1f}, {np.percentile(v, 90):+.1f}], |error| median {np.median(np.abs(v)):.1f}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--sessions", type=int, default=24, help="number of the suite's own sessions")
@@ -309,6 +351,8 @@ def main() -> None:
     ap.add_argument("--no-external", action="store_true", help="leave out ../shared/data/external_sessions")
     ap.add_argument("--only-external", action="store_true")
     ap.add_argument("--reuse", action="store_true", help="re-use the rows of runs that finished before (same code!)")
+    ap.add_argument("--re-eval", action="store_true", help="with --reuse: score the finished runs again with the "
+                    "current `gaitcap eval` (new metrics; the tracking is not repeated)")
     ap.add_argument("--silhouettes-only", action="store_true", help="only the silhouettes' IoU (no tracking): a minute")
     ap.add_argument("--config", type=Path, help="tracking configuration YAML given to every `gaitcap track`")
     ap.add_argument("--only", nargs="+", metavar="NAME", help="only these sessions (names as in the tables)")
@@ -327,7 +371,7 @@ def main() -> None:
     for i, s in enumerate(todo):
         r = {k: v for k, v in s.items() if k not in ("session", "truth", "masks")}
         r.update(measure(s["session"], s["truth"], s["masks"], args.work / ("sil_runs" if args.silhouettes_only else "runs") / s["name"], args.reuse,
-                         args.silhouettes_only, args.config))
+                         args.silhouettes_only, args.config, args.re_eval))
         rows.append(r)
         print(f"[{i + 1}/{len(todo)}] {s['name']}: lower {fmt(r.get('lower_mm'))} mm, knee {fmt(r.get('knee_deg'))} deg, "
               f"IoU {fmt(r.get('iou'))}, {r.get('seconds', 0):.0f} s", file=sys.stderr, flush=True)  # fmt: skip

@@ -236,3 +236,55 @@ def test_cli_usage_and_input_errors(tmp_path, session, truth):
     assert runner.invoke(cli, ["eval", str(out), "--truth", str(session)]).exit_code == 0
     again = runner.invoke(cli, ["eval", str(out), "--truth", str(session)])
     assert again.exit_code == 1 and "eval.json: exists already (use --force to overwrite)" in again.output
+
+
+def _turned(points: np.ndarray, angle: float) -> np.ndarray:
+    """points (F, P, 3) turned by ``angle`` radians about the vertical axis through the origin."""
+    c, s = math.cos(angle), math.sin(angle)
+    return points @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]).T
+
+
+@pytest.mark.parametrize("heading", [0.0, 2.0, -2.8])
+def test_systematic_part_of_an_offset_in_the_walking_frame(truth, heading):
+    """A constant offset (forward, to the subject's left, up) comes back as each point's mean signed
+    error in the walking frame, whichever way the subject walks: outward is +left for the left
+    points and the midline, -left for the right ones; the whole error is systematic (share 1)."""
+    ref = replace(truth, points=_turned(truth.points, heading))
+    pelvis = ref.point("pelvis")[:, :2]
+    forward = (pelvis[-1] - pelvis[0]) / np.linalg.norm(pelvis[-1] - pelvis[0])  # the embedded walk is straight
+    left = np.array([-forward[1], forward[0]])
+    offset = np.array([*(0.010 * forward + 0.006 * left), -0.004])
+    ev = evaluate(tracked(ref, ref.points + offset), ref)
+    assert set(ev.bias_mm) == set(truth.names)
+    for name, b in ev.bias_mm.items():
+        outward = -6.0 if name.endswith("_r") else 6.0
+        assert (b["forward"], b["outward"], b["up"]) == pytest.approx((10.0, outward, -4.0), abs=0.3), name
+        assert b["share"] == pytest.approx(1.0, abs=1e-9)
+    assert ev.to_dict()["bias_mm"]["knee_l"]["up"] == pytest.approx(-4.0, abs=1e-9)
+
+
+def test_systematic_part_of_zero_mean_noise_is_small(truth):
+    """Noise with no offset: every mean signed error within 4 standard errors of zero, and a small share."""
+    sigma = 0.010
+    noisy = truth.points + np.random.default_rng(11).normal(0, sigma, truth.points.shape)
+    ev = evaluate(tracked(truth, noisy), truth)
+    bound = 4 * 1000 * sigma / math.sqrt(truth.n_frames)
+    for b in ev.bias_mm.values():
+        assert max(abs(b["forward"]), abs(b["outward"]), abs(b["up"])) < bound
+        assert b["share"] < 0.3
+
+
+def test_walking_frame_on_the_spot_and_unknown():
+    """Walking on the spot the direction has the left hip on its left, whichever way the pelvis sways;
+    without hips or pelvis: None."""
+    from gaitcap.evaluation.compare import walking_frame
+
+    names = ("pelvis", "hip_l", "hip_r")
+    frames = 20
+    pts = np.zeros((frames, 3, 3))
+    pts[:, 1] = [0.0, -0.1, 0.9]  # facing -x: the left hip is at -y
+    pts[:, 2] = [0.0, 0.1, 0.9]
+    for sway in (0.01, -0.01):  # a centimetre, ending ahead or behind: no travel to speak of
+        pts[:, 0, 0] = sway * np.linspace(0, 1, frames)
+        assert walking_frame(pts, names) == pytest.approx([-1.0, 0.0], abs=1e-9)
+    assert walking_frame(np.full((frames, 1, 3), np.nan), ("knee_l",)) is None

@@ -6,7 +6,10 @@ Steps, each a small function:
    first if its rate differs), the points both have. A point OUT never tracked (NaN throughout) is
    dropped with a note. A frame where OUT has any NaN among the kept points is *flagged* and
    excluded from every position and angle statistic (and counted).
-2. positions: MPJPE over all points, the lower limb (hips, knees, ankles), heel/toe, and per point.
+2. positions: MPJPE over all points, the lower limb (hips, knees, ankles), heel/toe, and per point;
+   each point's mean signed error in the walking frame (:func:`walking_frame`), the part of its error
+   that is the same offset in every frame (a body model whose joints sit elsewhere than the
+   reference's, a calibration off by a shift).
 3. left/right swaps: frames where exchanging OUT's left and right leg points fits better.
 4. joint angles (:func:`gaitcap.gait.angles.joint_angles`, both in the reference's walking
    direction): RMSE per angle and side.
@@ -38,6 +41,7 @@ from gaitcap.evaluation.metrics import (
     event_error_summary,
     group_errors,
     match_events,
+    point_bias_mm,
     point_distances_mm,
     runs,
     swap_mask,
@@ -46,6 +50,7 @@ from gaitcap.gait.analysis import GaitAnalysis, analyse
 from gaitcap.gait.angles import ANGLE_NAMES, joint_angles
 from gaitcap.gait.options import GaitOptions
 from gaitcap.gait.parameters import OVERALL_KEYS, SIDE_KEYS, GaitParameters, compute_parameters
+from gaitcap.quality import walking_line
 from gaitcap.trajectory import FOOT, LOWER_LIMB, SIDES, GaitEvent, Trajectory, side_suffix
 
 log = logging.getLogger(__name__)
@@ -53,6 +58,9 @@ log = logging.getLogger(__name__)
 #: the angles the ``--max-angle-rmse-deg`` threshold applies to (both sides); the others (pelvis,
 #: hip ab/adduction and rotation) are reported only: from joint centres they are poorly determined
 CHECKED_ANGLES: tuple[str, ...] = ("hip_flexion", "knee_flexion", "ankle_dorsiflexion")
+#: the hips' mean left-minus-right axis (metres, along the walking line's left) that tells which
+#: way the subject faces (hip centres are 0.1 H apart: shorter means the subject turned round)
+MIN_HIP_AXIS_M = 0.05
 #: a detected event further than this from every reference event of its side and kind is "extra"
 MAX_MATCH_S = 0.25
 
@@ -153,6 +161,8 @@ class Evaluation:
     silhouettes: dict[str, dict[str, Any]] | None = None
     #: the tracked body's segment lengths against the reference's (:func:`compare_lengths`)
     segment_lengths: dict[str, dict[str, float]] | None = None
+    #: point -> mean signed error in the walking frame (:func:`gaitcap.evaluation.metrics.point_bias_mm`)
+    bias_mm: dict[str, dict[str, float]] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     failures: list[str] = field(default_factory=list)
     #: the run's own verdict and its reasons (OUT's track.json), when it has one
@@ -185,6 +195,7 @@ class Evaluation:
             "points": self.points,
             "positions_mm": self.positions,
             "per_point_mm": self.per_point_mm,
+            "bias_mm": self.bias_mm,
             "left_right_swaps": self.swaps,
             "angles_rmse_deg": self.angles_rmse_deg,
             "checked_angles": {"names": list(CHECKED_ANGLES), "worst": name, "worst_rmse_deg": worst},
@@ -223,6 +234,29 @@ def _clean(obj: Any) -> Any:
 
 
 # ------------------------------------------------------------------------------ sections
+def walking_frame(points: np.ndarray, names: tuple[str, ...]) -> np.ndarray | None:
+    """The unit horizontal walking direction (2,) of points (F, P, 3): the walking line
+    (:func:`gaitcap.quality.walking_line`) pointed so that the left hip is on its left (the hips'
+    mean horizontal axis at least :data:`MIN_HIP_AXIS_M` long), else the way the pelvis travels;
+    None when neither can be told."""
+    line = walking_line(points, names)
+    if line is None:
+        return None
+    left = np.array([-line[1], line[0]])
+    if "hip_l" in names and "hip_r" in names:
+        axis = points[:, names.index("hip_l"), :2] - points[:, names.index("hip_r"), :2]
+        axis = axis[np.all(np.isfinite(axis), axis=1)]
+        if len(axis) and abs(float(axis.mean(axis=0) @ left)) >= MIN_HIP_AXIS_M:
+            return line if axis.mean(axis=0) @ left > 0 else -line
+    if "pelvis" in names:
+        xy = points[:, names.index("pelvis"), :2]
+        xy = xy[np.all(np.isfinite(xy), axis=1)]
+        travel = float((xy[-1] - xy[0]) @ line) if len(xy) >= 2 else 0.0
+        if travel != 0.0:
+            return line if travel > 0 else -line
+    return None
+
+
 def _positions(a: Aligned) -> tuple[dict[str, dict[str, float] | None], dict[str, float], dict[str, Any]]:
     dist = point_distances_mm(a.est[a.valid], a.ref[a.valid])
     groups = {"all": a.names, "lower_limb": LOWER_LIMB, "heel_toe": FOOT}
@@ -338,6 +372,8 @@ def evaluate(
     a = align(out, reference)
     notes = [f"point never tracked in OUT, not compared: {n}" for n in a.dropped]
     positions, per_point, swaps = _positions(a)
+    ok = a.valid
+    bias = point_bias_mm(a.est[ok], a.ref[ok], a.names, walking_frame(a.ref[ok], a.names)) if ok.any() else {}
 
     t_lo, t_hi = float(a.times[0]), float(a.times[-1])
     recorded = [e for e in reference.events if t_lo - 1e-9 <= e.time_s <= t_hi + 1e-9]
@@ -364,7 +400,7 @@ def evaluate(
         out_source=out_source, reference_source=reference_source, rate_hz=a.rate_hz,
         n_frames=len(a.times), n_flagged=int(a.flagged.sum()), n_reference_missing=int((a.ref_missing & ~a.flagged).sum()),
         points=list(a.names), positions=positions, per_point_mm=per_point, swaps=swaps, angles_rmse_deg=angles,
-        events=events, events_baseline=baseline, parameters=parameters, notes=notes,
+        bias_mm=bias, events=events, events_baseline=baseline, parameters=parameters, notes=notes,
     )  # fmt: skip
 
 

@@ -73,6 +73,45 @@ def group_errors(dist_mm: np.ndarray, names: Sequence[str], group: Sequence[str]
     }
 
 
+def point_bias_mm(est: np.ndarray, ref: np.ndarray, names: Sequence[str], forward: np.ndarray | None
+                  ) -> dict[str, dict[str, float]]:  # fmt: skip
+    """The systematic part of each point's error: its mean signed error over the frames, in the
+    walking frame.
+
+    ``forward`` is the unit horizontal walking direction (2,) (None: unknown; then only ``up`` is
+    given). ``outward`` is away from the body's midline: to the left for a ``_l`` point, to the right
+    for a ``_r`` point, to the left for a point of the midline; ``up`` is world z. ``share`` is the
+    length of the mean error vector over the mean distance (0: the errors cancel over the frames,
+    1: the same offset in every frame); a point missing in every frame is left out.
+
+    Args:
+        est, ref: positions (F, P, 3), metres (NaN: missing).
+        names: the P point names.
+        forward: (2,) unit horizontal vector, or None.
+
+    Returns:
+        name -> {forward, outward, up (mm), share}.
+    """
+    if est.shape != ref.shape or est.ndim != 3 or est.shape[2] != 3 or est.shape[1] != len(names):
+        raise ValueError(f"positions must both have shape (F, {len(names)}, 3), got {est.shape} and {ref.shape}")
+    left = None if forward is None else np.array([-forward[1], forward[0]])
+    out: dict[str, dict[str, float]] = {}
+    for i, name in enumerate(names):
+        e = est[:, i] - ref[:, i]
+        e = 1000.0 * e[np.all(np.isfinite(e), axis=1)]
+        if not len(e):
+            continue
+        mean = e.mean(axis=0)
+        side = -1.0 if name.endswith("_r") else 1.0
+        out[name] = {
+            "forward": math.nan if forward is None else float(mean[:2] @ forward),
+            "outward": math.nan if left is None else float(side * (mean[:2] @ left)),
+            "up": float(mean[2]),
+            "share": float(np.linalg.norm(mean) / np.linalg.norm(e, axis=1).mean()) if np.any(e) else 0.0,
+        }
+    return out
+
+
 def swap_mask(est: np.ndarray, ref: np.ndarray, names: Sequence[str]) -> np.ndarray:
     """Frames where exchanging the left and right leg points of ``est`` fits ``ref`` better.
 

@@ -18,7 +18,7 @@ from gaitcap.io.trajectories_h5 import read_trajectory
 from gaitcap.io.truth_folder import JOINTS_FILE, is_truth_folder, read_truth_folder
 from gaitcap.synth.truth import read_truth
 from gaitcap.track_summary import format_verdict
-from gaitcap.trajectory import Trajectory
+from gaitcap.trajectory import FOOT, LOWER_LIMB, Trajectory
 
 TRAJECTORIES_FILE = "trajectories.h5"
 TRUTH_FILE = "truth.h5"
@@ -109,8 +109,21 @@ def _positions_lines(ev: Evaluation) -> list[str]:
     names = list(ev.per_point_mm)
     for i in range(0, len(names), 5):
         lines.append("  " + "  ".join(f"{n} {_f(ev.per_point_mm[n])}" for n in names[i : i + 5]))
+    lines += _bias_lines(ev)
     s = ev.swaps
     lines.append(f"left/right swaps: {s['n_frames']} frames in {len(s['runs'])} runs")
+    return lines
+
+
+def _bias_lines(ev: Evaluation) -> list[str]:
+    """The lower limb's mean signed errors (the same offset in every frame), one line per point."""
+    shown = [n for n in ev.bias_mm if n in LOWER_LIMB or n in FOOT]
+    if not shown:
+        return []
+    lines = [f"  {'systematic part (mm)':<20}{'forward':>8}{'outward':>8}{'up':>8}{'share':>8}   (mean signed error)"]
+    for n in shown:
+        b = ev.bias_mm[n]
+        lines.append(f"  {n:<20}{_f(b['forward']):>8}{_f(b['outward']):>8}{_f(b['up']):>8}{_f(b['share'], 2):>8}")
     return lines
 
 
