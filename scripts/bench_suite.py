@@ -55,7 +55,9 @@ HEIGHTS = (1.05, 1.72, 1.38, 1.95, 1.60, 1.22, 1.85, 1.48, 1.66, 1.12, 1.78, 1.3
 #: camera counts, cycled (mostly 2)
 CAMERAS = (2, 2, 2, 4, 2, 2, 3, 2)
 METRICS = (
-    ("lower_mm", "lower-limb MPJPE (mm)"), ("knee_deg", "knee flexion RMSE (deg)"),
+    ("lower_mm", "lower-limb MPJPE (mm)"),
+    ("lower_offset_free_mm", "lower-limb MPJPE, each joint's constant offset removed (mm)"),
+    ("knee_deg", "knee flexion RMSE (deg)"),
     ("swap_frames", "frames with swapped legs"), ("longest_swap", "longest swap (frames)"),
     ("iou", "silhouette IoU (mean)"), ("iou_p10", "silhouette IoU (10th pct of frames)"),
     ("parts_missing", "camera-frames missing the head or a foot"),
@@ -186,6 +188,7 @@ def evaluate_run(run: Path, truth: Path) -> dict:
         return {"status": "lost: " + ((ev.stderr or ev.stdout).strip().splitlines() or [""])[-1].removeprefix("Error: ")}
     d = json.loads((run / "eval.json").read_text())
     lower = (d["positions_mm"].get("lower_limb") or {}).get("mpjpe_mm")
+    lower_offset_free = (d["positions_mm"].get("lower_limb") or {}).get("offset_free_mpjpe_mm")
     knees = [d["angles_rmse_deg"].get(k) for k in ("knee_flexion_l", "knee_flexion_r")]
     knees = [k for k in knees if k is not None]
     swaps = d.get("left_right_swaps") or {}
@@ -203,7 +206,7 @@ def evaluate_run(run: Path, truth: Path) -> dict:
         return float(np.mean(per_side)) if per_side else None
 
     return dict(
-        lower_mm=lower, knee_deg=float(np.mean(knees)) if knees else None, swap_frames=swaps.get("n_frames"),
+        lower_mm=lower, lower_offset_free_mm=lower_offset_free, knee_deg=float(np.mean(knees)) if knees else None, swap_frames=swaps.get("n_frames"),
         longest_swap=longest_run(swaps.get("runs") or []), event_ms=events.get("mean_abs_ms"),
         events_missed=events.get("n_missed"), cadence_pct=pct("cadence_steps_per_min"), stride_pct=pct("stride_length_m"),
         flagged=d["frames"]["flagged"], frames=d["frames"]["total"],

@@ -261,6 +261,9 @@ def test_systematic_part_of_an_offset_in_the_walking_frame(truth, heading):
         assert (b["forward"], b["outward"], b["up"]) == pytest.approx((10.0, outward, -4.0), abs=0.3), name
         assert b["share"] == pytest.approx(1.0, abs=1e-9)
     assert ev.to_dict()["bias_mm"]["knee_l"]["up"] == pytest.approx(-4.0, abs=1e-9)
+    for group in ("all", "lower_limb", "heel_toe"):  # nothing is left once each point's offset is removed
+        assert ev.positions[group]["mpjpe_mm"] == pytest.approx(math.hypot(10.0, 6.0, 4.0), abs=1e-6)
+        assert ev.positions[group]["offset_free_mpjpe_mm"] == pytest.approx(0.0, abs=1e-6)
 
 
 def test_systematic_part_of_zero_mean_noise_is_small(truth):
@@ -272,6 +275,8 @@ def test_systematic_part_of_zero_mean_noise_is_small(truth):
     for b in ev.bias_mm.values():
         assert max(abs(b["forward"]), abs(b["outward"]), abs(b["up"])) < bound
         assert b["share"] < 0.3
+    lower = ev.positions["lower_limb"]  # noise has no offset to remove: about the whole error is left
+    assert lower["offset_free_mpjpe_mm"] == pytest.approx(lower["mpjpe_mm"], rel=0.05)
 
 
 def test_walking_frame_on_the_spot_and_unknown():

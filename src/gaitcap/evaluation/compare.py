@@ -6,7 +6,8 @@ Steps, each a small function:
    first if its rate differs), the points both have. A point OUT never tracked (NaN throughout) is
    dropped with a note. A frame where OUT has any NaN among the kept points is *flagged* and
    excluded from every position and angle statistic (and counted).
-2. positions: MPJPE over all points, the lower limb (hips, knees, ankles), heel/toe, and per point;
+2. positions: MPJPE over all points, the lower limb (hips, knees, ankles), heel/toe, and per point,
+   and each group's MPJPE with every point's constant offset removed (what changes from frame to frame);
    each point's mean signed error in the walking frame (:func:`walking_frame`), the part of its error
    that is the same offset in every frame (a body model whose joints sit elsewhere than the
    reference's, a calibration off by a shift).
@@ -261,6 +262,11 @@ def _positions(a: Aligned) -> tuple[dict[str, dict[str, float] | None], dict[str
     dist = point_distances_mm(a.est[a.valid], a.ref[a.valid])
     groups = {"all": a.names, "lower_limb": LOWER_LIMB, "heel_toe": FOOT}
     positions = {g: group_errors(dist, a.names, members) for g, members in groups.items()}
+    error = (a.est - a.ref)[a.valid]  # each point's constant offset removed: the error that changes over time
+    moving = point_distances_mm(error - error.mean(axis=0), np.zeros_like(error)) if len(error) else dist
+    for g, members in groups.items():
+        if positions[g] is not None:
+            positions[g]["offset_free_mpjpe_mm"] = (group_errors(moving, a.names, members) or {}).get("mpjpe_mm", math.nan)
     per_point = {n: (float(dist[:, i].mean()) if len(dist) else math.nan) for i, n in enumerate(a.names)}
     swapped = swap_mask(a.est, a.ref, list(a.names)) & a.valid
     n_valid = int(a.valid.sum())

@@ -120,7 +120,9 @@ def _bias_lines(ev: Evaluation) -> list[str]:
     shown = [n for n in ev.bias_mm if n in LOWER_LIMB or n in FOOT]
     if not shown:
         return []
-    lines = [f"  {'systematic part (mm)':<20}{'forward':>8}{'outward':>8}{'up':>8}{'share':>8}   (mean signed error)"]
+    lower = ev.positions.get("lower_limb") or {}
+    lines = [f"  lower limb without each point's constant offset: {_f(lower.get('offset_free_mpjpe_mm'))} mm",
+             f"  {'systematic part (mm)':<20}{'forward':>8}{'outward':>8}{'up':>8}{'share':>8}   (mean signed error)"]
     for n in shown:
         b = ev.bias_mm[n]
         lines.append(f"  {n:<20}{_f(b['forward']):>8}{_f(b['outward']):>8}{_f(b['up']):>8}{_f(b['share'], 2):>8}")
