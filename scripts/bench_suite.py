@@ -37,12 +37,14 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
+from gaitcap.body.model import load_body_model  # noqa: E402
 from gaitcap.data import embedded_walk  # noqa: E402
 from gaitcap.evaluation.report import read_truth_reference  # noqa: E402
 from gaitcap.evaluation.silhouettes import camera_iou, part_coverage  # noqa: E402
 from gaitcap.io.calibration_toml import read_calibration  # noqa: E402
 from gaitcap.io.silhouettes_h5 import read_cameras, read_mask_shape  # noqa: E402
 from gaitcap.synth.variety import draw_look  # noqa: E402
+from gaitcap.tracking.shape import lowest_points  # noqa: E402
 
 SHARED = ROOT.parent / "shared" / "data"
 WALKS = {
@@ -180,6 +182,17 @@ def _measure(session: Path, truth: Path, truth_masks: Path, run: Path,
     return row
 
 
+def sole_height_mm(run: Path) -> float | None:
+    """Median over the tracked frames of the height of the tracked body's lowest capsule surface (its
+    soles) above the floor (z = 0), mm: one foot stands on the floor in every frame of a walk."""
+    with h5py.File(run / "trajectories.h5", "r") as f:
+        poses = f["poses"][:]
+        scales, shifts = json.loads(f.attrs["body_scales"]), json.loads(f.attrs["body_shifts"])
+        model = load_body_model(height_m=float(f.attrs["height_m"]), scales=scales, shifts=shifts)
+    poses = poses[np.all(np.isfinite(poses), axis=1)]
+    return float(1000 * np.median(lowest_points(model, poses))) if len(poses) else None
+
+
 def evaluate_run(run: Path, truth: Path) -> dict:
     """``gaitcap eval`` of a finished run against its truth: the suite's metrics, or the status
     ``lost: ...`` when eval fails."""
@@ -211,7 +224,7 @@ def evaluate_run(run: Path, truth: Path) -> dict:
         events_missed=events.get("n_missed"), cadence_pct=pct("cadence_steps_per_min"), stride_pct=pct("stride_length_m"),
         flagged=d["frames"]["flagged"], frames=d["frames"]["total"],
         bias_mm={k: v for k, v in (d.get("bias_mm") or {}).items() if k.startswith(BIAS_POINTS)},
-        lengths=d.get("segment_lengths") or {},
+        lengths=d.get("segment_lengths") or {}, sole_mm=sole_height_mm(run),
     )  # fmt: skip
 
 
@@ -340,10 +353,22 @@ def print_bias(rows: list[dict]) -> None:
             cells.append(f"{np.median(v):.{digits}f} [{np.percentile(v, 10):.{digits}f}, {np.percentile(v, 90):.{digits}f}]"
                          if len(v) else "-")  # fmt: skip
         print(f"| {joint.rstrip('_')} | " + " | ".join(cells) + " |")
+    print()
+    soles = np.asarray([r["sole_mm"] for r in with_bias if r.get("sole_mm") is not None])
+    if len(soles):
+        print(f"the tracked body's soles above the floor (median over frames, mm): median {np.median(soles):+.1f}, "
+              f"10th-90th pct [{np.percentile(soles, 10):+.1f}, {np.percentile(soles, 90):+.1f}]")
+    pairs = [(np.mean([r["bias_mm"][f"hip_{s}"]["up"] - r["bias_mm"][f"ankle_{s}"]["up"] for s in "lr"]),
+              r["lengths"]["leg"]["tracked_m"] - r["lengths"]["leg"]["reference_m"])
+             for r in with_bias if "leg" in (r.get("lengths") or {}) and all(f"{j}_{s}" in r["bias_mm"]
+                                                                            for j in ("hip", "ankle") for s in "lr")]  # fmt: skip
+    if len(pairs) > 2:
+        print(f"hips' minus ankles' vertical offset against the calibrated leg's length error: correlation "
+              f"{np.corrcoef(np.array(pairs).T)[0, 1]:.2f} over {len(pairs)} sessions")
     for seg in ("thigh", "shank", "leg"):
         v = np.asarray([r["lengths"][seg]["diff_pct"] for r in with_bias if seg in (r.get("lengths") or {})])
         if len(v):
-            print(f"\n{seg} length, calibrated vs truth (%): median {np.median(v):+.1f}, 10th-90th pct "
+            print(f"{seg} length, calibrated vs truth (%): median {np.median(v):+.1f}, 10th-90th pct "
                   f"[{np.percentile(v, 10):+.1f}, {np.percentile(v, 90):+.1f}], |error| median {np.median(np.abs(v)):.1f}")
 
 
