@@ -243,12 +243,12 @@ def walking_frame(points: np.ndarray, names: tuple[str, ...]) -> np.ndarray | No
     line = walking_line(points, names)
     if line is None:
         return None
-    left = np.array([-line[1], line[0]])
     if "hip_l" in names and "hip_r" in names:
         axis = points[:, names.index("hip_l"), :2] - points[:, names.index("hip_r"), :2]
         axis = axis[np.all(np.isfinite(axis), axis=1)]
-        if len(axis) and abs(float(axis.mean(axis=0) @ left)) >= MIN_HIP_AXIS_M:
-            return line if axis.mean(axis=0) @ left > 0 else -line
+        facing = float(axis.mean(axis=0) @ np.array([-line[1], line[0]])) if len(axis) else 0.0
+        if abs(facing) >= MIN_HIP_AXIS_M:
+            return line if facing > 0 else -line
     if "pelvis" in names:
         xy = points[:, names.index("pelvis"), :2]
         xy = xy[np.all(np.isfinite(xy), axis=1)]
@@ -258,15 +258,18 @@ def walking_frame(points: np.ndarray, names: tuple[str, ...]) -> np.ndarray | No
     return None
 
 
-def _positions(a: Aligned) -> tuple[dict[str, dict[str, float] | None], dict[str, float], dict[str, Any]]:
-    dist = point_distances_mm(a.est[a.valid], a.ref[a.valid])
+def _positions(a: Aligned) -> tuple[dict[str, dict[str, float] | None], dict[str, float], dict[str, Any],
+                                    dict[str, dict[str, float]]]:  # fmt: skip
+    est, ref = a.est[a.valid], a.ref[a.valid]
+    dist = point_distances_mm(est, ref)
     groups = {"all": a.names, "lower_limb": LOWER_LIMB, "heel_toe": FOOT}
     positions = {g: group_errors(dist, a.names, members) for g, members in groups.items()}
-    error = (a.est - a.ref)[a.valid]  # each point's constant offset removed: the error that changes over time
+    error = est - ref  # each point's constant offset removed: the error that changes over time
     moving = point_distances_mm(error - error.mean(axis=0), np.zeros_like(error)) if len(error) else dist
     for g, members in groups.items():
         if positions[g] is not None:
             positions[g]["offset_free_mpjpe_mm"] = (group_errors(moving, a.names, members) or {}).get("mpjpe_mm", math.nan)
+    bias = point_bias_mm(est, ref, a.names, walking_frame(ref, a.names)) if len(est) else {}
     per_point = {n: (float(dist[:, i].mean()) if len(dist) else math.nan) for i, n in enumerate(a.names)}
     swapped = swap_mask(a.est, a.ref, list(a.names)) & a.valid
     n_valid = int(a.valid.sum())
@@ -275,7 +278,7 @@ def _positions(a: Aligned) -> tuple[dict[str, dict[str, float] | None], dict[str
         "fraction": float(swapped.sum() / n_valid) if n_valid else math.nan,
         "runs": [[int(s), int(e)] for s, e in runs(swapped)],  # OUT frame ranges [start, stop) of the compared span
     }
-    return positions, per_point, swaps
+    return positions, per_point, swaps, bias
 
 
 def _angles(a: Aligned, ref_analysis: GaitAnalysis | None, notes: list[str]) -> dict[str, float]:
@@ -377,9 +380,7 @@ def evaluate(
     """
     a = align(out, reference)
     notes = [f"point never tracked in OUT, not compared: {n}" for n in a.dropped]
-    positions, per_point, swaps = _positions(a)
-    ok = a.valid
-    bias = point_bias_mm(a.est[ok], a.ref[ok], a.names, walking_frame(a.ref[ok], a.names)) if ok.any() else {}
+    positions, per_point, swaps, bias = _positions(a)
 
     t_lo, t_hi = float(a.times[0]), float(a.times[-1])
     recorded = [e for e in reference.events if t_lo - 1e-9 <= e.time_s <= t_hi + 1e-9]
