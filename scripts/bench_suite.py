@@ -43,6 +43,7 @@ from gaitcap.evaluation.report import read_truth_reference  # noqa: E402
 from gaitcap.evaluation.silhouettes import camera_iou, part_coverage  # noqa: E402
 from gaitcap.io.calibration_toml import read_calibration  # noqa: E402
 from gaitcap.io.silhouettes_h5 import read_cameras, read_mask_shape  # noqa: E402
+from gaitcap.io.track_h5 import read_track_record
 from gaitcap.synth.variety import draw_look  # noqa: E402
 from gaitcap.tracking.shape import lowest_points  # noqa: E402
 
@@ -185,11 +186,13 @@ def _measure(session: Path, truth: Path, truth_masks: Path, run: Path,
 def sole_height_mm(run: Path) -> float | None:
     """Median over the tracked frames of the height of the tracked body's lowest capsule surface (its
     soles) above the floor (z = 0), mm: one foot stands on the floor in every frame of a walk."""
-    with h5py.File(run / "trajectories.h5", "r") as f:
-        poses = f["poses"][:]
-        scales, shifts = json.loads(f.attrs["body_scales"]), json.loads(f.attrs["body_shifts"])
-        model = load_body_model(height_m=float(f.attrs["height_m"]), scales=scales, shifts=shifts)
-    poses = poses[np.all(np.isfinite(poses), axis=1)]
+    record = read_track_record(run / "trajectories.h5")
+    proportions = record.proportions() if record is not None else None
+    if proportions is None:  # a run that did not record its body's proportions
+        return None
+    scales, shifts = proportions
+    model = load_body_model(height_m=float(record.attrs["height_m"]), scales=scales, shifts=shifts)
+    poses = record.poses[np.all(np.isfinite(record.poses), axis=1)]
     return float(1000 * np.median(lowest_points(model, poses))) if len(poses) else None
 
 
