@@ -180,6 +180,30 @@ def test_neck_height_moves_the_shoulders_under_a_still_head_top():
     assert abs(top - top0) < 0.15 * (neck0 - neck)
 
 
+def test_a_girth_parameter_thickens_the_legs_and_moves_no_joint():
+    """A shape parameter on the legs' cross-section axes (x and y of the thighs and shanks, the
+    ``leg_girth`` of docs/validation.md) scales their capsule radii by f and nothing else: every
+    joint centre and every other capsule stays (BodyModel scales a capsule's thickness by its
+    segment's factors across the capsule's axis)."""
+    from gaitcap.tracking.shape import _scaled
+
+    model = load_body_model(height_m=1.7)
+    girth = {"leg_girth": [f"{seg}.{axis}" for seg in ("thigh_l", "thigh_r", "shank_l", "shank_r") for axis in "xy"]}
+    wider = _scaled(model, girth, {"leg_girth": 1.15})
+    rng = np.random.default_rng(3)
+    poses = model.clip(model.neutral_pose()[None] + rng.normal(0.0, 0.2, (4, model.n_dofs)))
+    np.testing.assert_allclose(wider.forward(poses), model.forward(poses), atol=1e-12)
+    A0, B0, r0 = model.capsules(poses)
+    A1, B1, r1 = wider.capsules(poses)
+    np.testing.assert_allclose(A1, A0, atol=1e-12)
+    np.testing.assert_allclose(B1, B0, atol=1e-12)
+    legs = np.isin([model.segments[s].name for s in model.capsule_segment],
+                   ["thigh_l", "thigh_r", "shank_l", "shank_r"])  # fmt: skip
+    assert legs.sum() >= 4
+    np.testing.assert_allclose(r1[legs], 1.15 * r0[legs], rtol=1e-12)
+    np.testing.assert_array_equal(r1[~legs], r0[~legs])
+
+
 def test_planted_poses_keep_the_lowest_point_on_the_floor():
     from gaitcap.tracking.shape import _scaled, lowest_points, planted_poses
 
