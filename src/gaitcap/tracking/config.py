@@ -56,7 +56,7 @@ class FactoredIPFConfig(Strict):
     swap_within_deg: float = Field(default=25.0, gt=0, le=180)
     swap_fit_drop: float | None = Field(default=0.04, gt=0, le=1)
     swap_fit_frames: int = Field(default=10, ge=1, le=1000)
-    swap_margin: float = Field(default=0.015, ge=0, le=1)
+    swap_margin: float = Field(default=0.008, ge=0, le=1)
     swap_continuity: bool = True
     recover_widen: float | None = Field(default=3.0, gt=1, le=10)
     keep_previous: bool = True
