@@ -33,23 +33,23 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from gaitcap.body import load_body_model
 from gaitcap.errors import GaitcapError, InputError
-from gaitcap.evaluation.report import read_truth_trajectory
-from gaitcap.io.track_h5 import read_track_record
+from gaitcap.evaluation.report import read_tracked, read_truth_trajectory
+from gaitcap.pipeline import kernel_threads
+from gaitcap.report.fit import load_fit_record
+from gaitcap.report.sheet import tracked_model
 from gaitcap.session import Session
 from gaitcap.synth.fit import fit_poses
 from gaitcap.tracking.config import load_tracking_config
 from gaitcap.tracking.factored_ipf import FactoredIPF
 from gaitcap.tracking.likelihood import SilhouetteLikelihood
 from gaitcap.tracking.observation import observe, tracking_views
-
-LOWER = ("hip_l", "hip_r", "knee_l", "knee_r", "ankle_l", "ankle_r")
+from gaitcap.trajectory import LOWER_LIMB
 
 
 def lower_error_mm(model, q: np.ndarray, truth_lower: np.ndarray) -> float:
     """Mean distance (mm) of pose q's hips, knees and ankles from the truth's (6, 3) metres."""
-    pts = model.forward(q[None])[0][[model.point_index(n) for n in LOWER]]
+    pts = model.forward(q[None])[0][[model.point_index(n) for n in LOWER_LIMB]]
     return float(1000.0 * np.linalg.norm(pts - truth_lower, axis=1).mean())
 
 
@@ -74,12 +74,13 @@ def check(args: argparse.Namespace) -> int:
         if not path.is_file():
             raise InputError(f"{path}: file not found" + (" (track with --save-masks)" if path.name == "silhouettes.h5" else ""))
     session = Session.open(args.session)
-    rec = read_track_record(args.run / "trajectories.h5")
-    if rec is None:
+    fit = load_fit_record(args.run / "trajectories.h5")
+    if fit is None:
         raise InputError(f"{args.run / 'trajectories.h5'}: not a tracking output")
-    proportions = rec.proportions()
-    scales, shifts = proportions if proportions is not None else (None, None)
-    model = load_body_model(height_m=float(rec.attrs["height_m"]), scales=scales, shifts=shifts)
+    model, why = tracked_model(fit)  # the body the run tracked, as report.html draws it
+    if model is None:
+        raise InputError(f"{args.run}: {why}")
+    rec = fit.record
     cfg = load_tracking_config(args.config, model=model)
     views = tracking_views(session.rig, cfg.scale)
     tracker = FactoredIPF(model, SilhouetteLikelihood(views, cfg.beta), cfg, np.random.default_rng(cfg.seed),
@@ -89,13 +90,13 @@ def check(args: argparse.Namespace) -> int:
     if abs(truth.rate_hz - rec.rate_hz) > 1e-6:
         truth = truth.resample(rec.rate_hz)
     true_poses, _ = fit_poses(model, truth)
-    truth_lower = truth.subset(list(LOWER)).points
-    frame_of = np.rint((np.arange(rec.n_frames) / rec.rate_hz - truth.t0_s) * rec.rate_hz).astype(int)
+    truth_lower = truth.subset(list(LOWER_LIMB)).points
+    times = read_tracked(args.run).times()  # the run's time axis (its own t0)
 
     rows = []
-    with h5py.File(args.run / "silhouettes.h5", "r") as masks:
+    with h5py.File(args.run / "silhouettes.h5", "r") as masks, kernel_threads(cfg.threads):  # as in a run
         for t in range(rec.n_frames):
-            j = frame_of[t]
+            j = truth.frame_of(float(times[t]))
             if not (0 <= j < truth.n_frames) or not np.all(np.isfinite(rec.poses[t])):
                 continue
             err = lower_error_mm(model, rec.poses[t], truth_lower[j])
