@@ -27,8 +27,9 @@ from gaitcap.tracking import projector, raster
 log = logging.getLogger("gaitcap.precompile")
 
 #: the numbers of views (cameras) compiled ahead: a kernel taking a tuple of views is compiled
-#: once per tuple length; other counts compile at their first use
-VIEW_COUNTS = (1, 2, 3)
+#: once per tuple length (about 20 s each); other counts compile at their first use. 4: the
+#: four-camera labs (the Qualisys set in ../shared, the suite's 4-camera sessions)
+VIEW_COUNTS = (1, 2, 3, 4)
 
 
 def compile_kernels(view_counts: Sequence[int] = VIEW_COUNTS) -> None:
