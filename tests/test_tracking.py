@@ -140,11 +140,11 @@ def test_shape_target_syntax_is_checked(tmp_path, target):
 
 
 def test_shape_targets_scale_by_a_power_of_the_factor():
-    from gaitcap.tracking.shape import _scaled
+    from gaitcap.tracking.shape import scaled_model
 
     model = load_body_model()
     targets = {"ankle": ["foot_l.z", "shank_l.z^-0.16", "1/torso.y"]}
-    out = _scaled(model, targets, {"ankle": 1.25})
+    out = scaled_model(model, targets, {"ankle": 1.25})
     np.testing.assert_allclose(out.scales["foot_l"], model.scales["foot_l"] * [1, 1, 1.25])
     np.testing.assert_allclose(out.scales["shank_l"], model.scales["shank_l"] * [1, 1, 1.25**-0.16])
     np.testing.assert_allclose(out.scales["torso"], model.scales["torso"] * [1, 1 / 1.25, 1])
@@ -161,7 +161,7 @@ def test_neck_height_moves_the_shoulders_under_a_still_head_top():
     power of f: the neck and the shoulders move, the top of the head (the silhouettes' top) stays
     where it was, to first order. Without it, a trunk too long could only shorten with the head
     top sinking, and the coordinate search kept it long and sank the hips instead."""
-    from gaitcap.tracking.shape import _scaled
+    from gaitcap.tracking.shape import scaled_model
 
     model = load_body_model(height_m=1.8)
     parameters = load_tracking_config().shape.parameters
@@ -175,7 +175,7 @@ def test_neck_height_moves_the_shoulders_under_a_still_head_top():
         return pts[m.point_index("neck"), 2], pts[m.point_index("shoulder_l"), 2], top
 
     neck0, shoulder0, top0 = heights(model)
-    neck, shoulder, top = heights(_scaled(model, parameters, {"neck_height": 0.92}))
+    neck, shoulder, top = heights(scaled_model(model, parameters, {"neck_height": 0.92}))
     assert neck0 - neck > 0.014 and shoulder0 - shoulder > 0.012  # 8 % of 0.19 and 0.165 x 1.8 / 1.75 m
     assert abs(top - top0) < 0.15 * (neck0 - neck)
 
@@ -185,11 +185,11 @@ def test_a_girth_parameter_thickens_the_legs_and_moves_no_joint():
     ``leg_girth`` of docs/validation.md) scales their capsule radii by f and nothing else: every
     joint centre and every other capsule stays (BodyModel scales a capsule's thickness by its
     segment's factors across the capsule's axis)."""
-    from gaitcap.tracking.shape import _scaled
+    from gaitcap.tracking.shape import scaled_model
 
     model = load_body_model(height_m=1.7)
     girth = {"leg_girth": [f"{seg}.{axis}" for seg in ("thigh_l", "thigh_r", "shank_l", "shank_r") for axis in "xy"]}
-    wider = _scaled(model, girth, {"leg_girth": 1.15})
+    wider = scaled_model(model, girth, {"leg_girth": 1.15})
     rng = np.random.default_rng(3)
     poses = model.clip(model.neutral_pose()[None] + rng.normal(0.0, 0.2, (4, model.n_dofs)))
     np.testing.assert_allclose(wider.forward(poses), model.forward(poses), atol=1e-12)
@@ -205,12 +205,12 @@ def test_a_girth_parameter_thickens_the_legs_and_moves_no_joint():
 
 
 def test_planted_poses_keep_the_lowest_point_on_the_floor():
-    from gaitcap.tracking.shape import _scaled, lowest_points, planted_poses
+    from gaitcap.tracking.shape import lowest_points, planted_poses, scaled_model
 
     model = load_body_model()
     rng = np.random.default_rng(4)
     poses = [model.clip(model.neutral_pose()[None] + rng.normal(0.0, 0.15, (1, model.n_dofs)))[0] for _ in range(5)]
-    longer = _scaled(model, {"legs": ["thigh_l.z", "thigh_r.z", "shank_l.z", "shank_r.z"]}, {"legs": 1.1})
+    longer = scaled_model(model, {"legs": ["thigh_l.z", "thigh_r.z", "shank_l.z", "shank_r.z"]}, {"legs": 1.1})
     moved = planted_poses(model, longer, poses)
     np.testing.assert_allclose(lowest_points(longer, np.array(moved)), lowest_points(model, np.array(poses)),
                                atol=1e-12)  # fmt: skip
@@ -227,12 +227,12 @@ def test_averaged_shapes_are_the_geometric_mean_with_the_first_start_planted():
     """Several calibrations averaged: each factor is the geometric mean of theirs (x0.9 and x1.2 ->
     x1.039), the model scaled by it, the fits the means, and the first calibration's start moved
     vertically so that the averaged model's lowest point is where the first model's was."""
-    from gaitcap.tracking.shape import ShapeResult, _scaled, average_shapes, lowest_points
+    from gaitcap.tracking.shape import ShapeResult, average_shapes, lowest_points, scaled_model
 
     model = load_body_model()
     parameters = {"legs": ["thigh_l.z", "thigh_r.z", "shank_l.z", "shank_r.z"], "arms": ["upper_arm_l.z"]}
     start = model.neutral_pose()
-    results = [ShapeResult(_scaled(model, parameters, f), start, f, fb, fa)
+    results = [ShapeResult(scaled_model(model, parameters, f), start, f, fb, fa)
                for f, fb, fa in [({"legs": 0.9, "arms": 1.0}, 0.80, 0.85), ({"legs": 1.2, "arms": 1.0}, 0.82, 0.89)]]
     avg = average_shapes(model, parameters, results)
     assert avg.factors["legs"] == pytest.approx((0.9 * 1.2) ** 0.5) and avg.factors["arms"] == pytest.approx(1.0)

@@ -72,7 +72,9 @@ class ShapeResult:
     fit_after: float = float("nan")
 
 
-def _scaled(model: BodyModel, targets: dict[str, list[str]], factors: dict[str, float]) -> BodyModel:
+def scaled_model(model: BodyModel, targets: dict[str, list[str]], factors: dict[str, float]) -> BodyModel:
+    """``model`` with each shape parameter's segment axes (``targets``: name -> targets, as
+    ``shape.parameters``) scaled by its factor (``factors``: name -> factor; names not given: 1)."""
     scales = {k: v.copy() for k, v in model.scales.items()}
     for name, f in factors.items():
         for target in targets[name]:
@@ -153,10 +155,10 @@ def calibrate_shape(
             (the better counts); without ``both``, from the planted poses only."""
             if not all(span[k][0] <= f <= span[k][1] for k, f in trial.items()):
                 return None
-            candidate = _scaled(model, parameters, trial)
+            candidate = scaled_model(model, parameters, trial)
             if not planted:
                 return [(candidate, current)]
-            moved = planted_poses(_scaled(model, parameters, factors), candidate, current)
+            moved = planted_poses(scaled_model(model, parameters, factors), candidate, current)
             if np.max(np.abs(np.array(moved) - np.array(current))) <= _PLANT_TOL_M:
                 return [(candidate, current)]  # the lowest point does not move (trunk, arms): one re-fit
             return [(candidate, current), (candidate, moved)] if both else [(candidate, moved)]
@@ -173,7 +175,7 @@ def calibrate_shape(
 
         for round_index, delta in enumerate(steps):
             if round_index > 0 and retrack is not None:  # poses tracked with the shape found so far
-                now = _scaled(model, parameters, factors)
+                now = scaled_model(model, parameters, factors)
                 window = retrack(now, current[0])
                 best_fit, current = refit(now, [window[i] for i in pick])
             for name in parameters:
@@ -208,7 +210,7 @@ def calibrate_shape(
                     (best_fit, current), factors = tried, trial
                     log.debug("shape: random move (fit %.4f)", best_fit)
                     break
-        return ShapeResult(model=_scaled(model, parameters, factors), start=current[0], factors=factors,
+        return ShapeResult(model=scaled_model(model, parameters, factors), start=current[0], factors=factors,
                            fit_before=fit_before, fit_after=best_fit)
 
 
@@ -216,7 +218,7 @@ def average_shapes(model: BodyModel, parameters: dict[str, list[str]], results: 
     """The geometric mean of several calibrations' factors; the first one's start, moved vertically
     so that the averaged model's lowest point stays where the first model's was."""
     factors = {k: float(np.exp(np.mean([np.log(r.factors[k]) for r in results]))) for k in results[0].factors}
-    averaged = _scaled(model, parameters, factors)
+    averaged = scaled_model(model, parameters, factors)
     start = planted_poses(results[0].model, averaged, [results[0].start])[0]
     return ShapeResult(model=averaged, start=start, factors=factors,
                        fit_before=float(np.mean([r.fit_before for r in results])),
