@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from gaitcap.config import parse_yaml
 from gaitcap.evaluation.metrics import runs, wrap_deg
 from gaitcap.gait.angles import joint_angles
 from gaitcap.gait.events import WalkingDirection
@@ -118,7 +119,7 @@ def load_fit_record(trajectories: Path) -> FitRecord | None:
 
 def _min_fit(config_yaml: Any) -> float:
     try:
-        value = (yaml.safe_load(config_yaml) or {}).get("quality", {}).get("min_fit")
+        value = (parse_yaml(config_yaml) or {}).get("quality", {}).get("min_fit")
     except (yaml.YAMLError, AttributeError, TypeError):
         value = None
     return float(value) if isinstance(value, int | float) else DEFAULT_MIN_FIT
