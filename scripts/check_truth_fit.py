@@ -49,6 +49,7 @@ import numpy as np
 from gaitcap.body.model import BodyModel
 from gaitcap.errors import GaitcapError, InputError
 from gaitcap.evaluation.report import read_tracked, read_truth_trajectory
+from gaitcap.io.track_h5 import TrackRecord
 from gaitcap.pipeline import kernel_threads
 from gaitcap.report.fit import load_fit_record
 from gaitcap.report.sheet import tracked_model
@@ -57,7 +58,7 @@ from gaitcap.synth.fit import fit_poses
 from gaitcap.tracking.config import TrackingConfig, load_tracking_config
 from gaitcap.tracking.factored_ipf import FactoredIPF
 from gaitcap.tracking.likelihood import SilhouetteLikelihood
-from gaitcap.tracking.observation import Observation, observe, tracking_views
+from gaitcap.tracking.observation import Observation, TrackingView, observe, tracking_views
 from gaitcap.tracking.shape import planted_poses, scaled_model
 from gaitcap.trajectory import LOWER_LIMB, Trajectory
 
@@ -94,9 +95,9 @@ class Inputs:
 
     session: Session
     model: BodyModel
-    record: object  # gaitcap.io.track_h5 record: poses (T, D), n_frames
+    record: TrackRecord  # poses (T, D), n_frames
     cfg: TrackingConfig
-    views: list
+    views: list[TrackingView]
     truth: Trajectory
     truth_frame: np.ndarray  # (T,) int
 
