@@ -46,7 +46,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from gaitcap.config import default_config_path
+from gaitcap.config import default_config_path, read_yaml
 from gaitcap.evaluation.compare import align
 from gaitcap.evaluation.metrics import angle_bias_deg, angle_rmse_deg, group_errors, point_distances_mm, runs, swap_mask
 from gaitcap.evaluation.report import read_tracked, read_truth_trajectory
@@ -149,7 +149,7 @@ def session_for(trial: str, motion: Path, work: Path, seed: int) -> Path:
 
 def tracking_config(tracker: str, budget: str, seed: int, folder: Path) -> Path:
     """The shipped tracking.yaml with ``tracker``, its particle budget and the seed changed."""
-    cfg = yaml.safe_load(default_config_path("tracking.yaml").read_text())
+    cfg = read_yaml(default_config_path("tracking.yaml"))
     cfg["tracker"] = tracker
     cfg["seed"] = seed
     budget, _, threads = budget.partition("@")

@@ -101,6 +101,10 @@ class Inputs:
     truth: Trajectory
     truth_frame: np.ndarray  # (T,) int
 
+    def scorable(self, t: int) -> bool:
+        """Whether run frame t has a tracked pose and a truth frame."""
+        return 0 <= t < self.record.n_frames and self.truth_frame[t] >= 0 and bool(np.all(np.isfinite(self.record.poses[t])))
+
 
 def read_inputs(args: argparse.Namespace) -> Inputs:
     for path in (args.session / "truth.h5", args.run / "trajectories.h5", args.run / "silhouettes.h5"):
@@ -155,10 +159,9 @@ def check(args: argparse.Namespace) -> int:
 
     picked = []
     for t in range(rec.n_frames):
-        j = inputs.truth_frame[t]
-        if j < 0 or not np.all(np.isfinite(rec.poses[t])):
+        if not inputs.scorable(t):
             continue
-        err = lower_error_mm(model, rec.poses[t], truth_lower[j])
+        err = lower_error_mm(model, rec.poses[t], truth_lower[inputs.truth_frame[t]])
         if (err >= args.min_error_mm) if args.frames is None else (t in args.frames):
             picked.append((t, err))
     obs = observations(inputs, args.run, [t for t, _ in picked])
@@ -191,7 +194,7 @@ def scan(args: argparse.Namespace) -> int:
     if args.scan not in cfg.shape.parameters:
         raise InputError(f"--scan {args.scan}: not in shape.parameters ({', '.join(cfg.shape.parameters)})")
     frames = args.frames if args.frames is not None else list(range(0, min(cfg.shape.frames, rec.n_frames), 3))
-    frames = [t for t in frames if 0 <= t < rec.n_frames and inputs.truth_frame[t] >= 0 and np.all(np.isfinite(rec.poses[t]))]
+    frames = [t for t in frames if inputs.scorable(t)]
     if not frames:
         raise InputError(f"{args.run}: none of the frames has a tracked pose and a truth frame")
     obs = observations(inputs, args.run, frames)
