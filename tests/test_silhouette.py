@@ -321,6 +321,7 @@ def test_joint_extractor_follows_the_floor_beneath_the_person_from_frame_to_fram
     joint.process(frames)
     truth = [cam.project(np.array([[*at, 0.0]]))[0, 1] for cam in cams]
     assert np.max(np.abs(np.array(joint._floor_rows) - truth)) < 0.03 * 240
+    assert np.hypot(*(joint._centre - at)) < 0.1  # the person's floor point, for shadow.floor_footprint
     alone = JointExtractor(extractors[:1], None)  # no calibration: no floor row
     alone.process(frames[:1])
     assert alone._floor_rows == [None]
@@ -549,6 +550,39 @@ def test_a_camera_that_sees_the_person_in_front_of_the_floor_point_still_confirm
     assert check.relabel(candidates, darkening, None, ratio, body)[0][inner].all()
     refuted = check.relabel(candidates, darkening, None, ratio, [np.zeros_like(b) for b in body])[0]
     assert not refuted[inner].any()  # without the body: b sees the floor at another ratio
+
+
+def _strip(points: np.ndarray, x0: float, x1: float, y0: float, y1: float) -> np.ndarray:
+    """(h, w) bool: the pixels whose floor point lies in x0 <= x < x1, y0 <= y < y1."""
+    x, y = points[..., 0], points[..., 1]
+    with np.errstate(invalid="ignore"):
+        return (x >= x0) & (x < x1) & (y >= y0) & (y < y1)
+
+
+def test_an_unconfirmed_shadow_stays_one_only_where_confirmed_shadows_fell_around_the_person():
+    """The person stands at the origin; both cameras confirm a shadow cast towards +x, frame after
+    frame. Camera a alone then sees two more candidates, where b cannot look: one further along the
+    shadow's direction (its far end) stays a shadow, one in another direction (a leg of the floor's
+    colour, back-projected far behind the person) goes back to the person. Before enough confirmed
+    shadow has been seen, and without the person's position, one camera's decision stands."""
+    check, points = _two_floor_views()
+    cast = [_strip(p, 0.4, 1.2, -0.5, 0.5) & check.seen[i] for i, p in enumerate(points)]
+    along = _strip(points[0], 1.3, 1.7, 0.0, 0.5) & ~check.seen[0]  # unseen by b, the shadow's way
+    elsewhere = _strip(points[0], -1.7, -1.0, -2.0, -0.5) & ~check.seen[0]  # unseen by b, the other way
+    assert along.sum() > 10 and elsewhere.sum() > 10 and cast[0].sum() > 100
+    candidates = [cast[0] | along | elsewhere, cast[1]]
+    darkening = [c.copy() for c in cast]
+    centre = np.zeros(2)
+    first = check.relabel(candidates, darkening, centre=centre)
+    assert first[0][along].all() and first[0][elsewhere].all()  # nothing learnt yet: a's decision stands
+    for _ in range(8):
+        kept = check.relabel(candidates, darkening, centre=centre)
+    assert check.support.sum() > 2000
+    assert kept[0][cast[0]].all() and kept[1][cast[1]].all()
+    assert kept[0][along].all()
+    assert not kept[0][elsewhere].any()
+    # the person's position unknown: nothing is judged by where the shadows fell
+    assert check.relabel(candidates, darkening)[0][elsewhere].all()
 
 
 def _covered_rectangle(x0: float, x1: float, y0: float, y1: float, size=(80, 60), up: int = 10) -> np.ndarray:

@@ -106,6 +106,11 @@ class ShadowConfig(Strict):
         default=0.15, gt=0, le=2.0,
         description="largest difference of log brightness ratio (frame / background) between the two cameras",
     )
+    floor_footprint: bool = Field(
+        default=False,
+        description="with the floor check, a candidate that no other camera sees stays a shadow only where the "
+        "confirmed shadows have fallen around the person (a lamp casts them the same way all through a walk)",
+    )
     floor_tolerance: int = Field(
         default=2, ge=0, le=15, description="slack (pixels at working scale) when looking up a floor point in another camera"
     )

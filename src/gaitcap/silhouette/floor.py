@@ -25,9 +25,18 @@ is no shadow candidate). The ratio is the check that tells an object on the floo
 
 Where no other camera sees the point, camera i's photometric decision stands, except
 for candidates darker than the photometric test accepts alone (``shadow.floor_min_ratio``), which
-need that confirmation. With several cameras, a shadow must also lie near the capture area (the
-floor two cameras see, grown by ``reach``): a pixel of a wall, back-projected to the floor, lands
-behind the wall, outside the view of the other cameras, where no shadow of the person can be seen.
+need that confirmation, and, when the person's floor position is known (``shadow.floor_footprint``),
+except where no confirmed shadow has fallen: the confirmed shadows' floor points are counted by
+direction and distance from the person over the walk (one lamp casts the shadow the same way all
+through it), and an unconfirmed candidate stays a shadow only in a direction where they fell and
+not much farther (:meth:`FloorShadowCheck._footprint`). A leg of the floor's colour, back-projected
+to the floor through one camera, lands metres behind the person, often outside the other camera's
+view: on the suite's sessions (every sixth frame) such pixels lay 1.9-3.1 m (median) from the
+person, the confirmed shadows 0.35-0.87 m (docs/validation.md).
+
+With several cameras, a shadow must also lie near the capture area (the floor two cameras see,
+grown by ``reach``): a pixel of a wall, back-projected to the floor, lands behind the wall,
+outside the view of the other cameras, where no shadow of the person can be seen.
 
 The floor point of every working-scale pixel of camera i, projected into camera j, is computed
 once per rig (:class:`FloorShadowCheck`); each frame then costs one ``cv2.remap`` per camera pair.
@@ -104,6 +113,14 @@ def floor_map(points: np.ndarray, other: Camera, other_work: tuple[int, int]) ->
 
 _GRID_M = 0.05  # cell of the floor grid that measures the distance to the capture area
 
+_SUPPORT_BINS = 36  # directions on the floor around the person (FloorShadowCheck.support)
+_SUPPORT_NEAR_M = 0.3  # within this distance of the person every direction supports a shadow
+_SUPPORT_MIN = 0.005  # a direction supports a shadow from this fraction of all confirmed shadow pixels
+_SUPPORT_STEP_M = 0.1  # distance bins of the support, metres
+_SUPPORT_FAR_M = 10.0  # the last distance bin holds everything farther
+_SUPPORT_SLACK_M = 0.5  # an unconfirmed shadow reaches this far past the confirmed ones in its direction
+_SUPPORT_READY = 2000.0  # confirmed shadow pixels needed before unconfirmed ones are judged by it
+
 
 def _near_shared_floor(points: Sequence[np.ndarray], seen: Sequence[np.ndarray], reach: float) -> list[np.ndarray]:
     """Per camera, (h_i, w_i) bool: the pixel's floor point lies within ``reach`` metres of a floor
@@ -150,7 +167,10 @@ class FloorShadowCheck:
         if len(cameras) != len(work_sizes):
             raise ValueError(f"{len(cameras)} cameras but {len(work_sizes)} working sizes")
         points = [floor_points(cam, size) for cam, size in zip(cameras, work_sizes)]
+        self.points = points  # (h_i, w_i, 3) floor point of each pixel, NaN off the floor
         self.on_floor = [np.isfinite(p[..., 0]) for p in points]  # (h_i, w_i) bool each
+        #: where the confirmed shadows fell around the person (pixels per direction bin and distance bin)
+        self.support = np.zeros((_SUPPORT_BINS, int(_SUPPORT_FAR_M / _SUPPORT_STEP_M)), np.float64)
         self.maps: list[list[tuple[int, np.ndarray]]] = []  # camera i -> [(j, (h_i, w_i, 2) map)]
         self.seen: list[np.ndarray] = []  # (h_i, w_i) bool: another camera sees the floor point
         for i, p in enumerate(points):
@@ -165,7 +185,8 @@ class FloorShadowCheck:
 
     def relabel(self, shadows: Sequence[np.ndarray], darkening: Sequence[np.ndarray],
                 deep: Sequence[np.ndarray] | None = None, log_ratio: Sequence[np.ndarray] | None = None,
-                body: Sequence[np.ndarray] | None = None, ratio_tolerance: float = 0.15) -> list[np.ndarray]:  # fmt: skip
+                body: Sequence[np.ndarray] | None = None, ratio_tolerance: float = 0.15,
+                centre: np.ndarray | None = None) -> list[np.ndarray]:  # fmt: skip
         """The shadow maps kept by the floor test, one per camera.
 
         Args:
@@ -180,6 +201,9 @@ class FloorShadowCheck:
                 ``body`` there.
             body: (h_i, w_i) bool per camera, its foreground that is no shadow candidate (the
                 person in front of the floor point: the camera cannot tell), with ``log_ratio``.
+            centre: (2,) the floor point (x, y) beneath the person, metres, or None: with it, a
+                candidate that no other camera sees stays a shadow only where the confirmed
+                shadows have fallen around the person (:meth:`_footprint`).
 
         Returns:
             (h_i, w_i) bool per camera: candidates on the floor near the capture area that another
@@ -213,7 +237,50 @@ class FloorShadowCheck:
                 confirmed = confirmed > 0
                 kept[box] = floor & ((shadow[box] & (confirmed | ~self.seen[i][box])) | (deep_i[box] & confirmed))
             out.append(kept)
+        if centre is not None:
+            self._footprint(out, centre)
         return out
+
+    def _bins(self, i: int, where: np.ndarray, centre: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Direction bins (n,) int of the floor points of camera ``i``'s pixels ``where`` (h_i, w_i)
+        bool seen from the person's floor point ``centre`` (2,), and their distances (n,) metres."""
+        off = self.points[i][where][:, :2] - centre
+        angle = np.arctan2(off[:, 1], off[:, 0])
+        b = np.floor((angle + np.pi) / (2 * np.pi) * _SUPPORT_BINS).astype(int) % _SUPPORT_BINS
+        return b, np.hypot(off[:, 0], off[:, 1])
+
+    def _footprint(self, kept: list[np.ndarray], centre: np.ndarray) -> None:
+        """Learn where the shadows fall, drop the unconfirmed ones that fall elsewhere (in place).
+
+        The shadows that another camera confirmed this frame are added to :attr:`support`, by their
+        direction and distance on the floor from the person (``centre``: (2,) metres, the floor point
+        beneath them). A shadow that no other camera sees stays one only within
+        :data:`_SUPPORT_NEAR_M` of the person or in a direction where confirmed shadows have fallen
+        (a direction bin and its neighbours holding :data:`_SUPPORT_MIN` of the support), no farther
+        than :data:`_SUPPORT_SLACK_M` past the farthest of them there (their 99th percentile): one
+        lamp casts the person's shadow the same way all through a walk, while a leg of the floor's
+        colour, back-projected to the floor, lands metres behind the person, where one camera alone
+        cannot check it."""
+        unseen = []
+        for i, k in enumerate(kept):
+            b, d = self._bins(i, k & self.seen[i], centre)
+            far = d >= _SUPPORT_NEAR_M
+            r = np.minimum((d[far] / _SUPPORT_STEP_M).astype(int), self.support.shape[1] - 1)
+            self.support += np.bincount(b[far] * self.support.shape[1] + r, minlength=self.support.size).reshape(self.support.shape)
+            unseen.append(k & ~self.seen[i])
+        total = self.support.sum()
+        if total < _SUPPORT_READY:
+            return
+        wide = self.support + np.roll(self.support, 1, axis=0) + np.roll(self.support, -1, axis=0)
+        count = wide.sum(axis=1)
+        cum = np.cumsum(wide, axis=1)
+        reach = (np.argmax(cum >= 0.99 * count[:, None], axis=1) + 1) * _SUPPORT_STEP_M + _SUPPORT_SLACK_M
+        reach[count < _SUPPORT_MIN * total] = 0.0
+        for i, (k, u) in enumerate(zip(kept, unseen)):
+            if not u.any():
+                continue
+            b, d = self._bins(i, u, centre)
+            k[u] = (d < _SUPPORT_NEAR_M) | (d <= reach[b])
 
     @staticmethod
     def _same_ratio(mine: np.ndarray, low: np.ndarray, high: np.ndarray, look: np.ndarray, tolerance: float) -> np.ndarray:
@@ -241,7 +308,23 @@ def head_top(mask: np.ndarray, rows: int = 3) -> np.ndarray | None:
     return np.array([float(cols.mean()), float(y)])
 
 
-def floor_rows(cameras: Sequence[Camera], masks: Sequence[np.ndarray]) -> list[float | None]:
+def person_floor_point(cameras: Sequence[Camera], masks: Sequence[np.ndarray]) -> np.ndarray | None:
+    """(3,) the floor point (x, y, 0) straight below the person's head top, triangulated from the
+    masks' tops (:func:`head_top`, DLT on undistorted pixels, every camera that sees the top); None
+    when fewer than two see it or it is no person's head (height outside 0.7-2.5 m)."""
+    tops = [head_top(m) for m in masks]
+    seen = [i for i, t in enumerate(tops) if t is not None]
+    if len(seen) < 2:
+        return None
+    ideal = [cameras[i].undistort_pixels(tops[i][None])[0] for i in seen]
+    top = dlt_point([cameras[i].projection_matrix() for i in seen], ideal)
+    if top is None or not _HEAD_TOP_M[0] <= top[2] <= _HEAD_TOP_M[1]:
+        return None
+    return np.array([top[0], top[1], 0.0])
+
+
+def floor_rows(cameras: Sequence[Camera], masks: Sequence[np.ndarray],
+               foot: np.ndarray | None = None) -> list[float | None]:  # fmt: skip
     """The image row of the floor beneath the person, per camera, from the masks of one frame.
 
     The masks' tops (:func:`head_top`) are triangulated (DLT, undistorted pixels, every camera
@@ -252,20 +335,16 @@ def floor_rows(cameras: Sequence[Camera], masks: Sequence[np.ndarray]) -> list[f
     Args:
         cameras: the calibrated cameras (world z up, floor z = 0).
         masks: (H_c, W_c) full-resolution masks, one per camera.
+        foot: the floor point :func:`person_floor_point` of those masks, when already known.
 
     Returns:
         Per camera, the row (full-resolution pixels) or None.
     """
-    tops = [head_top(m) for m in masks]
-    seen = [i for i, t in enumerate(tops) if t is not None]
-    none: list[float | None] = [None] * len(cameras)
-    if len(seen) < 2:
-        return none
-    ideal = [cameras[i].undistort_pixels(tops[i][None])[0] for i in seen]
-    top = dlt_point([cameras[i].projection_matrix() for i in seen], ideal)
-    if top is None or not _HEAD_TOP_M[0] <= top[2] <= _HEAD_TOP_M[1]:
-        return none
-    foot = np.array([[top[0], top[1], 0.0]])
+    if foot is None:
+        foot = person_floor_point(cameras, masks)
+    if foot is None:
+        return [None] * len(cameras)
+    foot = foot[None]
     rows: list[float | None] = []
     for cam in cameras:
         in_front = cam.to_camera(foot)[0, 2] > 0

@@ -14,7 +14,7 @@ import numpy as np
 from gaitcap.camera import Camera
 from gaitcap.errors import InputError
 from gaitcap.silhouette.extract import FrameEvidence, FrameQuality, SilhouetteExtractor
-from gaitcap.silhouette.floor import FloorShadowCheck, floor_rows
+from gaitcap.silhouette.floor import FloorShadowCheck, floor_rows, person_floor_point
 
 MapFn = Callable[..., Iterable[Any]]
 
@@ -37,6 +37,8 @@ class JointExtractor:
         self._cameras = list(cameras) if cameras is not None else None
         #: per camera, the floor's row beneath the person in the previous frame (None: not known)
         self._floor_rows: list[float | None] = [None] * len(self.extractors)
+        #: the floor point (x, y) beneath the person in the previous frame (None: not known)
+        self._centre: np.ndarray | None = None
         if cameras is None or not self.extractors:
             return
         if len(cameras) != len(self.extractors):
@@ -72,7 +74,9 @@ class JointExtractor:
         """The floor's row beneath the person in each camera, from this frame's masks, for the next
         frame (the person moves a few centimetres from frame to frame)."""
         if self._cameras is not None and len(self._cameras) > 1:
-            self._floor_rows = floor_rows(self._cameras, masks)
+            foot = person_floor_point(self._cameras, masks)
+            self._floor_rows = floor_rows(self._cameras, masks, foot)
+            self._centre = None if foot is None else foot[:2]
 
     def _observe(self, images: Sequence[np.ndarray]) -> tuple[list[FrameEvidence], list[np.ndarray]]:
         """Every camera's per-pixel evidence and its shadow map after the floor check."""
@@ -85,6 +89,7 @@ class JointExtractor:
             if cfg.floor_same_ratio:
                 ratio = list(self._map(lambda ex, e: ex.log_brightness(e), self.extractors, evidence))
                 body = [e.candidate & ~(s | d) for e, s, d in zip(evidence, shadows, deep)]
+            centre = self._centre if cfg.floor_footprint else None
             shadows = self.floor.relabel(shadows, [e.darkening for e in evidence], deep, ratio, body,
-                                         cfg.floor_ratio_tolerance)  # fmt: skip
+                                         cfg.floor_ratio_tolerance, centre)  # fmt: skip
         return evidence, shadows
