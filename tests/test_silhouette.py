@@ -504,11 +504,11 @@ def _two_floor_views() -> tuple[FloorShadowCheck, list[np.ndarray]]:
     return FloorShadowCheck(cams, [c.size for c in cams], tolerance=1), [floor_points(c, c.size) for c in cams]
 
 
-def _patch(points: np.ndarray, x0: float, x1: float) -> np.ndarray:
-    """(h, w) bool: the pixels whose floor point lies in the strip x0 <= x < x1, |y| < 0.5 m."""
+def _patch(points: np.ndarray, x0: float, x1: float, y0: float = -0.5, y1: float = 0.5) -> np.ndarray:
+    """(h, w) bool: the pixels whose floor point lies in x0 <= x < x1, y0 < y < y1 (metres)."""
     x, y = points[..., 0], points[..., 1]
     with np.errstate(invalid="ignore"):
-        return (x >= x0) & (x < x1) & (np.abs(y) < 0.5)
+        return (x >= x0) & (x < x1) & (y > y0) & (y < y1)
 
 
 def test_another_camera_confirms_a_shadow_only_at_the_same_darkening_ratio():
@@ -552,13 +552,6 @@ def test_a_camera_that_sees_the_person_in_front_of_the_floor_point_still_confirm
     assert not refuted[inner].any()  # without the body: b sees the floor at another ratio
 
 
-def _strip(points: np.ndarray, x0: float, x1: float, y0: float, y1: float) -> np.ndarray:
-    """(h, w) bool: the pixels whose floor point lies in x0 <= x < x1, y0 <= y < y1."""
-    x, y = points[..., 0], points[..., 1]
-    with np.errstate(invalid="ignore"):
-        return (x >= x0) & (x < x1) & (y >= y0) & (y < y1)
-
-
 def test_an_unconfirmed_shadow_stays_one_only_where_confirmed_shadows_fell_around_the_person():
     """The person stands at the origin; both cameras confirm a shadow cast towards +x, frame after
     frame. Camera a alone then sees two more candidates, where b cannot look: one further along the
@@ -566,9 +559,9 @@ def test_an_unconfirmed_shadow_stays_one_only_where_confirmed_shadows_fell_aroun
     colour, back-projected far behind the person) goes back to the person. Before enough confirmed
     shadow has been seen, and without the person's position, one camera's decision stands."""
     check, points = _two_floor_views()
-    cast = [_strip(p, 0.4, 1.2, -0.5, 0.5) & check.seen[i] for i, p in enumerate(points)]
-    along = _strip(points[0], 1.3, 1.7, 0.0, 0.5) & ~check.seen[0]  # unseen by b, the shadow's way
-    elsewhere = _strip(points[0], -1.7, -1.0, -2.0, -0.5) & ~check.seen[0]  # unseen by b, the other way
+    cast = [_patch(p, 0.4, 1.2) & check.seen[i] for i, p in enumerate(points)]
+    along = _patch(points[0], 1.3, 1.7, 0.0, 0.5) & ~check.seen[0]  # unseen by b, the shadow's way
+    elsewhere = _patch(points[0], -1.7, -1.0, -2.0, -0.5) & ~check.seen[0]  # unseen by b, the other way
     assert along.sum() > 10 and elsewhere.sum() > 10 and cast[0].sum() > 100
     candidates = [cast[0] | along | elsewhere, cast[1]]
     darkening = [c.copy() for c in cast]
