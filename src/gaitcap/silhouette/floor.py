@@ -167,7 +167,8 @@ class FloorShadowCheck:
         if len(cameras) != len(work_sizes):
             raise ValueError(f"{len(cameras)} cameras but {len(work_sizes)} working sizes")
         points = [floor_points(cam, size) for cam, size in zip(cameras, work_sizes)]
-        self.points = points  # (h_i, w_i, 3) floor point of each pixel, NaN off the floor
+        #: (h_i, w_i, 2) each pixel's floor point (x, y), NaN off the floor (for ``centre`` in :meth:`relabel`)
+        self.floor_xy = [np.ascontiguousarray(p[..., :2]) for p in points]
         self.on_floor = [np.isfinite(p[..., 0]) for p in points]  # (h_i, w_i) bool each
         #: where the confirmed shadows fell around the person (pixels per direction bin and distance bin)
         self.support = np.zeros((_SUPPORT_BINS, int(_SUPPORT_FAR_M / _SUPPORT_STEP_M)), np.float64)
@@ -244,7 +245,7 @@ class FloorShadowCheck:
     def _bins(self, i: int, where: np.ndarray, centre: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Direction bins (n,) int of the floor points of camera ``i``'s pixels ``where`` (h_i, w_i)
         bool seen from the person's floor point ``centre`` (2,), and their distances (n,) metres."""
-        off = self.points[i][where][:, :2] - centre
+        off = self.floor_xy[i][where] - centre
         angle = np.arctan2(off[:, 1], off[:, 0])
         b = np.floor((angle + np.pi) / (2 * np.pi) * _SUPPORT_BINS).astype(int) % _SUPPORT_BINS
         return b, np.hypot(off[:, 0], off[:, 1])
@@ -265,8 +266,9 @@ class FloorShadowCheck:
         for i, k in enumerate(kept):
             b, d = self._bins(i, k & self.seen[i], centre)
             far = d >= _SUPPORT_NEAR_M
-            r = np.minimum((d[far] / _SUPPORT_STEP_M).astype(int), self.support.shape[1] - 1)
-            self.support += np.bincount(b[far] * self.support.shape[1] + r, minlength=self.support.size).reshape(self.support.shape)
+            n_dist = self.support.shape[1]
+            r = np.minimum((d[far] / _SUPPORT_STEP_M).astype(int), n_dist - 1)
+            self.support += np.bincount(b[far] * n_dist + r, minlength=self.support.size).reshape(self.support.shape)
             unseen.append(k & ~self.seen[i])
         total = self.support.sum()
         if total < _SUPPORT_READY:
