@@ -225,8 +225,11 @@ def _ests(d: np.ndarray, fit: float, tag: float) -> list[_Est]:
 
 
 def _order(truth_lead: np.ndarray, forward_lead: np.ndarray, back_lead: np.ndarray, redo_lead: np.ndarray,
-           fits: tuple[float, float, float], tolerance: float = 0.03):  # fmt: skip
-    """order_legs over a run; returns the source of each frame ('f', 'b', 'r') and the restarts' poses."""
+           fits: tuple[float, float, float], tolerance: float = 0.03, refined: tuple[np.ndarray, float] | None = None,
+           refines: list | None = None):  # fmt: skip
+    """order_legs over a run; returns the source of each frame ('f', 'b', 'r'; 'x': refined, from the
+    leads and fit ``refined``, the (pose, frame) of each refinement appended to ``refines``) and the
+    restarts' poses."""
     back = _ests(back_lead, fits[1], 2.0)
     redo = _ests(redo_lead, fits[2], 3.0)
     starts = []
@@ -236,11 +239,16 @@ def _order(truth_lead: np.ndarray, forward_lead: np.ndarray, back_lead: np.ndarr
         assert backwards == (a == 0)  # a first stretch is tracked back from the passing after it
         return redo[a:b]
 
+    def refine(q0, t):
+        refines.append((q0.copy(), t))
+        return _ests(refined[0], refined[1], 4.0)[t]
+
     chosen: dict = {}
     cfg = load_tracking_config().backward.model_copy(update={"order_fit_tolerance": tolerance})
     order_legs(chosen, _walk(forward_lead), np.full(len(truth_lead), fits[0]), np.ones((len(truth_lead), 2)), back,
-               NAMES, RATE, again, lambda q: -q, cfg, 0.03)  # fmt: skip
-    source = "".join("f" if t not in chosen else "br"[int(chosen[t].q[0] == 3.0)] for t in range(len(truth_lead)))
+               NAMES, RATE, again, lambda q: -q, cfg, 0.03, refine if refined is not None else None)  # fmt: skip
+    tags = {2.0: "b", 3.0: "r", 4.0: "x"}
+    source = "".join("f" if t not in chosen else tags[chosen[t].q[0]] for t in range(len(truth_lead)))
     return source, starts
 
 
@@ -271,6 +279,38 @@ def test_order_legs_tracks_a_stretch_again_when_neither_pass_alternates() -> Non
         a, b, _ = alternating_stretches(forward, forward, forward, RATE, 0.1, 0.03)[k]
         assert source == "f" * a + "r" * (b - a) + "f" * (len(truth) - b)
         assert len(starts) == 1 and starts[0][1:] == (a, b) and np.array_equal(starts[0][0], -np.ones(2))
+
+
+def test_order_legs_exchanges_the_merges_legs_when_the_stretch_tracked_again_does_not_alternate() -> None:
+    truth = _lead()
+    for k in (0, 1):
+        forward = _exchanged(truth, k)  # both passes exchanged, and so is the stretch tracked again ...
+        a, b, _ = alternating_stretches(forward, forward, forward, RATE, 0.1, 0.03)[k]
+        mid = (a + b) // 2
+        forward[mid] = truth[mid]  # ... but for one frame in the middle, which leads as it must
+        refines: list = []
+        source, starts = _order(truth, forward, forward, forward, (0.80, 0.80, 0.80), refined=(truth, 0.79),
+                                refines=refines)  # fmt: skip
+        assert source == "f" * a + "x" * (mid - a) + "f" + "x" * (b - mid - 1) + "f" * (len(truth) - b)
+        assert len(starts) == 1  # tried first
+        # only the frames that lead the wrong way, each searched again from its merged pose with the
+        # legs exchanged
+        assert [t for _, t in refines] == [t for t in range(a, b) if t != mid]
+        assert all(np.array_equal(q, -np.ones(2)) for q, _ in refines)
+    # a frame beside the passing that stays exchanged once searched again: it leads so over most of the
+    # stretch, and with no other candidate leading so it is taken
+    forward = _exchanged(truth, 1)
+    a, b, _ = alternating_stretches(forward, forward, forward, RATE, 0.1, 0.03)[1]
+    stubborn = truth.copy()
+    stubborn[a] *= -1
+    source, _ = _order(truth, forward, forward, forward, (0.80, 0.80, 0.80), refined=(stubborn, 0.79), refines=[])
+    assert source == "f" * a + "x" * (b - a) + "f" * (len(truth) - b)
+    # not taken when it fits worse than the tolerance, nor asked for where the restart alternates
+    source, _ = _order(truth, forward, forward, forward, (0.80, 0.80, 0.80), refined=(truth, 0.76), refines=[])
+    assert set(source) == {"f"}
+    refines = []
+    source, _ = _order(truth, forward, forward, truth, (0.80, 0.80, 0.79), refined=(truth, 0.80), refines=refines)
+    assert "r" in source and "x" not in source and refines == []
 
 
 def test_order_legs_leaves_a_stretch_the_silhouettes_prefer() -> None:

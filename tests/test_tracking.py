@@ -601,6 +601,23 @@ def test_first_frame_after_a_start_weighs_both_leg_assignments(embedded_session,
     assert all(_on_own_sides(q, truth.poses[t], hips)) == bool(fresh)
 
 
+def test_refine_searches_from_the_given_pose_alone(embedded_session):
+    """Tracker.refine checks a pose chosen elsewhere (the backward pass's leg order): from the legs
+    swapped and far apart it keeps them swapped, where a fresh step searches the mirror too and puts
+    them back (so the check can fail); from the true pose it keeps the legs on their sides; the tracker
+    is left started at the result."""
+    truth, rig, views, tracker, hips, apart = _swap_setup(embedded_session.session, swap_fit_drop=None)
+    t = next(i for i in range(3, len(apart)) if min(apart[i - 2 : i + 1]) > tracker.config.factored_ipf.swap_within_deg + 5)
+    obs = observe(views, [truth.mask(c, t) for c in rig.names])
+    swapped = tracker.mirrored(truth.poses[t - 1])
+    tracker.start(swapped, fresh=True)
+    assert all(_on_own_sides(tracker.step(obs).q, truth.poses[t], hips))
+    est = tracker.refine(obs, swapped)
+    assert not any(_on_own_sides(est.q, truth.poses[t], hips))
+    assert np.array_equal(tracker.q, est.q)
+    assert all(_on_own_sides(tracker.refine(obs, truth.poses[t - 1]).q, truth.poses[t], hips))
+
+
 @pytest.mark.parametrize("swapped", [True, False])
 def test_settle_legs_keeps_the_assignment_the_frames_support(embedded_session, swapped):
     """From a first pose with the legs swapped and apart, tracking the next frames from it and

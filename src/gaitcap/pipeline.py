@@ -609,8 +609,11 @@ def _backward_pass(tracker, spool: FrameSpool, writer: TrackWriter, cfg: Trackin
                 ests = [tracker.step(Observation(spool.read(s + t))) for t in frames]
                 return ests[::-1] if backwards else ests
 
+            def refine(q0: np.ndarray, t: int, s: int = s):  # frame t searched from q0 alone
+                return tracker.refine(Observation(spool.read(s + t)), q0)
+
             order_legs(chosen, raw[s:e], fit[s:e], poses[s:e], back, names, rate_hz, again, tracker.mirrored,
-                       cfg.backward, cfg.verdict.exchanged_margin_m)  # fmt: skip
+                       cfg.backward, cfg.verdict.exchanged_margin_m, refine)  # fmt: skip
         for i, b in chosen.items():
             writer.replace(s + i, b.points, b.uncertainty, b.q, b.log_likelihood, b.fit, _fit_quality(b.fit, cfg))
         replaced += len(chosen)

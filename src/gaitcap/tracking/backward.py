@@ -19,8 +19,9 @@ instead of a pass, and carry the legs exchanged until the next passing. Walking,
 changes at every passing, twice a stride, which such an exchange leaves visible in the ankles'
 fore-aft order. :func:`order_legs` breaks the ties with it: between the passings (the minima of
 the ankles' fore-aft distance, which an exchange leaves unchanged) the leading ankle alternates,
-and a stretch of the merge that leads the other way takes a pass, or the stretch tracked again
-from the mirrored legs, that leads as it must, if that fits nearly as well. This assumes that the
+and a stretch of the merge that leads the other way takes a pass, the stretch tracked again from
+the mirrored legs, or the merge with the legs exchanged in the frames that lead the wrong way (each
+searched again), that leads as it must, if that fits nearly as well. This assumes that the
 feet pass each other; a step-to gait (the trailing foot brought up to the leading one, not past it)
 breaks it, and should be tracked with ``backward.leg_order: false``.
 """
@@ -203,7 +204,8 @@ class _Estimate(Protocol):  # what order_legs reads of an estimate (gaitcap.trac
 def order_legs(chosen: dict[int, _Estimate], forward: np.ndarray, fit: np.ndarray, poses: np.ndarray,
                back: list[_Estimate], names: tuple[str, ...], rate_hz: float,
                again: Callable[[np.ndarray, int, int, bool], list[_Estimate]], mirrored: Callable[[np.ndarray], np.ndarray],
-               cfg: BackwardConfig, margin_m: float) -> None:  # fmt: skip
+               cfg: BackwardConfig, margin_m: float,
+               refine: Callable[[np.ndarray, int], _Estimate] | None = None) -> None:  # fmt: skip
     """Put right, in ``chosen``, the stretches of a merged run whose leading ankle does not alternate.
 
     Between the feet's passings (:func:`alternating_stretches`), a stretch of the merged passes whose
@@ -211,7 +213,12 @@ def order_legs(chosen: dict[int, _Estimate], forward: np.ndarray, fit: np.ndarra
     they must throughout, the better-fitting of the forward and the backward pass; failing those, the
     stretch tracked again from the leg-swapped mirror of the pose where the feet passed before it
     (for the first stretch: after it, tracking back in time), if it leads so throughout; failing
-    that, a pass leading so over most of it. The replacement must fit within ``cfg.order_fit_tolerance``
+    that (a tracker started from the mirror can exchange the legs again on the next frames, where the
+    silhouettes prefer them so), the merge itself with the legs exchanged in its frames whose ankles
+    lead the wrong way, each such frame searched again from there on its own (``refine``), if it then
+    leads so throughout; failing that, the better-fitting of the passes and that exchanged merge
+    leading so over most of it (a frame beside a passing, its ankles a few centimetres apart, can
+    stay on the wrong side). The replacement must fit within ``cfg.order_fit_tolerance``
     of what it replaces (mean fit over the stretch), so that the silhouettes still decide where they
     can: the rule only breaks their ties.
 
@@ -224,6 +231,8 @@ def order_legs(chosen: dict[int, _Estimate], forward: np.ndarray, fit: np.ndarra
             from that pose, from frame a onwards, or with ``backwards`` from frame b - 1 back to a.
         mirrored: a pose (D,) -> the same with the legs exchanged.
         margin_m: the ankles lead where they are further apart than this (metres).
+        refine: (pose (D,), frame t of the run) -> frame t's estimate searched from that pose alone (no
+            other hypothesis; :meth:`gaitcap.tracking.base.Tracker.refine`); None: not tried.
     """
     line = walking_line(forward, names)
     if line is None:
@@ -256,6 +265,14 @@ def order_legs(chosen: dict[int, _Estimate], forward: np.ndarray, fit: np.ndarra
             redone = again(mirrored(there.q if there is not None else poses[at]), a, b, a == 0)
             if lead(redone) == (sign, True):
                 steady.append((float(np.mean([x.fit for x in redone])), redone))
+        if not steady and refine is not None:  # the merge, its frames that lead the wrong way exchanged
+            ests, fits, d = [chosen.get(t) for t in range(a, b)], fit_merged[a:b].copy(), d_merged[a:b].copy()
+            for k in np.flatnonzero(d * sign < -margin_m):
+                x = refine(mirrored(chosen[a + k].q if a + k in chosen else poses[a + k]), a + k)
+                ests[k], fits[k], d[k] = x, x.fit, fore_aft(x.points[None], names, line)[0]
+            leads, throughout = order_sign(d, margin_m)
+            if leads == sign:
+                (steady if throughout else mostly).append((float(np.mean(fits)), ests))
         best = max(steady or mostly, key=lambda c: c[0], default=None)
         log.debug("leg order: frames %d-%d, %s ankle must lead (fit %.4f): %d candidates leading so throughout, "
                   "%d mostly; best fit %s", a, b - 1, "left" if sign > 0 else "right", now_fit, len(steady),

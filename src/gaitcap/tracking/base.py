@@ -70,6 +70,16 @@ class Tracker:
     def step(self, obs: Observation) -> Estimate:
         raise NotImplementedError
 
+    def refine(self, obs: Observation, q: np.ndarray) -> Estimate:
+        """Frame ``obs`` searched from pose q (D,) alone, as a pose chosen elsewhere (another pass, the
+        legs exchanged) is checked against the silhouettes: no other hypothesis competes (a tracker
+        with hypotheses, :class:`~gaitcap.tracking.factored_ipf.FactoredIPF`, leaves them out).
+        The tracker is left started at the result (:meth:`start`, not fresh)."""
+        self.start(q, fresh=False)
+        est = self.step(obs)
+        self.start(est.q, fresh=False)
+        return est
+
     # ---------------------------------------------------------------- shared steps
     def grid_offsets(self, n: int, dofs: np.ndarray, layer: Layer, widen: float = 1.0) -> np.ndarray:
         """IPF diffusion: offsets (n, len(dofs)) drawn on each DOF's discretised interval.

@@ -185,6 +185,14 @@ class FactoredIPF(Tracker):
         self.q = best.q
         return best
 
+    def refine(self, obs: Observation, q: np.ndarray) -> Estimate:
+        """The factored search's passes from pose q (D,) alone: no mirror, no kept previous estimate,
+        no recovery (:meth:`Tracker.refine`)."""
+        est, _ = self._search(obs, self.model.clip(np.asarray(q, float)[None])[0], 1.0, 0,
+                              self.config.factored_ipf.passes)  # fmt: skip
+        self.start(est.q, fresh=False)
+        return est
+
     def _preferred(self, incumbent: Estimate, challenger: Estimate, previous: np.ndarray, margin: float,
                    continuity: bool) -> Estimate:  # fmt: skip
         """The challenger when it fits ``margin`` better than the incumbent. Within the margin (a tie
