@@ -618,6 +618,25 @@ def test_refine_searches_from_the_given_pose_alone(embedded_session):
     assert all(_on_own_sides(tracker.refine(obs, truth.poses[t - 1]).q, truth.poses[t], hips))
 
 
+def test_refine_of_a_tracker_without_hypotheses_is_its_step_from_the_pose(embedded_session):
+    """The base Tracker.refine (interval PF: no hypotheses to leave out) is a step from q, the same
+    draws as start + step with the same stream, and leaves the tracker started at the result."""
+    from gaitcap.tracking.ipf import IntervalPF
+
+    truth, rig, model = _truth_setup(embedded_session.session)
+    cfg = load_tracking_config()
+    cfg.ipf.particles = 200
+    lik = SilhouetteLikelihood(tracking_views(rig, cfg.scale), cfg.beta)
+    obs = observe(lik.views, [truth.mask(c, 6) for c in rig.names])
+    q = truth.poses[3]  # three frames before: the search moves
+    est = IntervalPF(model, lik, cfg, np.random.default_rng(7)).refine(obs, q)
+    plain = IntervalPF(model, lik, cfg, np.random.default_rng(7))
+    plain.start(q, fresh=False)
+    assert np.array_equal(est.q, plain.step(obs).q) and not np.array_equal(est.q, model.clip(q[None])[0])
+    tracker = IntervalPF(model, lik, cfg, np.random.default_rng(7))
+    assert np.array_equal(tracker.refine(obs, q).q, tracker.q)
+
+
 @pytest.mark.parametrize("swapped", [True, False])
 def test_settle_legs_keeps_the_assignment_the_frames_support(embedded_session, swapped):
     """From a first pose with the legs swapped and apart, tracking the next frames from it and
