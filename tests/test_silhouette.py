@@ -496,12 +496,13 @@ def test_the_16_bit_labels_give_way_to_32_bits_when_they_could_overflow():
     assert n == 90001 and labels.max() == 90000
 
 
-def _two_floor_views() -> tuple[FloorShadowCheck, list[np.ndarray]]:
+def _two_floor_views(footprint: bool = False) -> tuple[FloorShadowCheck, list[np.ndarray]]:
     """Two cameras on either side of a floor (160x120); per camera, the (h, w, 3) floor point of
     every pixel."""
     cams = [Camera.look_at(name, (x, -3.0, 1.4), (0.0, 0.0, 0.0), size=(160, 120), focal_px=200.0)
             for name, x in (("a", -2.0), ("b", 2.0))]  # fmt: skip
-    return FloorShadowCheck(cams, [c.size for c in cams], tolerance=1), [floor_points(c, c.size) for c in cams]
+    check = FloorShadowCheck(cams, [c.size for c in cams], tolerance=1, footprint=footprint)
+    return check, [floor_points(c, c.size) for c in cams]
 
 
 def _patch(points: np.ndarray, x0: float, x1: float, y0: float = -0.5, y1: float = 0.5) -> np.ndarray:
@@ -557,8 +558,11 @@ def test_an_unconfirmed_shadow_stays_one_only_where_confirmed_shadows_fell_aroun
     frame. Camera a alone then sees two more candidates, where b cannot look: one further along the
     shadow's direction (its far end) stays a shadow, one in another direction (a leg of the floor's
     colour, back-projected far behind the person) goes back to the person. Before enough confirmed
-    shadow has been seen, and without the person's position, one camera's decision stands."""
-    check, points = _two_floor_views()
+    shadow has been seen, and without the person's position, one camera's decision stands. A check
+    made without the footprint keeps no floor points and refuses a position."""
+    plain, _ = _two_floor_views()
+    assert plain.floor_xy is None
+    check, points = _two_floor_views(footprint=True)
     cast = [_patch(p, 0.4, 1.2) & check.seen[i] for i, p in enumerate(points)]
     along = _patch(points[0], 1.3, 1.7, 0.0, 0.5) & ~check.seen[0]  # unseen by b, the shadow's way
     elsewhere = _patch(points[0], -1.7, -1.0, -2.0, -0.5) & ~check.seen[0]  # unseen by b, the other way
@@ -576,6 +580,8 @@ def test_an_unconfirmed_shadow_stays_one_only_where_confirmed_shadows_fell_aroun
     assert not kept[0][elsewhere].any()
     # the person's position unknown: nothing is judged by where the shadows fell
     assert check.relabel(candidates, darkening)[0][elsewhere].all()
+    with pytest.raises(ValueError, match="footprint=True"):
+        plain.relabel(candidates, darkening, centre=centre)
 
 
 def _covered_rectangle(x0: float, x1: float, y0: float, y1: float, size=(80, 60), up: int = 10) -> np.ndarray:

@@ -160,15 +160,19 @@ class FloorShadowCheck:
             is looked up (calibration error, soft shadow edges).
         reach: metres; with several cameras, a shadow lies within this distance of the floor that
             two cameras see (the capture area, where the person walks).
+        footprint: whether :meth:`relabel` may be given the person's floor point (``centre``:
+            ``shadow.floor_footprint``); only then is each pixel's floor point kept (about 5 MB per
+            640x480 camera).
     """
 
     def __init__(self, cameras: Sequence[Camera], work_sizes: Sequence[tuple[int, int]], tolerance: int = 2,
-                 reach: float = 1.0) -> None:  # fmt: skip
+                 reach: float = 1.0, footprint: bool = False) -> None:  # fmt: skip
         if len(cameras) != len(work_sizes):
             raise ValueError(f"{len(cameras)} cameras but {len(work_sizes)} working sizes")
         points = [floor_points(cam, size) for cam, size in zip(cameras, work_sizes)]
-        #: (h_i, w_i, 2) each pixel's floor point (x, y), NaN off the floor (for ``centre`` in :meth:`relabel`)
-        self.floor_xy = [np.ascontiguousarray(p[..., :2]) for p in points]
+        #: (h_i, w_i, 2) each pixel's floor point (x, y), NaN off the floor (for ``centre`` in :meth:`relabel`);
+        #: None without ``footprint``
+        self.floor_xy = [np.ascontiguousarray(p[..., :2]) for p in points] if footprint else None
         self.on_floor = [np.isfinite(p[..., 0]) for p in points]  # (h_i, w_i) bool each
         #: where the confirmed shadows fell around the person (pixels per direction bin and distance bin)
         self.support = np.zeros((_SUPPORT_BINS, int(_SUPPORT_FAR_M / _SUPPORT_STEP_M)), np.float64)
@@ -204,7 +208,8 @@ class FloorShadowCheck:
                 person in front of the floor point: the camera cannot tell), with ``log_ratio``.
             centre: (2,) the floor point (x, y) beneath the person, metres, or None: with it, a
                 candidate that no other camera sees stays a shadow only where the confirmed
-                shadows have fallen around the person (:meth:`_footprint`).
+                shadows have fallen around the person (:meth:`_footprint`; a check made with
+                ``footprint``).
 
         Returns:
             (h_i, w_i) bool per camera: candidates on the floor near the capture area that another
@@ -239,6 +244,8 @@ class FloorShadowCheck:
                 kept[box] = floor & ((shadow[box] & (confirmed | ~self.seen[i][box])) | (deep_i[box] & confirmed))
             out.append(kept)
         if centre is not None:
+            if self.floor_xy is None:
+                raise ValueError("relabel: a centre needs a FloorShadowCheck made with footprint=True")
             self._footprint(out, centre)
         return out
 
@@ -263,10 +270,10 @@ class FloorShadowCheck:
         colour, back-projected to the floor, lands metres behind the person, where one camera alone
         cannot check it."""
         unseen = []
+        n_dist = self.support.shape[1]
         for i, k in enumerate(kept):
             b, d = self._bins(i, k & self.seen[i], centre)
             far = d >= _SUPPORT_NEAR_M
-            n_dist = self.support.shape[1]
             r = np.minimum((d[far] / _SUPPORT_STEP_M).astype(int), n_dist - 1)
             self.support += np.bincount(b[far] * n_dist + r, minlength=self.support.size).reshape(self.support.shape)
             unseen.append(k & ~self.seen[i])

@@ -51,7 +51,8 @@ class JointExtractor:
                 )
         s = self.extractors[0].config.shadow
         if s.enabled and s.floor_check:
-            self.floor = FloorShadowCheck(cameras, [ex.work_size for ex in self.extractors], s.floor_tolerance, s.floor_reach)
+            self.floor = FloorShadowCheck(cameras, [ex.work_size for ex in self.extractors], s.floor_tolerance, s.floor_reach,
+                                          s.floor_footprint)  # fmt: skip
 
     def process(self, images: Sequence[np.ndarray]) -> list[tuple[np.ndarray, FrameQuality]]:
         """Masks of one frame: ``images`` (H_c, W_c, 3) uint8 BGR per camera -> (mask, quality) per camera."""
