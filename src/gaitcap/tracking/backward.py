@@ -248,6 +248,9 @@ def order_legs(chosen: dict[int, _Estimate], forward: np.ndarray, fit: np.ndarra
     def lead(ests: list[_Estimate]) -> tuple[int, bool]:
         return order_sign(fore_aft(np.array([x.points for x in ests]), names, line), margin_m)
 
+    def merged_pose(t: int) -> np.ndarray:  # frame t's pose in the merge as it stands
+        return chosen[t].q if t in chosen else poses[t]
+
     for a, b, sign in alternating_stretches(d_forward, d_back, d_merged, rate_hz, cfg.crossing_m, margin_m):
         if order_sign(d_merged[a:b], margin_m) == (sign, True):
             continue
@@ -261,14 +264,13 @@ def order_legs(chosen: dict[int, _Estimate], forward: np.ndarray, fit: np.ndarra
         if not steady and (a > 0 or b < len(forward)):  # the stretch again, from the mirror of the pose where
             # the feet passed before it (forwards), or after it for a first stretch (backwards)
             at = a - 1 if a > 0 else b
-            there = chosen.get(at)
-            redone = again(mirrored(there.q if there is not None else poses[at]), a, b, a == 0)
+            redone = again(mirrored(merged_pose(at)), a, b, a == 0)
             if lead(redone) == (sign, True):
                 steady.append((float(np.mean([x.fit for x in redone])), redone))
         if not steady and refine is not None:  # the merge, its frames that lead the wrong way exchanged
             ests, fits, d = [chosen.get(t) for t in range(a, b)], fit_merged[a:b].copy(), d_merged[a:b].copy()
             for k in np.flatnonzero(d * sign < -margin_m):
-                x = refine(mirrored(chosen[a + k].q if a + k in chosen else poses[a + k]), a + k)
+                x = refine(mirrored(merged_pose(a + k)), a + k)
                 ests[k], fits[k], d[k] = x, x.fit, fore_aft(x.points[None], names, line)[0]
             leads, throughout = order_sign(d, margin_m)
             if leads == sign:
