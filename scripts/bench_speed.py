@@ -14,7 +14,9 @@ the table gives the medians of:
   session and video checks), kernels (numba: loaded from the cache, or compiled; and the late
   imports), first frames (waiting for the frames the initialisation looks at: background fitting
   and their silhouettes; the rest of the shape window is read during the initialisation), init
-  (initialisation), shape (shape calibration), tracking (the per-frame loop), backward (the second
+  (initialisation), shape window (the calibration window tracked with the shipped proportions),
+  shape (the calibration's search: every candidate's re-fits), legs settled (the first frames
+  tracked from the calibrated start and its mirror), tracking (the per-frame loop), backward (the second
   pass over the clip, tracking/backward.py), writing (read-back,
   smoothing, CSV/TRC); background (its fitting, in the prefetch thread, overlapping setup, kernels
   and first frames) is shown apart;
@@ -46,8 +48,8 @@ from gaitcap.tracking.observation import tracking_views  # noqa: E402
 
 #: track.json's main-thread stages, in their order, and the table's headings for them
 STAGES = {"setup": "setup", "kernels": "kernels", "first_frames": "first frames", "initialisation": "init",
-          "shape": "shape", "tracking": "tracking", "backward": "backward", "verdict": "verdict",
-          "writing": "writing"}  # fmt: skip
+          "shape_window": "shape window", "shape": "shape", "shape_settle": "legs settled", "tracking": "tracking",
+          "backward": "backward", "verdict": "verdict", "writing": "writing"}  # fmt: skip
 
 
 def floor_seconds(session: Path) -> tuple[float, float, int]:

@@ -1134,7 +1134,8 @@ def test_track_json_holds_the_verdict(tracked_session):
 def test_track_json_records_the_stage_times(tracked_session):
     _, out, summary = tracked_session
     stages = json.loads((out / "track.json").read_text())["stages_s"]
-    main_thread = ["setup", "kernels", "first_frames", "initialisation", "shape", "tracking", "verdict", "writing"]
+    main_thread = ["setup", "kernels", "first_frames", "initialisation", "shape_window", "shape", "shape_settle",
+                   "tracking", "verdict", "writing"]  # fmt: skip
     if load_tracking_config().backward.enabled:
         main_thread.append("backward")
     assert set(stages) == set(main_thread) | {"background"}

@@ -438,7 +438,8 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, head: Head[Ob
         log.warning("shape calibration skipped: %s", error)
         return filt, None, False, f"skipped: {error}", []
     filt.start(init.q, fresh=not init.legs_settled)
-    poses = [filt.step(o).q for o in first]
+    with (stages or Stages()).timed("shape_window"):
+        poses = [filt.step(o).q for o in first]
     refit_cfg = cfg.model_copy(deep=True)
     refit_cfg.factored_ipf.passes, refit_cfg.factored_ipf.swap_hypothesis = 1, False
     refit_cfg.factored_ipf.particles, refit_cfg.factored_ipf.root_particles = cfg.shape.refit_particles
@@ -462,7 +463,8 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, head: Head[Ob
     start = result.start
     settled = cfg.init.leg_frames > 1
     if settled:  # which leg is which, again, with the calibrated model
-        start = settle_legs(tracker, first[: cfg.init.leg_frames], start)
+        with (stages or Stages()).timed("shape_settle"):
+            start = settle_legs(tracker, first[: cfg.init.leg_frames], start)
     note = f"{factors}; mean fit {result.fit_before:.4f} -> {result.fit_after:.4f} on {len(first)} frames"
     return tracker, start, settled, note, problems
 

@@ -9,8 +9,8 @@ folder that the next run redoes.
  "session": "sessions/walk01", "message": "",
  "verdict": "doubtful", "verdict_reasons": ["the ankles cross in 14 of 56 frames: a suspected leg swap"],
  "verdict_notes": [],
- "stages_s": {"setup": 0.2, "kernels": 0.1, "first_frames": 1.1, "initialisation": 0.9, "shape": 5.7,
-              "tracking": 3.6, "writing": 0.3},
+ "stages_s": {"setup": 0.2, "kernels": 0.1, "first_frames": 1.1, "initialisation": 0.9, "shape_window": 0.8,
+              "shape": 3.9, "shape_settle": 1.0, "tracking": 3.6, "writing": 0.3},
  "body": {"height_m": 1.7, "height_source": "session.yaml", "shape": "pelvis_height x0.960, ...",
           "segment_lengths_m": {"thigh": 0.41, "shank": 0.42, "leg": 0.83, ...}}}
 ```
