@@ -420,11 +420,12 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, head: Head[Ob
     run side by side, the k-th with the random streams of seed + k x ``_REPEAT_SEED_STEP``, and their factors are
     averaged (:func:`~gaitcap.tracking.shape.average_shapes`).
     """
+    stages = stages or Stages()  # timed for track.json, or for nobody
     early = head.take(cfg.init.frames)
     init, error = None, None
     if _in_view(early, cfg):  # else the window is not in view either: no initialisation
         try:
-            with (stages or Stages()).timed("initialisation"):
+            with stages.timed("initialisation"):
                 init = initialise(filt, likelihood, views, early, cfg.init.heading_step_deg, cfg.init.refine_passes,
                                   cfg.init.widen, leg_frames=cfg.init.leg_frames)  # fmt: skip
         except TrackingError as e:
@@ -438,7 +439,7 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, head: Head[Ob
         log.warning("shape calibration skipped: %s", error)
         return filt, None, False, f"skipped: {error}", []
     filt.start(init.q, fresh=not init.legs_settled)
-    with (stages or Stages()).timed("shape_window"):
+    with stages.timed("shape_window"):
         poses = [filt.step(o).q for o in first]
     refit_cfg = cfg.model_copy(deep=True)
     refit_cfg.factored_ipf.passes, refit_cfg.factored_ipf.swap_hypothesis = 1, False
@@ -463,7 +464,7 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, head: Head[Ob
     start = result.start
     settled = cfg.init.leg_frames > 1
     if settled:  # which leg is which, again, with the calibrated model
-        with (stages or Stages()).timed("shape_settle"):
+        with stages.timed("shape_settle"):
             start = settle_legs(tracker, first[: cfg.init.leg_frames], start)
     note = f"{factors}; mean fit {result.fit_before:.4f} -> {result.fit_after:.4f} on {len(first)} frames"
     return tracker, start, settled, note, problems
