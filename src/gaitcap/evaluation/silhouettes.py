@@ -72,7 +72,7 @@ PARTS: dict[str, tuple[tuple[str, ...], float]] = {
 MIN_PART_PIXELS = 20
 
 
-def _part_centres(truth: Trajectory) -> dict[str, np.ndarray]:
+def part_centres(truth: Trajectory) -> dict[str, np.ndarray]:
     """Each part's centre (T, 3) from the truth's points; parts whose points it lacks are left out."""
     out = {}
     for part, (names, _) in PARTS.items():
@@ -120,7 +120,7 @@ def part_coverage(
         part -> (n_frames,) coverage in [0, 1], NaN where the part is out of view (fewer than
         :data:`MIN_PART_PIXELS` true pixels in its disc) or the truth has no frame.
     """
-    centres = _part_centres(truth)
+    centres = part_centres(truth)
     out = {part: np.full(n_frames, np.nan) for part in centres}
     m = min(n_frames, truth.n_frames)
     focal = float(camera.matrix[0, 0])

@@ -56,19 +56,19 @@ class JointExtractor:
 
     def process(self, images: Sequence[np.ndarray]) -> list[tuple[np.ndarray, FrameQuality]]:
         """Masks of one frame: ``images`` (H_c, W_c, 3) uint8 BGR per camera -> (mask, quality) per camera."""
-        evidence, shadows = self._observe(images)
-        out = list(self._map(lambda ex, e, s, r: ex.finish(e, s, r), self.extractors, evidence, shadows,
-                             self._floor_rows))  # fmt: skip
-        self._follow([m for m, _ in out])
-        return out
+        return self.finish(*self.observe(images))
 
     def process_soft(self, images: Sequence[np.ndarray]) -> list[tuple[np.ndarray, np.ndarray, FrameQuality]]:
         """As :meth:`process`, with each camera's soft silhouette: (mask, soft, quality) per camera
         (:meth:`SilhouetteExtractor.finish_soft`)."""
-        evidence, shadows = self._observe(images)
-        out = list(self._map(lambda ex, e, s, r: ex.finish_soft(e, s, r), self.extractors, evidence, shadows,
-                             self._floor_rows))  # fmt: skip
-        self._follow([m for m, _, _ in out])
+        return self.finish(*self.observe(images), soft=True)
+
+    def finish(self, evidence: list[FrameEvidence], shadows: list[np.ndarray], soft: bool = False) -> list[tuple]:
+        """The second half of :meth:`process` (``soft``: of :meth:`process_soft`): each camera's
+        clean-up of its :meth:`observe` evidence and shadows, then the floor rows for the next frame."""
+        step = SilhouetteExtractor.finish_soft if soft else SilhouetteExtractor.finish
+        out = list(self._map(lambda ex, e, s, r: step(ex, e, s, r), self.extractors, evidence, shadows, self._floor_rows))
+        self._follow([r[0] for r in out])
         return out
 
     def _follow(self, masks: list[np.ndarray]) -> None:
@@ -79,8 +79,10 @@ class JointExtractor:
             self._floor_rows = floor_rows(self._cameras, masks, foot)
             self._centre = None if foot is None else foot[:2]
 
-    def _observe(self, images: Sequence[np.ndarray]) -> tuple[list[FrameEvidence], list[np.ndarray]]:
-        """Every camera's per-pixel evidence and its shadow map after the floor check."""
+    def observe(self, images: Sequence[np.ndarray]) -> tuple[list[FrameEvidence], list[np.ndarray]]:
+        """The first half of :meth:`process`: every camera's per-pixel evidence
+        (:meth:`SilhouetteExtractor.observe`) and its shadow map after the floor check; give both to
+        :meth:`finish` (in frame order: the floor rows follow the person from frame to frame)."""
         evidence = list(self._map(lambda ex, im: ex.observe(im), self.extractors, images))
         shadows = [e.shadow for e in evidence]
         if self.floor is not None:
