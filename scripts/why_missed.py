@@ -29,9 +29,10 @@ from pathlib import Path
 
 import h5py
 import numpy as np
+from bench_suite import PART_MISSING  # scripts/ is on the path when run as a script
 
 from gaitcap.evaluation.report import read_truth_reference
-from gaitcap.evaluation.silhouettes import PARTS, part_centres
+from gaitcap.evaluation.silhouettes import part_centres, part_pixels, project_part
 from gaitcap.silhouette.config import SilhouetteConfig
 from gaitcap.silhouette.joint import JointExtractor
 from gaitcap.silhouette.run import prepare_extractor, sources_from_session
@@ -39,20 +40,16 @@ from gaitcap.video import iter_synchronised
 
 CAUSES = ("below weak", "shadow", "deep shadow", "clean-up")
 RULES = ("same ratio", "person in front", "unseen")
-MISSING = 0.5  # a foot is missing when the masks hold less than this fraction of its disc (bench_suite)
 
 
 def foot_pixels(truth: np.ndarray, mask: np.ndarray, camera, centres: dict, k: int) -> np.ndarray:
-    """(H, W) bool: the true pixels of the feet the mask misses (less than half held), frame k."""
+    """(H, W) bool: the true pixels of the feet the mask misses in frame k (``bench_suite``'s test)."""
     out = np.zeros_like(truth)
-    yy, xx = np.ogrid[: truth.shape[0], : truth.shape[1]]
     for part in ("foot_l", "foot_r"):
-        p = centres[part][k][None]
-        (x, y), z = camera.project(p)[0], camera.to_camera(p)[0, 2]
-        r = camera.matrix[0, 0] * PARTS[part][1] / z
-        disc = ((yy - y) ** 2 + (xx - x) ** 2 <= r * r) & truth
-        if disc.sum() >= 20 and (mask[disc] > 0).mean() < MISSING:
-            out |= disc
+        pix, radius = project_part(camera, centres[part][k : k + 1], part)
+        found = part_pixels(truth, pix[0], radius[0])
+        if found is not None and (mask[found[0]][found[1]] > 0).mean() < PART_MISSING:
+            out[found[0]] |= found[1]
     return out
 
 

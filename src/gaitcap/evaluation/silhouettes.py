@@ -81,23 +81,42 @@ def part_centres(truth: Trajectory) -> dict[str, np.ndarray]:
     return out
 
 
-def _disc_coverage(est: np.ndarray, ref: np.ndarray, centre: np.ndarray, radius_px: float) -> float:
-    """Fraction of the true mask ``ref`` (H, W) within ``radius_px`` of ``centre`` (2,) pixels that
-    ``est`` (H, W) also holds; NaN when fewer than :data:`MIN_PART_PIXELS` true pixels are there."""
+def project_part(camera: Camera, xyz: np.ndarray, part: str) -> tuple[np.ndarray, np.ndarray]:
+    """A part's (:data:`PARTS`) centres xyz (T, 3) in the camera: pixels (T, 2) and the disc's radius
+    in pixels (T,): focal length x the part's radius / depth (NaN behind the camera)."""
+    pix = camera.project(xyz)
+    depth = camera.to_camera(xyz)[:, 2]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        radius = np.where(depth > 0, float(camera.matrix[0, 0]) * PARTS[part][1] / depth, np.nan)
+    return pix, radius
+
+
+def part_pixels(ref: np.ndarray, centre: np.ndarray, radius_px: float) -> tuple[tuple[slice, slice], np.ndarray] | None:
+    """The true mask ``ref`` (H, W)'s pixels within ``radius_px`` of ``centre`` (2,) pixels: the disc's
+    box in the image and, in it, (h, w) bool; None when fewer than :data:`MIN_PART_PIXELS` true pixels
+    are there (the part out of view) or the disc is not finite."""
     h, w = ref.shape
     if not (np.isfinite(centre).all() and np.isfinite(radius_px) and radius_px > 0):
-        return float("nan")
+        return None
     x0, x1 = max(int(centre[0] - radius_px), 0), min(int(centre[0] + radius_px) + 1, w)
     y0, y1 = max(int(centre[1] - radius_px), 0), min(int(centre[1] + radius_px) + 1, h)
     if x0 >= x1 or y0 >= y1:
-        return float("nan")
+        return None
     yy, xx = np.mgrid[y0:y1, x0:x1]
     disc = (xx - centre[0]) ** 2 + (yy - centre[1]) ** 2 <= radius_px**2
-    part = disc & (ref[y0:y1, x0:x1] > 0)
-    n = int(part.sum())
-    if n < MIN_PART_PIXELS:
+    box = np.s_[y0:y1, x0:x1]
+    part = disc & (ref[box] > 0)
+    return (box, part) if int(part.sum()) >= MIN_PART_PIXELS else None
+
+
+def _disc_coverage(est: np.ndarray, ref: np.ndarray, centre: np.ndarray, radius_px: float) -> float:
+    """Fraction of :func:`part_pixels` of ``ref`` (H, W) that ``est`` (H, W) also holds; NaN when
+    there are none (out of view)."""
+    found = part_pixels(ref, centre, radius_px)
+    if found is None:
         return float("nan")
-    return float((est[y0:y1, x0:x1] > 0)[part].sum() / n)
+    box, part = found
+    return float((est[box] > 0)[part].sum() / part.sum())
 
 
 def part_coverage(
@@ -123,16 +142,11 @@ def part_coverage(
     centres = part_centres(truth)
     out = {part: np.full(n_frames, np.nan) for part in centres}
     m = min(n_frames, truth.n_frames)
-    focal = float(camera.matrix[0, 0])
     for start in range(0, m, chunk):
         frames = slice(start, min(start + chunk, m))
         est, ref = read_masks(out_masks, camera.name, frames), read_masks(truth_masks, camera.name, frames)
         for part, xyz in centres.items():
-            pts = xyz[frames]
-            pix = camera.project(pts)
-            depth = camera.to_camera(pts)[:, 2]
-            with np.errstate(invalid="ignore", divide="ignore"):
-                radius = np.where(depth > 0, focal * PARTS[part][1] / depth, np.nan)
-            for k in range(len(pts)):
+            pix, radius = project_part(camera, xyz[frames], part)
+            for k in range(len(pix)):
                 out[part][start + k] = _disc_coverage(est[k], ref[k], pix[k], radius[k])
     return out
