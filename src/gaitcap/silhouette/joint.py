@@ -67,7 +67,7 @@ class JointExtractor:
         """The second half of :meth:`process` (``soft``: of :meth:`process_soft`): each camera's
         clean-up of its :meth:`observe` evidence and shadows, then the floor rows for the next frame."""
         step = SilhouetteExtractor.finish_soft if soft else SilhouetteExtractor.finish
-        out = list(self._map(lambda ex, e, s, r: step(ex, e, s, r), self.extractors, evidence, shadows, self._floor_rows))
+        out = list(self._map(step, self.extractors, evidence, shadows, self._floor_rows))
         self._follow([r[0] for r in out])
         return out
 
