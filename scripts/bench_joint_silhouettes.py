@@ -1,0 +1,102 @@
+"""CPU cost of a calibrated session's silhouettes, as ``gaitcap track`` extracts them, per frame.
+
+    PYTHONPATH=src python scripts/bench_joint_silhouettes.py SESSION [SESSION ...] [--frames 60]
+        [--rounds 3] [--set shadow.floor_same_ratio=false ...]
+
+Each session's first ``--frames`` frames are decoded once. Then ``JointExtractor.process`` (every
+camera in turn, the floor check across them) runs over them ``--rounds`` times on one OpenCV thread,
+with the shipped silhouette.yaml and, when given, with each ``--set SECTION.KEY=VALUE`` in turn
+(alternately, round by round: the machine's noise shows in the spread). Prints per session and
+configuration the CPU milliseconds (``time.process_time``) per frame of all cameras, each round and
+their median, and, over the frames and cameras, the median share of the image taken by the box where
+the person can be (``FrameEvidence.box``: the shadow test, the floor check and the clean-up run there
+only) and by the bounding box of the foreground candidates.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
+
+from gaitcap.config import parse_yaml
+from gaitcap.silhouette.config import SilhouetteConfig
+from gaitcap.silhouette.joint import JointExtractor
+from gaitcap.silhouette.run import prepare_extractor, sources_from_session
+from gaitcap.video import VideoReader
+
+
+def configured(override: str | None) -> SilhouetteConfig:
+    """The shipped configuration, with ``SECTION.KEY=VALUE`` set (None: as shipped)."""
+    config = SilhouetteConfig.load()
+    if override is not None:
+        key, value = override.split("=", 1)
+        *sections, name = key.split(".")
+        target = config
+        for section in sections:
+            target = getattr(target, section)
+        setattr(target, name, parse_yaml(value))  # validated on assignment
+    return config
+
+
+def one_round(session: Path, frames: list[list[np.ndarray]], config: SilhouetteConfig) -> tuple[float, list[float], list[float]]:
+    """CPU ms per frame of one pass over ``frames`` (per frame, one image per camera), and per frame
+    and camera the shares of the image taken by the person's box and by the candidates' box."""
+    sources = sources_from_session(session)
+    joint = JointExtractor([prepare_extractor(s, config)[0] for s in sources], [s.calibration for s in sources])
+    person, candidates, cpu = [], [], 0.0
+    for images in frames:
+        t0 = time.process_time()
+        evidence, shadows = joint.observe(images)
+        joint.finish(evidence, shadows)
+        cpu += time.process_time() - t0
+        for e in evidence:
+            y0, y1, x0, x1 = e.box
+            _, _, w, h = cv2.boundingRect(e.candidate.view(np.uint8))
+            person.append((y1 - y0) * (x1 - x0) / e.candidate.size)
+            candidates.append(w * h / e.candidate.size)
+    return 1000 * cpu / len(frames), person, candidates
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("sessions", type=Path, nargs="+")
+    ap.add_argument("--frames", type=int, default=60)
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                    help="a configuration to compare with the shipped one (repeatable)")  # fmt: skip
+    args = ap.parse_args()
+    cv2.setNumThreads(1)
+    variants: list[str | None] = [None, *args.overrides]
+    print("| session | cameras | configuration | CPU ms per frame, each round | median | per camera-frame | "
+          "person's box, share of the image | candidates' box |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|---|")
+    for session in args.sessions:
+        readers = [VideoReader(s.video) for s in sources_from_session(session)]
+        frames = [[image for _, image in pair] for _, pair in zip(range(args.frames), zip(*readers))]
+        for reader in readers:
+            reader.close()
+        ms: dict[str | None, list[float]] = {v: [] for v in variants}
+        shares: dict[str | None, tuple[list[float], list[float]]] = {}
+        for _ in range(args.rounds):
+            for v in variants:
+                cost, person, candidates = one_round(session, frames, configured(v))
+                ms[v].append(cost)
+                shares[v] = (person, candidates)
+        n_cams = len(frames[0])
+        for v in variants:
+            med = statistics.median(ms[v])
+            person, candidates = shares[v]
+            print(f"| {session.name} | {n_cams} | {v or 'shipped'} | {' / '.join(f'{m:.1f}' for m in ms[v])} | {med:.1f} | "
+                  f"{med / n_cams:.1f} | {statistics.median(person):.2f} | {statistics.median(candidates):.2f} |", flush=True)  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
