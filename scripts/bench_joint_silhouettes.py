@@ -8,9 +8,8 @@ camera in turn, the floor check across them) runs over them ``--rounds`` times o
 with the shipped silhouette.yaml and, when given, with each ``--set SECTION.KEY=VALUE`` in turn
 (alternately, round by round: the machine's noise shows in the spread). Prints per session and
 configuration the CPU milliseconds (``time.process_time``) per frame of all cameras, each round and
-their median, and, over the frames and cameras, the median share of the image taken by the box where
-the person can be (``FrameEvidence.box``: the shadow test, the floor check and the clean-up run there
-only) and by the bounding box of the foreground candidates.
+their median, and, over the frames and cameras, the median share of the image taken by the bounding
+box of the foreground candidates (the shadow test and the floor check run in it).
 """
 
 from __future__ import annotations
@@ -46,23 +45,21 @@ def configured(override: str | None) -> SilhouetteConfig:
     return config
 
 
-def one_round(session: Path, frames: list[list[np.ndarray]], config: SilhouetteConfig) -> tuple[float, list[float], list[float]]:
+def one_round(session: Path, frames: list[list[np.ndarray]], config: SilhouetteConfig) -> tuple[float, list[float]]:
     """CPU ms per frame of one pass over ``frames`` (per frame, one image per camera), and per frame
-    and camera the shares of the image taken by the person's box and by the candidates' box."""
+    and camera the share of the image taken by the candidates' bounding box."""
     sources = sources_from_session(session)
     joint = JointExtractor([prepare_extractor(s, config)[0] for s in sources], [s.calibration for s in sources])
-    person, candidates, cpu = [], [], 0.0
+    candidates, cpu = [], 0.0
     for images in frames:
         t0 = time.process_time()
         evidence, shadows = joint.observe(images)
         joint.finish(evidence, shadows)
         cpu += time.process_time() - t0
         for e in evidence:
-            y0, y1, x0, x1 = e.box
             _, _, w, h = cv2.boundingRect(e.candidate.view(np.uint8))
-            person.append((y1 - y0) * (x1 - x0) / e.candidate.size)
             candidates.append(w * h / e.candidate.size)
-    return 1000 * cpu / len(frames), person, candidates
+    return 1000 * cpu / len(frames), candidates
 
 
 def main() -> None:
@@ -76,26 +73,24 @@ def main() -> None:
     cv2.setNumThreads(1)
     variants: list[str | None] = [None, *args.overrides]
     print("| session | cameras | configuration | CPU ms per frame, each round | median | per camera-frame | "
-          "person's box, share of the image | candidates' box |")  # fmt: skip
-    print("|---|---|---|---|---|---|---|---|")
+          "candidates' box, share of the image |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|")
     for session in args.sessions:
         readers = [VideoReader(s.video) for s in sources_from_session(session)]
         frames = [[image for _, image in pair] for _, pair in zip(range(args.frames), zip(*readers))]
         for reader in readers:
             reader.close()
         ms: dict[str | None, list[float]] = {v: [] for v in variants}
-        shares: dict[str | None, tuple[list[float], list[float]]] = {}
+        shares: dict[str | None, list[float]] = {}
         for _ in range(args.rounds):
             for v in variants:
-                cost, person, candidates = one_round(session, frames, configured(v))
+                cost, shares[v] = one_round(session, frames, configured(v))
                 ms[v].append(cost)
-                shares[v] = (person, candidates)
         n_cams = len(frames[0])
         for v in variants:
             med = statistics.median(ms[v])
-            person, candidates = shares[v]
             print(f"| {session.name} | {n_cams} | {v or 'shipped'} | {' / '.join(f'{m:.1f}' for m in ms[v])} | {med:.1f} | "
-                  f"{med / n_cams:.1f} | {statistics.median(person):.2f} | {statistics.median(candidates):.2f} |", flush=True)  # fmt: skip
+                  f"{med / n_cams:.1f} | {statistics.median(shares[v]):.2f} |", flush=True)  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -11,9 +11,8 @@ the silhouette extraction as ``gaitcap track`` does (:class:`JointExtractor`, it
 - ``shadow``: a photometric shadow candidate (darker, same chromaticity, same texture) that the
   floor check kept as shadow; ``deep shadow``: darker than the photometric test alone accepts,
   confirmed by the floor check;
-- ``clean-up``: weak foreground, not shadow, dropped by the connection to the confident body (the
-  shadow test does not run on weak pixels away from it), the opening, the component selection or
-  the matte.
+- ``clean-up``: weak foreground, not shadow, dropped by the connection to the confident body, the
+  opening, the component selection or the matte.
 
 Then, of the pixels kept as photometric shadow by the floor check, why it kept them: the other
 camera sees the floor point darkened by the same ratio (``same ratio``), it sees the person there

@@ -12,7 +12,7 @@ from gaitcap.config import model_from_mapping
 from gaitcap.errors import ConfigError, InputError
 from gaitcap.silhouette import SilhouetteConfig, SilhouetteExtractor
 from gaitcap.silhouette.background import _channel_mean, _median
-from gaitcap.silhouette.extract import BORDER, EMPTY, NO_BACKGROUND, TOO_LARGE, _label_type, _region_box
+from gaitcap.silhouette.extract import BORDER, EMPTY, NO_BACKGROUND, TOO_LARGE, _label_type
 from gaitcap.camera import Camera
 from gaitcap.silhouette.floor import FloorShadowCheck, floor_map, floor_points, floor_rows, head_top
 from gaitcap.silhouette.joint import JointExtractor
@@ -635,79 +635,3 @@ def test_the_extractor_mattes_a_blurred_outline_to_the_covered_half():
         ex.fit_background(plate=plate)
         scores[matte] = iou(ex.process(frame)[0], truth)
     assert scores[True] > 0.99 and scores[True] > scores[False]
-
-
-def test_the_region_box_holds_the_body_and_its_faint_parts_not_a_far_speck():
-    weak = np.zeros((120, 160), bool)
-    sure = np.zeros_like(weak)
-    sure[20:60, 60:100] = True  # a trunk
-    weak[20:110, 66:94] = True  # and faint legs below it, joined to it
-    weak[5:8, 150:153] = sure[5:8, 150:153] = True  # a speck (9 px) away from the body
-    weak[100:115, 5:20] = True  # faint, joined to nothing confident
-    assert _region_box(weak, sure, None, 20, 0) == (20, 110, 60, 100)
-    assert _region_box(weak, sure, None, 5, 4) == (1, 114, 56, 157)  # a smaller least area takes the speck
-    assert _region_box(weak, sure, None, 20, 30) == (0, 120, 30, 130)  # clipped to the image
-    assert _region_box(weak, np.zeros_like(sure), None, 20, 4) == (0, 0, 0, 0)
-
-
-def test_the_tests_restricted_to_the_persons_box_give_the_masks_of_the_whole_frame(scene, monkeypatch):
-    """The texture-shadow test, the floor check and the clean-up run in the person's box only
-    (SilhouetteExtractor._box): on a walk with a cast shadow over a textured floor, the masks are
-    those of the same tests over the whole frame, and nothing outside the box is a shadow."""
-
-    def masks() -> tuple[list[np.ndarray], list[tuple[int, int, int, int]]]:
-        ex = SilhouetteExtractor(SilhouetteConfig())
-        ex.fit_background(plate=scene.plate)
-        out, boxes = [], []
-        for frame in scene.frames:
-            evidence = ex.observe(frame)
-            y0, y1, x0, x1 = evidence.box
-            outside = evidence.shadow.copy()
-            outside[y0:y1, x0:x1] = False
-            assert not outside.any()
-            out.append(ex.finish(evidence, evidence.shadow)[0])
-            boxes.append(evidence.box)
-        return out, boxes
-
-    boxed, boxes = masks()
-    h, w = scene.masks.shape[1:]
-    monkeypatch.setattr(SilhouetteExtractor, "_box", lambda self, weak, candidate: (0, h, 0, w))
-    whole, _ = masks()
-    areas = [(y1 - y0) * (x1 - x0) / (h * w) for y0, y1, x0, x1 in boxes]
-    assert 0.05 < np.median(areas) < 0.6  # the restriction is real: boxes of the person, not the frame
-    for k, (a, b) in enumerate(zip(boxed, whole)):
-        assert np.array_equal(a, b), k
-        y0, y1, x0, x1 = boxes[k]
-        assert a.sum() == a[y0:y1, x0:x1].sum()
-
-
-def test_the_floor_check_looks_up_the_other_cameras_foreground_as_the_whole_frames_shadow_test_sees_it():
-    """Each camera's shadow test runs in the person's box; where the floor check looks up another
-    camera's candidates outside that box, they are tested there (JointExtractor._body): a dark speck
-    (a shadow to the photometric test) and a bright one, each too small to widen the box."""
-    rig = grey_body_rig(seed=5)
-    frame = rig.frames[0].astype(np.float32)
-    frame[79:82, 19:22] *= 0.6  # the dark speck: darker floor of the same colour and texture
-    frame[84:87, 39:42] += 60  # the bright one: foreground
-    rig.frames[0] = np.clip(frame, 0, 255).astype(np.uint8)
-    extractors = []
-    for cam, plate in zip(rig.cameras, rig.plates):
-        ex = SilhouetteExtractor(SilhouetteConfig(), name=cam.name)
-        ex.fit_background(plate=plate, samples=np.stack([plate] * 5))
-        extractors.append(ex)
-    joint = JointExtractor(extractors, rig.cameras)
-    evidence = [ex.observe(f) for ex, f in zip(extractors, rig.frames)]
-    looked_up = joint.floor.looked_up([e.shadow | e.deep_shadow for e in evidence])
-    body = joint._body(evidence, looked_up)
-    tested = 0
-    for ex, e, box, b in zip(extractors, evidence, looked_up, body):
-        h, w = e.weak.shape
-        shadow, deep = ex._shadow_in(e, e.weak, (0, h, 0, w))  # the test over the whole frame
-        seen = np.s_[box[0] : box[1], box[2] : box[3]]
-        assert np.array_equal(b[seen], (e.candidate & ~(shadow | deep))[seen])
-        far = np.zeros_like(b)
-        far[seen] = e.candidate[seen]
-        far[e.box[0] : e.box[1], e.box[2] : e.box[3]] = False
-        tested += int((far & (shadow | deep)).sum())
-    assert tested > 0  # both specks lie where camera 1 looks in camera 0, outside its box
-    assert evidence[0].box[2] > 41  # and the box left them out

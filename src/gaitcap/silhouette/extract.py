@@ -49,22 +49,13 @@ frame's global per-channel brightness ratio to it (lighting drift and jumps):
 4. background adaptation: ``B <- (1 - a) B + a I / g`` where the (dilated) mask is off and the
    pixel does not differ even weakly (shadows included): a part the mask missed does not fade
    into the background.
-
-The shadow test, the floor check and the clean-up run only in the box where the person can be
-(:func:`_region_box`): the weak foreground's components joined to confident pixels, as the
-clean-up's first step keeps them, grown by a pad. Shadows and clean-up only remove pixels from
-those components or join pixels next to them, so the masks are those of the whole frame (the
-floor check's look-ups of another camera's foreground outside its box are tested there:
-:class:`~gaitcap.silhouette.joint.JointExtractor`), at a fraction of the cost: the candidates' own
-box spans most of the frame (1-pixel streaks along a floor's texture), the person's, with the cast
-shadow, a tenth to two fifths of it.
 """
 
 from __future__ import annotations
 
 import logging
 from collections.abc import Iterable, Iterator
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -219,42 +210,6 @@ def _connected_to(weak: np.ndarray, seeds: np.ndarray, open_kernel: np.ndarray |
     return np.take(hit, labels)
 
 
-def _region_box(weak: np.ndarray, seeds: np.ndarray, open_kernel: np.ndarray | None, min_area: float,
-                pad: int) -> tuple[int, int, int, int]:  # fmt: skip
-    """The box where the person can be: (y0, y1, x0, x1), (0, 0, 0, 0) when there is nothing.
-
-    The components of ``weak`` that :func:`_connected_to` keeps for ``seeds`` and hold at least
-    ``min_area`` pixels (smaller ones the clean-up drops), their common bounding box grown by
-    ``pad`` pixels on every side and clipped to the image. The later steps (the shadow test, the
-    floor check, the clean-up) only run there: they only remove pixels from those components or
-    join pixels next to them.
-
-    Args:
-        weak: (h, w) bool, the pixels that may belong to the person (``seeds`` included).
-        seeds: (h, w) bool, the confident ones.
-        open_kernel: as :func:`_connected_to`'s.
-        min_area: least pixels of a component that widens the box.
-        pad: growth of the box, pixels.
-    """
-    seed = seeds.view(np.uint8)
-    both = weak.view(np.uint8)
-    if open_kernel is not None:
-        seed = cv2.morphologyEx(seed, cv2.MORPH_OPEN, open_kernel)
-        both = cv2.morphologyEx(both, cv2.MORPH_OPEN, open_kernel)
-    both = both | seed
-    n, labels, stats, _ = cv2.connectedComponentsWithStats(both, connectivity=8, ltype=_label_type(both))
-    hit = np.zeros(n, bool)
-    hit[labels[seed > 0]] = True
-    hit[0] = False
-    hit &= stats[:, cv2.CC_STAT_AREA] >= min_area
-    if not hit.any():
-        return 0, 0, 0, 0
-    x, y, w, h = (stats[hit, i] for i in range(4))
-    rows, cols = weak.shape
-    return (max(int(y.min()) - pad, 0), min(int((y + h).max()) + pad, rows),
-            max(int(x.min()) - pad, 0), min(int((x + w).max()) + pad, cols))  # fmt: skip
-
-
 #: the person's colour next to an outline pixel is the mean over the mask's interior in this window (pixels)
 _MATTE_WINDOW = 5
 #: the outline re-decided by the matte: this many rings outside the mask, and inside it (the interior starts past them)
@@ -329,8 +284,6 @@ class FrameEvidence:
             looks up to confirm that a floor point is shadowed).
         sums: the (h, w) float32 channel sums of the frame and of the background scaled by
             ``gain`` (their ratio is the pixel's brightness ratio).
-        box: (y0, y1, x0, x1), where the person can be (:func:`_region_box`): the shadow test ran
-            there only, and the clean-up keeps nothing outside it; (0, 0, 0, 0): nobody.
     """
 
     image: np.ndarray
@@ -344,7 +297,6 @@ class FrameEvidence:
     deep_shadow: np.ndarray
     darkening: np.ndarray
     sums: tuple[np.ndarray, np.ndarray]
-    box: tuple[int, int, int, int]
 
 
 class SilhouetteExtractor:
@@ -452,8 +404,7 @@ class SilhouetteExtractor:
         return self.finish(evidence, evidence.shadow)
 
     def observe(self, frame: np.ndarray) -> FrameEvidence:
-        """Steps 1-2 for one frame: the per-pixel tests, before any joint step over cameras
-        (:meth:`measure`, then the shadow test in the box where the person can be).
+        """Steps 1-2 for one frame: the per-pixel tests, before any joint step over cameras.
 
         Args:
             frame: (H, W, 3) uint8 BGR, the size of the background.
@@ -462,11 +413,6 @@ class SilhouetteExtractor:
             The frame's :class:`FrameEvidence` at working scale; pass it (and its shadow map,
             possibly re-labelled) to :meth:`finish`.
         """
-        return self.with_shadows(self.measure(frame))
-
-    def measure(self, frame: np.ndarray) -> FrameEvidence:
-        """:meth:`observe` without the shadow test (``shadow`` and ``deep_shadow`` all False; then
-        :meth:`with_shadows`)."""
         if self._bg is None or self._full_size is None:
             raise InputError(f"{self.name}: fit_background() must be called before extracting silhouettes")
         if frame.ndim != 3 or (frame.shape[1], frame.shape[0]) != self._full_size:
@@ -489,51 +435,12 @@ class SilhouetteExtractor:
         si, sb = _channel_sum(img), _channel_sum(bg)
         if self.config.foreground.texture_ncc > -1:
             weak = weak | self._texture_changed(si, sb, candidate)
-        shadow, deep = np.zeros_like(candidate), np.zeros_like(candidate)
+        if self.config.shadow.enabled:
+            shadow, deep = self._shadow(img, bg, si, sb, weak)
+        else:
+            shadow, deep = np.zeros_like(candidate), np.zeros_like(candidate)
         darkening = candidate | self._darker(si, sb, plain2)
-        return FrameEvidence(img, gain, bg, candidate, weak, strength, colour_only, shadow, deep, darkening, (si, sb),
-                             self._box(weak, candidate))  # fmt: skip
-
-    def with_shadows(self, evidence: FrameEvidence) -> FrameEvidence:
-        """``evidence`` with the shadow test's ``shadow`` and ``deep_shadow`` in ``evidence.box``
-        (False elsewhere: nothing there joins the person), as over the whole frame."""
-        shadow, deep = self._shadow_in(evidence, evidence.weak, evidence.box)
-        return replace(evidence, shadow=shadow, deep_shadow=deep)
-
-    def shadow_at(self, evidence: FrameEvidence, pixels: np.ndarray) -> np.ndarray:
-        """(h, w) bool: which of the ``pixels`` (h, w) bool the shadow test calls a shadow (deep ones
-        included), wherever they lie (the floor check asks about other cameras' look-ups)."""
-        x, y, w, h = cv2.boundingRect(pixels.view(np.uint8))
-        shadow, deep = self._shadow_in(evidence, pixels, (y, y + h, x, x + w))
-        return shadow | deep
-
-    def _shadow_in(self, evidence: FrameEvidence, pixels: np.ndarray,
-                   box: tuple[int, int, int, int]) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
-        """The shadow test's (shadow, deep) (h, w) bool each, of the ``pixels`` (h, w) bool in ``box``
-        (y0, y1, x0, x1), False elsewhere. The test looks at the texture window around each pixel:
-        it runs on the box grown by that window, so the box's pixels are those of the test over the
-        whole frame."""
-        shadow, deep = np.zeros_like(pixels), np.zeros_like(pixels)
-        y0, y1, x0, x1 = box
-        if not self.config.shadow.enabled or y1 <= y0 or x1 <= x0:
-            return shadow, deep
-        m = self.config.shadow.texture_window
-        rows, cols = shadow.shape
-        g0, g1, h0, h1 = max(y0 - m, 0), min(y1 + m, rows), max(x0 - m, 0), min(x1 + m, cols)
-        grown = np.s_[g0:g1, h0:h1]
-        si, sb = evidence.sums
-        s, d = self._shadow(evidence.image[grown], evidence.background[grown], si[grown], sb[grown], pixels[grown])
-        inner = np.s_[y0 - g0 : y1 - g0, x0 - h0 : x1 - h0]
-        shadow[y0:y1, x0:x1], deep[y0:y1, x0:x1] = s[inner], d[inner]
-        return shadow, deep
-
-    def _box(self, weak: np.ndarray, candidate: np.ndarray) -> tuple[int, int, int, int]:
-        """:func:`_region_box` of the frame's ``weak`` and ``candidate`` (h, w) bool, with the clean-up's
-        least component and a pad of twice the texture window and the closing radius (room for the
-        windows of the shadow test and for the closing to bridge a gap)."""
-        c = self.config
-        pad = 2 * (c.shadow.texture_window + c.cleanup.close_radius)
-        return _region_box(weak, candidate, self._open_k, c.cleanup.min_component_fraction * weak.size, pad)
+        return FrameEvidence(img, gain, bg, candidate, weak, strength, colour_only, shadow, deep, darkening, (si, sb))
 
     def finish(self, evidence: FrameEvidence, shadow: np.ndarray,
                floor_row: float | None = None) -> tuple[np.ndarray, FrameQuality]:  # fmt: skip
@@ -567,15 +474,11 @@ class SilhouetteExtractor:
 
     def _finish(self, evidence: FrameEvidence, shadow: np.ndarray, soft: bool,
                 floor_row: float | None = None) -> tuple[np.ndarray, np.ndarray | None, FrameQuality]:  # fmt: skip
-        mask_small, n_comp = np.zeros(shadow.shape, np.uint8), 0
-        y0, y1, x0, x1 = evidence.box
-        if y1 > y0 and x1 > x0:
-            roi = np.s_[y0:y1, x0:x1]
-            raw = _connected_to(evidence.weak[roi] & ~shadow[roi], evidence.candidate[roi] & ~shadow[roi], self._open_k)
-            self._trim_outline(raw, evidence.colour_only[roi])
-            if floor_row is not None and self._full_size is not None:  # full resolution -> working scale, in the box
-                floor_row = (floor_row + 0.5) * shadow.shape[0] / self._full_size[1] - 0.5 - y0
-            mask_small[roi], n_comp = self._clean(raw, floor_row, shadow.size)
+        raw = _connected_to(evidence.weak & ~shadow, evidence.candidate & ~shadow, self._open_k)
+        self._trim_outline(raw, evidence.colour_only)
+        if floor_row is not None and self._full_size is not None:  # full resolution -> working scale
+            floor_row = (floor_row + 0.5) * raw.shape[0] / self._full_size[1] - 0.5
+        mask_small, n_comp = self._clean(raw, floor_row)
         if self.config.cleanup.matte_outline:
             mask_small = self._matte(evidence, mask_small, shadow)
         self._adapt(evidence.image, evidence.gain, mask_small, evidence.weak | shadow)
@@ -789,11 +692,9 @@ class SilhouetteExtractor:
         same[textured] = self._texture_ncc(si, sb, at[textured], mb[textured], vb[textured]) >= self.config.shadow.min_ncc
         return same
 
-    def _clean(self, raw: np.ndarray, floor_row: float | None = None, image_size: int | None = None) -> tuple[np.ndarray, int]:
+    def _clean(self, raw: np.ndarray, floor_row: float | None = None) -> tuple[np.ndarray, int]:
         """Morphology, component selection and hole filling; (h, w) uint8 0/255 -> same, count.
-        ``floor_row``: the floor's row beneath the person at working scale, in ``raw``'s rows
-        (:func:`_body_components`); ``image_size``: the pixels of the whole image when ``raw`` is a
-        part of it (the least component is a fraction of the image), None: ``raw`` is the image."""
+        ``floor_row``: the floor's row beneath the person at working scale (:func:`_body_components`)."""
         c = self.config.cleanup
         mask = raw
         if self._open_k is not None:
@@ -803,8 +704,7 @@ class SilhouetteExtractor:
         n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8, ltype=_label_type(mask))
         if n <= 1:
             return np.zeros_like(mask), 0
-        area = mask.size if image_size is None else image_size
-        keep, main, cut = _body_components(stats[1:], c.min_component_fraction * area, c.keep_relative,
+        keep, main, cut = _body_components(stats[1:], c.min_component_fraction * mask.size, c.keep_relative,
                                            c.keep_margin, c.keep_below, floor_row)  # fmt: skip
         keep += 1
         lut = np.zeros(n, np.uint8)

@@ -44,7 +44,6 @@ once per rig (:class:`FloorShadowCheck`); each frame then costs one ``cv2.remap`
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 
 import cv2
@@ -187,42 +186,7 @@ class FloorShadowCheck:
                 seen |= m[..., 0] >= 0
             self.seen.append(seen)
         self.near = _near_shared_floor(points, self.seen, reach)
-        #: per camera i, per map of self.maps[i]: (h_i, w_i) uint8, 1 where a pixel's floor point counts
-        #: for :meth:`looked_up` (on the floor near the capture area, seen by the other camera)
-        self._valid = [[((m[..., 0] >= 0) & self.on_floor[i] & self.near[i]).view(np.uint8) for _, m in maps]
-                       for i, maps in enumerate(self.maps)]  # fmt: skip
         self._grow = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * tolerance + 1,) * 2) if tolerance > 0 else None
-
-    def looked_up(self, candidates: Sequence[np.ndarray]) -> list[tuple[int, int, int, int] | None]:
-        """Where :meth:`relabel` looks in each camera for the others' shadow candidates.
-
-        Args:
-            candidates: (h_i, w_i) bool per camera, the pixels that may be shadow candidates.
-
-        Returns:
-            Per camera j, the box (y0, y1, x0, x1) of its pixels whose floor point is that of a
-            candidate of another camera on the floor near the capture area (one pixel more on
-            every side: the look-up rounds to the nearest pixel), or None where there is none.
-        """
-        boxes: list[tuple[int, int, int, int] | None] = [None] * len(candidates)
-        for i, c in enumerate(candidates):
-            x, y, w, h = cv2.boundingRect(c.view(np.uint8))
-            if not w or not h:
-                continue
-            box = np.s_[y : y + h, x : x + w]
-            for (j, m), valid in zip(self.maps[i], self._valid[i]):
-                mask = cv2.bitwise_and(c[box].view(np.uint8), valid[box])
-                if not cv2.countNonZero(mask):
-                    continue
-                u0, u1, _, _ = cv2.minMaxLoc(cv2.extractChannel(m[box], 0), mask)
-                v0, v1, _, _ = cv2.minMaxLoc(cv2.extractChannel(m[box], 1), mask)
-                rows, cols = self.seen[j].shape
-                found = (max(math.floor(v0) - 1, 0), min(math.ceil(v1) + 2, rows),
-                         max(math.floor(u0) - 1, 0), min(math.ceil(u1) + 2, cols))  # fmt: skip
-                old = boxes[j]
-                boxes[j] = found if old is None else (min(old[0], found[0]), max(old[1], found[1]),
-                                                      min(old[2], found[2]), max(old[3], found[3]))  # fmt: skip
-        return boxes
 
     def relabel(self, shadows: Sequence[np.ndarray], darkening: Sequence[np.ndarray],
                 deep: Sequence[np.ndarray] | None = None, log_ratio: Sequence[np.ndarray] | None = None,

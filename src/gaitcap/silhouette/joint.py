@@ -82,12 +82,7 @@ class JointExtractor:
     def observe(self, images: Sequence[np.ndarray]) -> tuple[list[FrameEvidence], list[np.ndarray]]:
         """The first half of :meth:`process`: every camera's per-pixel evidence
         (:meth:`SilhouetteExtractor.observe`) and its shadow map after the floor check; give both to
-        :meth:`finish` (in frame order: the floor rows follow the person from frame to frame).
-
-        Each camera's shadow test runs in the box where the person can be, and, when the floor check
-        compares the cameras' darkening, also where the other cameras look up their candidates' floor
-        points (:meth:`FloorShadowCheck.looked_up`): there it tells the person in front of the floor
-        from a shadow on it."""
+        :meth:`finish` (in frame order: the floor rows follow the person from frame to frame)."""
         evidence = list(self._map(lambda ex, im: ex.observe(im), self.extractors, images))
         shadows = [e.shadow for e in evidence]
         if self.floor is not None:
@@ -96,30 +91,8 @@ class JointExtractor:
             ratio = body = None
             if cfg.floor_same_ratio:
                 ratio = list(self._map(lambda ex, e: ex.log_brightness(e), self.extractors, evidence))
-                body = self._body(evidence, self.floor.looked_up([s | d for s, d in zip(shadows, deep)]))
+                body = [e.candidate & ~(s | d) for e, s, d in zip(evidence, shadows, deep)]
             centre = self._centre if cfg.floor_footprint else None
             shadows = self.floor.relabel(shadows, [e.darkening for e in evidence], deep, ratio, body,
                                          cfg.floor_ratio_tolerance, centre)  # fmt: skip
         return evidence, shadows
-
-    def _body(self, evidence: list[FrameEvidence], looked_up: list[tuple[int, int, int, int] | None]) -> list[np.ndarray]:
-        """Per camera, its foreground that is no shadow candidate (the floor check's ``body``), right
-        where the other cameras look (``looked_up``: :meth:`FloorShadowCheck.looked_up`): each
-        camera's shadow test ran in the person's box only, so the candidates the other cameras look
-        up outside it are tested here."""
-        return list(self._map(_body, self.extractors, evidence, looked_up))
-
-
-def _body(extractor: SilhouetteExtractor, evidence: FrameEvidence, looked_up: tuple[int, int, int, int] | None) -> np.ndarray:
-    """(h, w) bool: :meth:`JointExtractor._body` of one camera."""
-    body = evidence.candidate & ~(evidence.shadow | evidence.deep_shadow)
-    if looked_up is None:
-        return body
-    far = np.zeros_like(body)
-    box = np.s_[looked_up[0] : looked_up[1], looked_up[2] : looked_up[3]]
-    far[box] = body[box]
-    y0, y1, x0, x1 = evidence.box
-    far[y0:y1, x0:x1] = False
-    if far.any():
-        body &= ~extractor.shadow_at(evidence, far)
-    return body
