@@ -4,7 +4,7 @@
     python scripts/check_track_identical.py --against REF [--work ...]                  # with the new code
 
 Renders the embedded walk once into --work (``gaitcap synth``, seed 0), then runs ``python -m gaitcap
--q track`` in a child process for each case below (default configuration, seed 0) and either saves
+-q track`` of this checkout (its ``src`` first on the child's path) in a child process for each case below (default configuration, seed 0) and either saves
 the outputs under REF or compares every dataset of ``trajectories.h5`` (points, points_unfiltered,
 uncertainty, spread, poses, likelihood, fit, quality, times) and the root attributes ``shape`` / ``height_m``
 with exact equality (``np.array_equal``, NaN equal to NaN). Prints one line per case with its wall
@@ -28,6 +28,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+ROOT = Path(__file__).resolve().parents[1]
 CASES = {"full": [], "max12": ["--max-frames", "12"], "ipf6": ["--tracker", "ipf", "--max-frames", "6"],
          "condensation6": ["--tracker", "condensation", "--max-frames", "6"]}
 ATTRS = ("shape", "height_m", "tracker")
@@ -83,6 +84,9 @@ def main() -> int:
     if args.quick:
         args.cases = ["max12"]
     os.environ.setdefault("OMP_WAIT_POLICY", "passive")
+    # the children run this checkout's gaitcap, not whichever one the environment has installed
+    # (an editable install of another tree would be checked instead)
+    os.environ["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT / "src"), os.environ.get("PYTHONPATH")]))
     ses = session(args.work)
     failed = False
     for name in args.cases:
