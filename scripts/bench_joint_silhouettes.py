@@ -25,7 +25,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 
-from gaitcap.config import parse_yaml
+from gaitcap.config import model_from_mapping, parse_yaml
+from gaitcap.errors import ConfigError
 from gaitcap.silhouette.config import SilhouetteConfig
 from gaitcap.silhouette.joint import JointExtractor
 from gaitcap.silhouette.run import prepare_extractor, sources_from_session
@@ -33,16 +34,23 @@ from gaitcap.video import VideoReader
 
 
 def configured(override: str | None) -> SilhouetteConfig:
-    """The shipped configuration, with ``SECTION.KEY=VALUE`` set (None: as shipped)."""
+    """The shipped configuration, with ``SECTION.KEY=VALUE`` set (None: as shipped), validated by the
+    schema (:func:`~gaitcap.config.model_from_mapping`: an unknown key is named, with the closest one)."""
     config = SilhouetteConfig.load()
-    if override is not None:
-        key, value = override.split("=", 1)
-        *sections, name = key.split(".")
-        target = config
-        for section in sections:
-            target = getattr(target, section)
-        setattr(target, name, parse_yaml(value))  # validated on assignment
-    return config
+    if override is None:
+        return config
+    key, sep, value = override.partition("=")
+    if not sep:
+        raise ConfigError(f"--set {override}: expected SECTION.KEY=VALUE")
+    data = config.model_dump()
+    *sections, name = key.split(".")
+    target = data
+    for section in sections:
+        target = target.setdefault(section, {})
+        if not isinstance(target, dict):
+            raise ConfigError(f"--set {override}: {section} is not a section")
+    target[name] = parse_yaml(value)
+    return model_from_mapping(SilhouetteConfig, data, "--set")
 
 
 def one_round(session: Path, frames: list[list[np.ndarray]], config: SilhouetteConfig) -> tuple[float, list[float]]:
@@ -72,6 +80,11 @@ def main() -> None:
     args = ap.parse_args()
     cv2.setNumThreads(1)
     variants: list[str | None] = [None, *args.overrides]
+    try:
+        for v in args.overrides:  # before any session is decoded
+            configured(v)
+    except ConfigError as e:
+        raise SystemExit(f"error: {e}") from None
     print("| session | cameras | configuration | CPU ms per frame, each round | median | per camera-frame | "
           "candidates' box, share of the image |")  # fmt: skip
     print("|---|---|---|---|---|---|---|")
@@ -89,8 +102,9 @@ def main() -> None:
         n_cams = len(frames[0])
         for v in variants:
             med = statistics.median(ms[v])
-            print(f"| {session.name} | {n_cams} | {v or 'shipped'} | {' / '.join(f'{m:.1f}' for m in ms[v])} | {med:.1f} | "
-                  f"{med / n_cams:.1f} | {statistics.median(shares[v]):.2f} |", flush=True)  # fmt: skip
+            rounds = " / ".join(f"{m:.1f}" for m in ms[v])
+            print(f"| {session.name} | {n_cams} | {v or 'shipped'} | {rounds} | {med:.1f} | {med / n_cams:.1f} | "
+                  f"{statistics.median(shares[v]):.2f} |", flush=True)  # fmt: skip
 
 
 if __name__ == "__main__":

@@ -4,11 +4,12 @@
     python scripts/check_track_identical.py --against REF [--work ...]                  # with the new code
 
 Renders the embedded walk once into --work (``gaitcap synth``, seed 0), then runs ``python -m gaitcap
--q track`` of this checkout (its ``src`` first on the child's path) in a child process for each case below (default configuration, seed 0) and either saves
-the outputs under REF or compares every dataset of ``trajectories.h5`` (points, points_unfiltered,
-uncertainty, spread, poses, likelihood, fit, quality, times) and the root attributes ``shape`` / ``height_m``
-with exact equality (``np.array_equal``, NaN equal to NaN). Prints one line per case with its wall
-seconds and exits 1 at the first difference.
+-q track`` of this checkout (its ``src`` first on the child's path) in a child process for each case
+below (default configuration, seed 0) and either saves the outputs under REF or compares every
+dataset of ``trajectories.h5`` (points, points_unfiltered, uncertainty, spread, poses, likelihood, fit,
+quality, times) and the root attributes ``shape`` / ``height_m`` with exact equality
+(``np.array_equal``, NaN equal to NaN). Prints one line per case with its wall seconds and exits 1 at
+the first difference.
 
 Cases (``--cases``): ``full``, the whole session (56 frames: shape calibration on the first 13, then
 tracking); ``max12``, ``--max-frames 12`` (the shape window cut short); ``ipf6`` and
