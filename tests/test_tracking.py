@@ -656,6 +656,23 @@ def test_settle_legs_keeps_the_assignment_the_frames_support(embedded_session, s
     assert not tracker._fresh
 
 
+@pytest.mark.parametrize("margin", [0.0, 1.0])
+def test_settle_legs_overturns_a_start_only_by_more_than_the_margin(embedded_session, margin):
+    """A start with the legs swapped and apart, which its mirror fits far better: with no margin the
+    mirror is returned, with a margin no fit difference can exceed (fits are at most 1) the start is
+    kept: the re-check after the shape calibration keeps the assignment it was calibrated with on a
+    tie (``factored_ipf.swap_margin``)."""
+    from gaitcap.tracking.init import settle_legs
+
+    truth, rig, views, tracker, hips, apart = _swap_setup(embedded_session.session, swap_fit_drop=None)
+    t = next(i for i in range(len(apart) - 6) if min(apart[i : i + 6]) > tracker.config.factored_ipf.swap_within_deg + 5)
+    start = tracker.mirrored(truth.poses[t])
+    frames = [observe(views, [truth.mask(c, f) for c in rig.names]) for f in range(t, t + 6)]
+    q = settle_legs(tracker, frames, start, margin)
+    np.testing.assert_array_equal(q, tracker.mirrored(start) if margin == 0.0 else start)
+    np.testing.assert_allclose(tracker.q, tracker.model.clip(q[None])[0])
+
+
 @pytest.mark.parametrize("mirror", [False, True])
 def test_initialise_reports_the_fit_of_the_pose_it_returns(embedded_session, monkeypatch, mirror):
     """InitResult.fit is the fit of InitResult.q on the first frame, also when settling the legs
@@ -688,7 +705,13 @@ def test_fit_drop_searches_the_mirror_with_the_legs_apart(embedded_session, fit_
     assert _on_own_sides(q, truth.poses[t], hips)[0] == (fit_drop is not None)  # the left leg
 
 
-def test_track_with_shape_calibration_records_it(embedded_session, tmp_path):
+def test_track_with_shape_calibration_records_it(embedded_session, tmp_path, monkeypatch):
+    import gaitcap.pipeline as pipeline_module
+
+    margins = []  # the legs settled again with the calibrated model: its assignment overturned only by a margin
+    real_settle = pipeline_module.settle_legs
+    monkeypatch.setattr(pipeline_module, "settle_legs",
+                        lambda tr, obs, q, margin=0.0: margins.append(margin) or real_settle(tr, obs, q, margin))  # fmt: skip
     data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
     data["shape"].update(enabled=True, frames=6, samples=2, steps=[0.08, 0.04], retrack=True)  # a re-tracked round
     data["shape"]["parameters"] = {"thigh_length": ["thigh_l.z", "thigh_r.z"]}
@@ -698,6 +721,7 @@ def test_track_with_shape_calibration_records_it(embedded_session, tmp_path):
     config.write_text(yaml.safe_dump(data))
     summary = run_track(embedded_session.session, tmp_path / "out", config=config, progress=False, max_frames=8)
     assert summary.status == "ok" and summary.n_frames == 8
+    assert margins == [data["factored_ipf"]["swap_margin"]] and margins[0] > 0
     with h5py.File(tmp_path / "out" / "trajectories.h5") as f:
         note = f.attrs["shape"]
     assert note.startswith("thigh_length x") and "mean fit" in note

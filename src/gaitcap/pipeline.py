@@ -463,9 +463,10 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, head: Head[Ob
     tracker = _new_tracker(cfg, result.model, likelihood)
     start = result.start
     settled = cfg.init.leg_frames > 1
-    if settled:  # which leg is which, again, with the calibrated model
+    if settled:  # which leg is which, again, with the calibrated model: the assignment it was calibrated
+        # with stays unless its mirror fits better by the margin any hypothesis must beat the first by
         with stages.timed("shape_settle"):
-            start = settle_legs(tracker, first[: cfg.init.leg_frames], start)
+            start = settle_legs(tracker, first[: cfg.init.leg_frames], start, cfg.factored_ipf.swap_margin)
     note = f"{factors}; mean fit {result.fit_before:.4f} -> {result.fit_after:.4f} on {len(first)} frames"
     return tracker, start, settled, note, problems
 

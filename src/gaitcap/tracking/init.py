@@ -182,17 +182,19 @@ def initialise(
     return InitResult(q=q, heading_rad=heading, walking_direction_known=known, fit=fit, legs_settled=settled)
 
 
-def settle_legs(tracker: Tracker, observations: list[Observation], q: np.ndarray) -> np.ndarray:
+def settle_legs(tracker: Tracker, observations: list[Observation], q: np.ndarray, margin: float = 0.0) -> np.ndarray:
     """The leg assignment of a first pose q (D,) that the frames ``observations`` support: they are
     tracked from q and from its leg-swapped mirror, each started as settled (no mirror weighed
-    on the first frame, which would make both tracks the same), and the start whose mean fit over
-    them is higher is returned. The tracker is left started there, settled."""
+    on the first frame, which would make both tracks the same), and the mirror is returned when its
+    mean fit over them is higher than q's by more than ``margin`` (0: whichever is higher; a
+    margin when q's assignment is one already chosen, which a tie should not overturn), else q.
+    The tracker is left started there, settled."""
     fits = []
     starts = (np.array(q, float, copy=True), tracker.mirrored(q))
     for q0 in starts:
         tracker.start(q0, fresh=False)
         fits.append(float(np.mean([tracker.step(o).fit for o in observations])))
-    kept = int(np.argmax(fits))
+    kept = int(fits[1] > fits[0] + margin)
     if kept:
         log.info("first pose: the leg-swapped start fits the first %d frames better (%.3f against %.3f)",
                  len(observations), fits[1], fits[0])  # fmt: skip
