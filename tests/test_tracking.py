@@ -664,7 +664,7 @@ def test_settle_legs_overturns_a_start_only_by_more_than_the_margin(embedded_ses
     tie (``factored_ipf.swap_margin``)."""
     from gaitcap.tracking.init import settle_legs
 
-    truth, rig, views, tracker, hips, apart = _swap_setup(embedded_session.session, swap_fit_drop=None)
+    truth, rig, views, tracker, _, apart = _swap_setup(embedded_session.session, swap_fit_drop=None)
     t = next(i for i in range(len(apart) - 6) if min(apart[i : i + 6]) > tracker.config.factored_ipf.swap_within_deg + 5)
     start = tracker.mirrored(truth.poses[t])
     frames = [observe(views, [truth.mask(c, f) for c in rig.names]) for f in range(t, t + 6)]
