@@ -637,11 +637,14 @@ def test_refine_of_a_tracker_without_hypotheses_is_its_step_from_the_pose(embedd
     assert np.array_equal(tracker.refine(obs, q).q, tracker.q)
 
 
-@pytest.mark.parametrize("swapped", [True, False])
-def test_settle_legs_keeps_the_assignment_the_frames_support(embedded_session, swapped):
+@pytest.mark.parametrize("swapped,margin", [(True, 0.0), (False, 0.0), (True, 1.0)])
+def test_settle_legs_keeps_the_assignment_the_frames_support(embedded_session, swapped, margin):
     """From a first pose with the legs swapped and apart, tracking the next frames from it and
-    from its mirror picks the mirror (the true assignment); from the true pose, it keeps it. The
-    tracker is left started there, settled (no mirror weighed on its next frame)."""
+    from its mirror picks the mirror (the true assignment); from the true pose, it keeps it. With
+    a margin no fit difference can exceed (fits are at most 1) the swapped start is kept: the
+    re-check after the shape calibration keeps the assignment it was calibrated with on a tie
+    (``factored_ipf.swap_margin``). The tracker is left started there, settled (no mirror weighed
+    on its next frame)."""
     from gaitcap.tracking.init import settle_legs
 
     truth, rig, views, tracker, hips, apart = _swap_setup(embedded_session.session, swap_fit_drop=None)
@@ -649,28 +652,12 @@ def test_settle_legs_keeps_the_assignment_the_frames_support(embedded_session, s
     start = tracker.mirrored(truth.poses[t]) if swapped else truth.poses[t].copy()
     assert all(_on_own_sides(start, truth.poses[t], hips)) == (not swapped)
     frames = [observe(views, [truth.mask(c, f) for c in rig.names]) for f in range(t, t + 6)]
-    q = settle_legs(tracker, frames, start)
-    assert all(_on_own_sides(q, truth.poses[t], hips))
-    np.testing.assert_array_equal(q, tracker.mirrored(start) if swapped else start)  # a start, not a tracked pose
+    q = settle_legs(tracker, frames, start, margin)
+    overturned = swapped and margin == 0.0
+    assert all(_on_own_sides(q, truth.poses[t], hips)) == (overturned or not swapped)
+    np.testing.assert_array_equal(q, tracker.mirrored(start) if overturned else start)  # a start, not a tracked pose
     np.testing.assert_allclose(tracker.q, tracker.model.clip(q[None])[0])
     assert not tracker._fresh
-
-
-@pytest.mark.parametrize("margin", [0.0, 1.0])
-def test_settle_legs_overturns_a_start_only_by_more_than_the_margin(embedded_session, margin):
-    """A start with the legs swapped and apart, which its mirror fits far better: with no margin the
-    mirror is returned, with a margin no fit difference can exceed (fits are at most 1) the start is
-    kept: the re-check after the shape calibration keeps the assignment it was calibrated with on a
-    tie (``factored_ipf.swap_margin``)."""
-    from gaitcap.tracking.init import settle_legs
-
-    truth, rig, views, tracker, _, apart = _swap_setup(embedded_session.session, swap_fit_drop=None)
-    t = next(i for i in range(len(apart) - 6) if min(apart[i : i + 6]) > tracker.config.factored_ipf.swap_within_deg + 5)
-    start = tracker.mirrored(truth.poses[t])
-    frames = [observe(views, [truth.mask(c, f) for c in rig.names]) for f in range(t, t + 6)]
-    q = settle_legs(tracker, frames, start, margin)
-    np.testing.assert_array_equal(q, tracker.mirrored(start) if margin == 0.0 else start)
-    np.testing.assert_allclose(tracker.q, tracker.model.clip(q[None])[0])
 
 
 @pytest.mark.parametrize("mirror", [False, True])
