@@ -15,6 +15,12 @@ Deterministic for a given seed list (the renderer and the tracker are seeded). S
     python scripts/bench_suite.py                      # 24 + 6 sessions, about 30-40 min on 2 cores
     python scripts/bench_suite.py --sessions 6 --no-external   # a quick look
     python scripts/bench_suite.py --only-external
+    python scripts/bench_suite.py --work DIR --true-masks   # each session tracked from its true masks
+
+``--true-masks`` tracks, instead of each session, a copy whose videos are its true masks drawn white on
+black with black plates (built once under ``WORK/true_sessions``): what the tracker makes of perfect
+silhouettes. Beside a run on the sessions themselves, it splits each session's error into what its
+masks cost and what the tracker does with the right ones.
 
 Per-session rows are written to ``WORK/suite.csv`` and ``WORK/suite.json``.
 """
@@ -26,11 +32,13 @@ import csv
 import json
 import math
 import os
+import shutil
 import subprocess
 import sys
 import time
 from pathlib import Path
 
+import cv2
 import h5py
 import numpy as np
 
@@ -42,10 +50,11 @@ from gaitcap.data import embedded_walk  # noqa: E402
 from gaitcap.evaluation.report import read_truth_reference  # noqa: E402
 from gaitcap.evaluation.silhouettes import camera_iou, part_coverage  # noqa: E402
 from gaitcap.io.calibration_toml import read_calibration  # noqa: E402
-from gaitcap.io.silhouettes_h5 import read_cameras, read_mask_shape  # noqa: E402
+from gaitcap.io.silhouettes_h5 import read_cameras, read_mask_shape, read_masks  # noqa: E402
 from gaitcap.io.track_h5 import read_track_record
 from gaitcap.synth.variety import draw_look  # noqa: E402
 from gaitcap.tracking.shape import lowest_points  # noqa: E402
+from gaitcap.video import probe_video  # noqa: E402
 
 SHARED = ROOT.parent / "shared" / "data"
 WALKS = {
@@ -181,6 +190,32 @@ def _measure(session: Path, truth: Path, truth_masks: Path, run: Path,
         return row
     row.update(evaluate_run(run, truth))
     return row
+
+
+def true_mask_session(session: Path, truth_masks: Path, out: Path) -> Path:
+    """``out``, a copy of ``session`` whose videos are the true masks of ``truth_masks`` (a truth or
+    silhouettes HDF5 file) drawn white on black at the session's frame rate, with black plates; built
+    once (a temporary folder, then renamed), re-used afterwards."""
+    if (out / "calibration.toml").exists():
+        return out
+    tmp = out.with_name(out.name + ".tmp")
+    shutil.rmtree(tmp, ignore_errors=True)
+    (tmp / "videos").mkdir(parents=True)
+    (tmp / "background").mkdir()
+    for name in ("calibration.toml", "session.yaml"):
+        if (session / name).exists():
+            shutil.copy(session / name, tmp / name)
+    for cam in read_cameras(truth_masks):
+        fps = probe_video(next((session / "videos").glob(f"{cam}.*"))).fps or 25.0
+        masks = read_masks(truth_masks, cam)
+        h, w = masks.shape[1:]
+        writer = cv2.VideoWriter(str(tmp / "videos" / f"{cam}.mp4"), cv2.VideoWriter_fourcc(*"mp4v"), fps, (w, h))
+        for mask in masks:
+            writer.write(np.repeat(np.where(mask > 0, 255, 0).astype(np.uint8)[..., None], 3, axis=2))
+        writer.release()
+        cv2.imwrite(str(tmp / "background" / f"{cam}.png"), np.zeros((h, w, 3), np.uint8))
+    tmp.rename(out)
+    return out
 
 
 def sole_height_mm(run: Path) -> float | None:
@@ -387,6 +422,8 @@ def main() -> None:
     ap.add_argument("--silhouettes-only", action="store_true", help="only the silhouettes' IoU (no tracking): a minute")
     ap.add_argument("--config", type=Path, help="tracking configuration YAML given to every `gaitcap track`")
     ap.add_argument("--only", nargs="+", metavar="NAME", help="only these sessions (names as in the tables)")
+    ap.add_argument("--true-masks", action="store_true", help="track each session's copy drawn from its true masks "
+                    "(perfect silhouettes: what the masks cost)")
     ap.add_argument("--tables", type=Path, help="print the tables of an earlier run's suite.json and stop")
     args = ap.parse_args()
     if args.tables:
@@ -400,6 +437,8 @@ def main() -> None:
         todo = [s for s in todo if s["name"] in args.only]
     rows = []
     for i, s in enumerate(todo):
+        if args.true_masks:
+            s = {**s, "session": true_mask_session(s["session"], s["masks"], args.work / "true_sessions" / s["name"])}
         r = {k: v for k, v in s.items() if k not in ("session", "truth", "masks")}
         r.update(measure(s["session"], s["truth"], s["masks"], args.work / ("sil_runs" if args.silhouettes_only else "runs") / s["name"], args.reuse,
                          args.silhouettes_only, args.config, args.re_eval))
