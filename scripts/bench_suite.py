@@ -52,6 +52,8 @@ from gaitcap.evaluation.silhouettes import camera_iou, part_coverage  # noqa: E4
 from gaitcap.io.calibration_toml import read_calibration  # noqa: E402
 from gaitcap.io.silhouettes_h5 import read_cameras, read_mask_shape, read_masks  # noqa: E402
 from gaitcap.io.track_h5 import read_track_record
+from gaitcap.io.video_write import AtomicVideoWriter  # noqa: E402
+from gaitcap.session import BACKGROUND_DIR, CALIBRATION_FILE, SESSION_FILE, VIDEOS_DIR, Session  # noqa: E402
 from gaitcap.synth.variety import draw_look  # noqa: E402
 from gaitcap.tracking.shape import lowest_points  # noqa: E402
 from gaitcap.video import probe_video  # noqa: E402
@@ -196,24 +198,23 @@ def true_mask_session(session: Path, truth_masks: Path, out: Path) -> Path:
     """``out``, a copy of ``session`` whose videos are the true masks of ``truth_masks`` (a truth or
     silhouettes HDF5 file) drawn white on black at the session's frame rate, with black plates; built
     once (a temporary folder, then renamed), re-used afterwards."""
-    if (out / "calibration.toml").exists():
+    if (out / CALIBRATION_FILE).exists():
         return out
     tmp = out.with_name(out.name + ".tmp")
     shutil.rmtree(tmp, ignore_errors=True)
-    (tmp / "videos").mkdir(parents=True)
-    (tmp / "background").mkdir()
-    for name in ("calibration.toml", "session.yaml"):
+    (tmp / VIDEOS_DIR).mkdir(parents=True)
+    (tmp / BACKGROUND_DIR).mkdir()
+    for name in (CALIBRATION_FILE, SESSION_FILE):
         if (session / name).exists():
             shutil.copy(session / name, tmp / name)
+    videos = Session.open(session).videos
     for cam in read_cameras(truth_masks):
-        fps = probe_video(next((session / "videos").glob(f"{cam}.*"))).fps or 25.0
         masks = read_masks(truth_masks, cam)
         h, w = masks.shape[1:]
-        writer = cv2.VideoWriter(str(tmp / "videos" / f"{cam}.mp4"), cv2.VideoWriter_fourcc(*"mp4v"), fps, (w, h))
-        for mask in masks:
-            writer.write(np.repeat(np.where(mask > 0, 255, 0).astype(np.uint8)[..., None], 3, axis=2))
-        writer.release()
-        cv2.imwrite(str(tmp / "background" / f"{cam}.png"), np.zeros((h, w, 3), np.uint8))
+        with AtomicVideoWriter(tmp / VIDEOS_DIR / f"{cam}.mp4", probe_video(videos[cam]).fps, (w, h)) as writer:
+            for mask in masks:
+                writer.write(cv2.cvtColor(np.where(mask > 0, 255, 0).astype(np.uint8), cv2.COLOR_GRAY2BGR))
+        cv2.imwrite(str(tmp / BACKGROUND_DIR / f"{cam}.png"), np.zeros((h, w, 3), np.uint8))
     tmp.rename(out)
     return out
 
