@@ -8,6 +8,7 @@ import numpy as np
 
 from gaitcap.body.model import BodyModel
 from gaitcap.tracking.config import Layer, TrackingConfig
+from gaitcap.tracking.contact import LEG_POINTS, leg_gap
 from gaitcap.tracking.likelihood import SilhouetteLikelihood
 from gaitcap.tracking.observation import Observation
 from gaitcap.tracking.projector import PoseProjector
@@ -52,6 +53,12 @@ class Tracker:
         #: the left legs' DOF and their right counterparts, index for index
         self.left_leg = np.array([i for i, n in enumerate(names) if n.endswith("_l") and n.startswith(legs)], int)
         self.right_leg = np.array([names.index(names[i][:-2] + "_r") for i in self.left_leg], int)
+        #: the legs' gap prior (log_prior): the DOF that move a leg's axis (hips and knees: not the
+        #: ankles, which turn the feet), its points, its floor and width (metres)
+        self._moves_leg = np.array([n.startswith(("hip_", "knee_")) and n.endswith(("_l", "_r")) for n in names])
+        self._leg_points = np.array([model.point_index(p) for p in LEG_POINTS], int)
+        gap = config.leg_gap
+        self._gap_min, self._gap_sigma = gap.min * model.height_m, gap.sigma * model.height_m
         self._grids: dict[tuple, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}  # grid_offsets' cache
 
     def start(self, q0: np.ndarray, fresh: bool = True) -> None:
@@ -104,10 +111,23 @@ class Tracker:
         log p(x) = -1/2 sum_d (x_d / sigma_d)^2 over the DOF with a prior (``prior`` in the YAML):
         the rotations a silhouette cannot see (the pelvis about its own capsule axis, the limbs
         about their long axes, the lumbar joint whose rotation the torso and pelvis trade off),
-        centred on the anatomical neutral and wide enough that the image overrides it.
+        centred on the anatomical neutral and wide enough that the image overrides it;
+        plus, where ``dofs`` move a leg, :meth:`log_leg_gap`.
         """
         z = Q[:, dofs] / self.prior_sigma[dofs]
-        return -0.5 * np.add.reduce(z * z, axis=1)  # np.sum's reduction without its wrappers (called per layer)
+        out = -0.5 * np.add.reduce(z * z, axis=1)  # np.sum's reduction without its wrappers (called per layer)
+        if self._gap_min > 0 and self._moves_leg[dofs].any():
+            out += self.log_leg_gap(Q)
+        return out
+
+    def log_leg_gap(self, Q: np.ndarray) -> np.ndarray:
+        """The legs' gap prior of poses Q (N, D): (N,). The legs cannot pass through each other:
+        log p = -1/2 ((g_min - g) / sigma)^2 where the gap g between their axes
+        (:func:`gaitcap.tracking.contact.leg_gap`) is below g_min, 0 above (``leg_gap`` in the YAML:
+        g_min and sigma are fractions of the height). Without it, a leg the silhouettes lose is
+        drawn over the other one, where it costs nothing."""
+        short = np.maximum(self._gap_min - leg_gap(self.projector.points(Q, self._leg_points)), 0.0) / self._gap_sigma
+        return -0.5 * short * short
 
     def full_fit(self, obs: Observation, q: np.ndarray) -> tuple[float, float]:
         """(log-likelihood, fit) of one pose against the full silhouettes."""

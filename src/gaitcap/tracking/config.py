@@ -267,6 +267,14 @@ class BackwardConfig(Strict):
     order_fit_tolerance: float = Field(default=0.015, ge=0, le=1)
 
 
+class LegGapConfig(Strict):
+    """The legs cannot pass through each other: a posture prior on the gap between their axes
+    (gaitcap.tracking.contact.leg_gap), as fractions of the subject's height."""
+
+    min: float = Field(default=0.03, ge=0, le=0.2)
+    sigma: float = Field(default=0.01, gt=0, le=0.2)
+
+
 class TrackingConfig(Strict):
     tracker: TrackerName = "factored-ipf"
     scale: float = Field(default=0.5, gt=0.05, le=1)
@@ -274,6 +282,7 @@ class TrackingConfig(Strict):
     soft_silhouettes: bool = False
     intervals: dict[str, float]
     prior: dict[str, float] = Field(default_factory=dict)
+    leg_gap: LegGapConfig = Field(default_factory=LegGapConfig)
     factored_ipf: FactoredIPFConfig
     ipf: IPFConfig
     condensation: CondensationConfig
