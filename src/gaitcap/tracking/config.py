@@ -271,8 +271,8 @@ class LegGapConfig(Strict):
     """The legs cannot pass through each other: a posture prior on the gap between their axes
     (gaitcap.tracking.contact.leg_gap), as fractions of the subject's height."""
 
-    min: float = Field(default=0.03, ge=0, le=0.2)
-    sigma: float = Field(default=0.01, gt=0, le=0.2)
+    min: float = Field(default=0.045, ge=0, le=0.2)
+    sigma: float = Field(default=0.005, gt=0, le=0.2)
 
 
 class TrackingConfig(Strict):
