@@ -105,28 +105,44 @@ class Tracker:
         k = self.rng.integers(lo, hi, size=(n, len(step)))
         return k * step
 
-    def log_prior(self, Q: np.ndarray, dofs: np.ndarray | slice = slice(None)) -> np.ndarray:
+    def log_prior(self, Q: np.ndarray, dofs: np.ndarray | slice = slice(None), legs: np.ndarray | None = None) -> np.ndarray:
         """The posture prior over the DOF ``dofs`` of poses Q (N, D): shape (N,).
 
         log p(x) = -1/2 sum_d (x_d / sigma_d)^2 over the DOF with a prior (``prior`` in the YAML):
         the rotations a silhouette cannot see (the pelvis about its own capsule axis, the limbs
         about their long axes, the lumbar joint whose rotation the torso and pelvis trade off),
         centred on the anatomical neutral and wide enough that the image overrides it;
-        plus, where ``dofs`` move a leg, :meth:`log_leg_gap`.
+        plus, where ``dofs`` move a leg (:meth:`needs_leg_gap`), :meth:`log_leg_gap`. ``legs``: the
+        poses' leg points (N, 6, 3) in :data:`~gaitcap.tracking.contact.LEG_POINTS` order when the
+        caller has them (``projector.capsules_and_points`` with :attr:`leg_points`).
         """
         z = Q[:, dofs] / self.prior_sigma[dofs]
         out = -0.5 * np.add.reduce(z * z, axis=1)  # np.sum's reduction without its wrappers (called per layer)
-        if self._gap_min > 0 and self._moves_leg[dofs].any():
-            out += self.log_leg_gap(Q)
+        if self.needs_leg_gap(dofs):
+            out += self.log_leg_gap(Q, legs)
         return out
 
-    def log_leg_gap(self, Q: np.ndarray) -> np.ndarray:
+    def needs_leg_gap(self, dofs: np.ndarray | slice = slice(None)) -> bool:
+        """Whether :meth:`log_prior` over ``dofs`` includes the legs' gap: the prior is on and they move a
+        leg's axis."""
+        return bool(self._gap_min > 0 and self._moves_leg[dofs].any())
+
+    @property
+    def leg_points(self) -> np.ndarray:
+        """The model's indices of :data:`~gaitcap.tracking.contact.LEG_POINTS`, the points
+        :meth:`log_leg_gap` reads."""
+        return self._leg_points
+
+    def log_leg_gap(self, Q: np.ndarray, legs: np.ndarray | None = None) -> np.ndarray:
         """The legs' gap prior of poses Q (N, D): (N,). The legs cannot pass through each other:
         log p = -1/2 ((g_min - g) / sigma)^2 where the gap g between their axes
         (:func:`gaitcap.tracking.contact.leg_gap`) is below g_min, 0 above (``leg_gap`` in the YAML:
         g_min and sigma are fractions of the height). Without it, a leg the silhouettes lose is
-        drawn over the other one, where it costs nothing."""
-        short = np.maximum(self._gap_min - leg_gap(self.projector.points(Q, self._leg_points)), 0.0) / self._gap_sigma
+        drawn over the other one, where it costs nothing. ``legs``: Q's leg points (N, 6, 3) if
+        already computed."""
+        if legs is None:
+            legs = self.projector.points(Q, self._leg_points)
+        short = np.maximum(self._gap_min - leg_gap(legs), 0.0) / self._gap_sigma
         return -0.5 * short * short
 
     def full_fit(self, obs: Observation, q: np.ndarray) -> tuple[float, float]:

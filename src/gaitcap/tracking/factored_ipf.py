@@ -316,6 +316,7 @@ class FactoredIPF(Tracker):
         X = np.repeat(q[None, idx], n, axis=0)
         clipped = np.repeat(model.clip(q[None]), n, axis=0)  # the DOF outside idx, as every layer's clip leaves them
         prior_dofs = np.union1d(idx, self._held) if alone else idx
+        gap = self.needs_leg_gap(prior_dofs)
         logw = np.zeros(n)
         best_x, best_ll = q[idx].copy(), -np.inf
         best_held = q[self._held].copy()
@@ -330,7 +331,11 @@ class FactoredIPF(Tracker):
             Q[:, idx] = X
             if alone:
                 Q[:, self._held] = self._held_angles(q, Q)
-            logw = self.likelihood.score(obs, self.projector.capsules(Q, sub.capsules), free) + self.log_prior(Q, prior_dofs)
+            if gap:  # the capsules and the legs' gap from one pass of the kinematics
+                proj, legs = self.projector.capsules_and_points(Q, sub.capsules, self.leg_points)
+            else:
+                proj, legs = self.projector.capsules(Q, sub.capsules), None
+            logw = self.likelihood.score(obs, proj, free) + self.log_prior(Q, prior_dofs, legs)
             i = int(np.argmax(logw))
             if logw[i] > best_ll:
                 best_ll, best_x, best_held = float(logw[i]), X[i].copy(), Q[i, self._held].copy()

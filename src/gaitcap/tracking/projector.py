@@ -89,58 +89,64 @@ def _world(R: np.ndarray, o: np.ndarray, n: int, s: int, loc: np.ndarray, k: int
     return o[n, s, i] + R[n, s, i, 0] * loc[k, 0] + R[n, s, i, 1] * loc[k, 1] + R[n, s, i, 2] * loc[k, 2]
 
 
+@cached_njit(inline="always")
+def _project_pose(R, o, n, cap_seg, cap_a, cap_b, cap_r, cam_R, cam_t, cam_k, a, b, ra, rb) -> None:
+    """The capsules of pose n, its frames R[n], o[n] computed, projected in every camera: into
+    a, b (C, N, K, 2), ra, rb (C, N, K) at n."""
+    for k in range(cap_seg.shape[0]):
+        s = cap_seg[k]
+        for end in range(2):
+            loc = cap_a if end == 0 else cap_b
+            X0, X1, X2 = _world(R, o, n, s, loc, k, 0), _world(R, o, n, s, loc, k, 1), _world(R, o, n, s, loc, k, 2)
+            for c in range(cam_R.shape[0]):
+                px = cam_R[c, 0, 0] * X0 + cam_R[c, 0, 1] * X1 + cam_R[c, 0, 2] * X2 + cam_t[c, 0]
+                py = cam_R[c, 1, 0] * X0 + cam_R[c, 1, 1] * X1 + cam_R[c, 1, 2] * X2 + cam_t[c, 1]
+                pz = max(cam_R[c, 2, 0] * X0 + cam_R[c, 2, 1] * X1 + cam_R[c, 2, 2] * X2 + cam_t[c, 2], 1e-3)
+                fx, fy, cx, cy = cam_k[c, 0], cam_k[c, 1], cam_k[c, 2], cam_k[c, 3]
+                u, v, rad = fx * px / pz + cx, fy * py / pz + cy, 0.5 * (fx + fy) * cap_r[k, end] / pz
+                if end == 0:
+                    a[c, n, k, 0], a[c, n, k, 1], ra[c, n, k] = u, v, rad
+                else:
+                    b[c, n, k, 0], b[c, n, k, 1], rb[c, n, k] = u, v, rad
+
+
+@cached_njit(inline="always")
+def _pose_points(R, o, n, pt_seg, pt_local, out) -> None:
+    """The points of pose n, its frames R[n], o[n] computed: into out (N, P, 3) at n."""
+    for p in range(pt_seg.shape[0]):
+        for i in range(3):
+            out[n, p, i] = _world(R, o, n, pt_seg[p], pt_local, p, i)
+
+
 @cached_njit(nogil=True)
-def _project(Q, need, parent, origin, dof_start, dof_stop, axis, sign, trans, cap_seg, cap_a, cap_b, cap_r,
-             cam_R, cam_t, cam_k):  # fmt: skip
+def _kinematics(Q, need, parent, origin, dof_start, dof_stop, axis, sign, trans, cap_seg, cap_a, cap_b, cap_r,
+                cam_R, cam_t, cam_k, pt_seg, pt_local):  # fmt: skip
+    """Poses Q (N, D) -> their capsules (K) projected in the cameras (C): a, b (C, N, K, 2), ra, rb
+    (C, N, K); and their points (P): (N, P, 3); from one pass of the kinematics over the segments
+    ``need`` (those of the capsules and the points, and their ancestors). One kernel for the
+    capsules, the points or both (an empty selection costs nothing), so that one is loaded."""
     N, K, C, S = Q.shape[0], cap_seg.shape[0], cam_R.shape[0], parent.shape[0]
     a = np.empty((C, N, K, 2))
     b = np.empty((C, N, K, 2))
     ra = np.empty((C, N, K))
     rb = np.empty((C, N, K))
+    out = np.empty((N, pt_seg.shape[0], 3))
     R = np.empty((N, S, 3, 3))
     o = np.empty((N, S, 3))
     for n in range(N):
         _frames(Q, n, need, parent, origin, dof_start, dof_stop, axis, sign, trans, R, o)
-        for k in range(K):
-            s = cap_seg[k]
-            for end in range(2):
-                loc = cap_a if end == 0 else cap_b
-                X0, X1, X2 = _world(R, o, n, s, loc, k, 0), _world(R, o, n, s, loc, k, 1), _world(R, o, n, s, loc, k, 2)
-                for c in range(C):
-                    px = cam_R[c, 0, 0] * X0 + cam_R[c, 0, 1] * X1 + cam_R[c, 0, 2] * X2 + cam_t[c, 0]
-                    py = cam_R[c, 1, 0] * X0 + cam_R[c, 1, 1] * X1 + cam_R[c, 1, 2] * X2 + cam_t[c, 1]
-                    pz = max(cam_R[c, 2, 0] * X0 + cam_R[c, 2, 1] * X1 + cam_R[c, 2, 2] * X2 + cam_t[c, 2], 1e-3)
-                    fx, fy, cx, cy = cam_k[c, 0], cam_k[c, 1], cam_k[c, 2], cam_k[c, 3]
-                    u, v, rad = fx * px / pz + cx, fy * py / pz + cy, 0.5 * (fx + fy) * cap_r[k, end] / pz
-                    if end == 0:
-                        a[c, n, k, 0], a[c, n, k, 1], ra[c, n, k] = u, v, rad
-                    else:
-                        b[c, n, k, 0], b[c, n, k, 1], rb[c, n, k] = u, v, rad
-    return a, b, ra, rb
-
-
-@cached_njit(nogil=True)
-def _points(Q, need, parent, origin, dof_start, dof_stop, axis, sign, trans, pt_seg, pt_local):  # fmt: skip
-    N, P, S = Q.shape[0], pt_seg.shape[0], parent.shape[0]
-    out = np.empty((N, P, 3))
-    R = np.empty((N, S, 3, 3))
-    o = np.empty((N, S, 3))
-    for n in range(N):
-        _frames(Q, n, need, parent, origin, dof_start, dof_stop, axis, sign, trans, R, o)
-        for p in range(P):
-            for i in range(3):
-                out[n, p, i] = _world(R, o, n, pt_seg[p], pt_local, p, i)
-    return out
+        _project_pose(R, o, n, cap_seg, cap_a, cap_b, cap_r, cam_R, cam_t, cam_k, a, b, ra, rb)
+        _pose_points(R, o, n, pt_seg, pt_local, out)
+    return a, b, ra, rb, out
 
 
 def warm_up() -> None:
-    """Compile the kernels with the argument types :class:`PoseProjector` passes, on a one-segment
-    chain (a no-op when numba's on-disk cache already holds them)."""
-    i1, f1, f2 = np.zeros(1, np.int64), np.zeros(1), np.zeros((1, 3))
-    chain = (np.full(1, -1, np.int64), f2, i1, i1 + 1, i1, f1 + 1, np.zeros(1, np.bool_))
-    Q, need = np.zeros((1, 1)), np.ones(1, np.bool_)
-    _project(Q, need, *chain, i1, f2, f2, np.ones((1, 2)), np.eye(3)[None], f2 + 1, np.ones((1, 4)))
-    _points(Q, need, *chain, i1, f2)
+    """Compile the kernel with the argument types :class:`PoseProjector` passes, on a one-segment
+    chain (a no-op when numba's on-disk cache already holds it)."""
+    i1, f2 = np.zeros(1, np.int64), np.zeros((1, 3))
+    chain = (np.full(1, -1, np.int64), f2, i1, i1 + 1, i1, np.ones(1), np.zeros(1, np.bool_))
+    _kinematics(np.zeros((1, 1)), np.ones(1, np.bool_), *chain, i1, f2, f2, np.ones((1, 2)), np.eye(3)[None], f2 + 1,
+                np.ones((1, 4)), i1, f2)  # fmt: skip
 
 
 class PoseProjector:
@@ -166,6 +172,7 @@ class PoseProjector:
         self._radii = np.ascontiguousarray(model.capsule_radii, np.float64)
         self._all_capsules = np.arange(len(model.capsule_segment))
         self._all_points = np.arange(model.n_points)
+        self._no_capsules, self._no_points = np.arange(0), np.arange(0)
         self._capsule_args: dict[bytes, tuple] = {}  # per selection (dtype + indices), built once
         self._point_args: dict[bytes, tuple] = {}
 
@@ -197,15 +204,19 @@ class PoseProjector:
 
     def capsules(self, Q: np.ndarray, caps: np.ndarray | None = None) -> Projected:
         """Poses Q (N, D) -> the capsules ``caps`` (default: all) projected in every view."""
-        caps = self._all_capsules if caps is None else np.asarray(caps)
-        need, seg, cap_a, cap_b, radii = self._for_capsules(caps)
-        Q = np.ascontiguousarray(np.atleast_2d(Q), np.float64)
-        a, b, ra, rb = _project(Q, need, *self._chain, seg, cap_a, cap_b, radii, *self._cams)
-        return Projected(a, b, ra, rb)
+        return self.capsules_and_points(Q, self._all_capsules if caps is None else caps, self._no_points)[0]
 
     def points(self, Q: np.ndarray, pts: np.ndarray | None = None) -> np.ndarray:
         """Poses Q (N, D) -> positions (N, len(pts), 3) of the points ``pts`` (default: all)."""
-        pts = self._all_points if pts is None else np.asarray(pts)
-        need, seg, local = self._for_points(pts)
+        return self.capsules_and_points(Q, self._no_capsules, self._all_points if pts is None else pts)[1]
+
+    def capsules_and_points(self, Q: np.ndarray, caps: np.ndarray, pts: np.ndarray) -> tuple[Projected, np.ndarray]:
+        """Poses Q (N, D) -> the capsules ``caps`` projected in every view and the positions
+        (N, len(pts), 3) of the points ``pts``, from one pass of the kinematics (each bit for bit as
+        :meth:`capsules` and :meth:`points` give it alone)."""
+        need_c, seg, cap_a, cap_b, radii = self._for_capsules(np.asarray(caps))
+        need_p, pt_seg, local = self._for_points(np.asarray(pts))
         Q = np.ascontiguousarray(np.atleast_2d(Q), np.float64)
-        return _points(Q, need, *self._chain, seg, local)
+        a, b, ra, rb, out = _kinematics(Q, need_c | need_p, *self._chain, seg, cap_a, cap_b, radii, *self._cams,
+                                        pt_seg, local)  # fmt: skip
+        return Projected(a, b, ra, rb), out
