@@ -266,6 +266,24 @@ def test_compiled_projection_equals_the_numpy_model(embedded_session, rng):
     assert np.allclose(PoseProjector(model, views).points(Q), model.forward(Q), atol=1e-12)
 
 
+def test_capsules_and_points_from_one_pass_equal_each_alone(embedded_session, rng):
+    """``capsules_and_points`` (one pass of the kinematics, as a leg node with the legs' gap prior asks
+    for it) gives, bit for bit, what ``capsules`` and ``points`` give alone, also where the points'
+    segments are not among the capsules' (a left leg's capsules, the right leg's points)."""
+    truth, rig, model = _truth_setup(embedded_session.session)
+    projector = PoseProjector(model, tracking_views(rig, 0.5))
+    Q = model.clip(truth.poses[10] + rng.normal(0, 0.3, size=(20, 31)))
+    left = model.segment("thigh_l").index, model.segment("shank_l").index
+    caps = np.flatnonzero(np.isin(model.capsule_segment, left))
+    pts = np.array([model.point_index(p) for p in ("hip_r", "knee_r", "ankle_r", "knee_l")])
+    proj, points = projector.capsules_and_points(Q, caps, pts)
+    alone = projector.capsules(Q, caps)
+    for got, want in zip((proj.a, proj.b, proj.ra, proj.rb), (alone.a, alone.b, alone.ra, alone.rb)):
+        assert got.shape == want.shape and np.array_equal(got, want)
+    assert points.shape == (20, 4, 3) and np.array_equal(points, projector.points(Q, pts))
+    assert np.allclose(points, model.forward(Q)[:, pts], atol=1e-12)
+
+
 def test_posture_prior_and_coupled_dofs_are_validated(tmp_path):
     model = load_body_model()
     cfg = load_tracking_config()

@@ -56,7 +56,7 @@ class Tracker:
         #: the legs' gap prior (log_prior): the DOF that move a leg's axis (hips and knees: not the
         #: ankles, which turn the feet), its points, its floor and width (metres)
         self._moves_leg = np.array([n.startswith(("hip_", "knee_")) and n.endswith(("_l", "_r")) for n in names])
-        self._leg_points = np.array([model.point_index(p) for p in LEG_POINTS], int)
+        self.leg_points = np.array([model.point_index(p) for p in LEG_POINTS], int)  #: LEG_POINTS' indices
         gap = config.leg_gap
         self._gap_min, self._gap_sigma = gap.min * model.height_m, gap.sigma * model.height_m
         self._grids: dict[tuple, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}  # grid_offsets' cache
@@ -127,12 +127,6 @@ class Tracker:
         leg's axis."""
         return bool(self._gap_min > 0 and self._moves_leg[dofs].any())
 
-    @property
-    def leg_points(self) -> np.ndarray:
-        """The model's indices of :data:`~gaitcap.tracking.contact.LEG_POINTS`, the points
-        :meth:`log_leg_gap` reads."""
-        return self._leg_points
-
     def log_leg_gap(self, Q: np.ndarray, legs: np.ndarray | None = None) -> np.ndarray:
         """The legs' gap prior of poses Q (N, D): (N,). The legs cannot pass through each other:
         log p = -1/2 ((g_min - g) / sigma)^2 where the gap g between their axes
@@ -141,7 +135,7 @@ class Tracker:
         drawn over the other one, where it costs nothing. ``legs``: Q's leg points (N, 6, 3) if
         already computed."""
         if legs is None:
-            legs = self.projector.points(Q, self._leg_points)
+            legs = self.projector.points(Q, self.leg_points)
         short = np.maximum(self._gap_min - leg_gap(legs), 0.0) / self._gap_sigma
         return -0.5 * short * short
 

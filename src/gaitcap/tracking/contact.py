@@ -58,14 +58,6 @@ def _segment_distance(p0: np.ndarray, p1: np.ndarray, q0: np.ndarray, q1: np.nda
 
 
 @cached_njit(nogil=True)
-def _segment_distances(p0: np.ndarray, p1: np.ndarray, q0: np.ndarray, q1: np.ndarray) -> np.ndarray:
-    out = np.empty(p0.shape[0])
-    for n in range(p0.shape[0]):
-        out[n] = _segment_distance(p0[n], p1[n], q0[n], q1[n])
-    return out
-
-
-@cached_njit(nogil=True)
 def _leg_gap(legs: np.ndarray, pairs: np.ndarray) -> np.ndarray:
     out = np.empty(legs.shape[0])
     for n in range(legs.shape[0]):
@@ -86,7 +78,7 @@ def segment_distances(p0: np.ndarray, p1: np.ndarray, q0: np.ndarray, q1: np.nda
     segment of zero length is its point.
     """
     p0, p1, q0, q1 = (np.ascontiguousarray(x, np.float64) for x in (p0, p1, q0, q1))
-    return _segment_distances(p0, p1, q0, q1)
+    return np.array([_segment_distance(*ends) for ends in zip(p0, p1, q0, q1, strict=True)], np.float64)
 
 
 def leg_gap(legs: np.ndarray) -> np.ndarray:
@@ -96,7 +88,6 @@ def leg_gap(legs: np.ndarray) -> np.ndarray:
 
 
 def warm_up() -> None:
-    """Compile the kernels with the argument types the tracker passes (a no-op when numba's on-disk
-    cache already holds them)."""
+    """Compile the kernel with the argument types the tracker passes (a no-op when numba's on-disk
+    cache already holds it)."""
     leg_gap(np.zeros((1, 6, 3)))
-    segment_distances(*np.zeros((4, 1, 3)))

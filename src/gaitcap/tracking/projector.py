@@ -173,8 +173,8 @@ class PoseProjector:
         self._all_capsules = np.arange(len(model.capsule_segment))
         self._all_points = np.arange(model.n_points)
         self._no_capsules, self._no_points = np.arange(0), np.arange(0)
-        self._capsule_args: dict[bytes, tuple] = {}  # per selection (dtype + indices), built once
-        self._point_args: dict[bytes, tuple] = {}
+        #: the kernel's arguments per selection of capsules and points (dtypes + indices), built once
+        self._args: dict[tuple[bytes, bytes], tuple] = {}
 
     def _needed(self, segments: np.ndarray) -> np.ndarray:
         """(S,) bool: the segments ``segments`` and their ancestors, whose frames the kinematics computes."""
@@ -185,22 +185,18 @@ class PoseProjector:
                 s = self.model.segments[s].parent
         return need
 
-    def _for_capsules(self, caps: np.ndarray) -> tuple:
-        key = caps.dtype.str.encode() + caps.tobytes()
-        if key not in self._capsule_args:
+    def _selection(self, caps: np.ndarray, pts: np.ndarray) -> tuple:
+        """The kernel's arguments for the capsules ``caps`` and the points ``pts``: the segments whose
+        frames are needed (S,) bool, the capsules' segments, ends and radii, the points' segments
+        and local coordinates."""
+        key = (caps.dtype.str.encode() + caps.tobytes(), pts.dtype.str.encode() + pts.tobytes())
+        if key not in self._args:
             m = self.model
-            seg = np.ascontiguousarray(m.capsule_segment[caps])
-            self._capsule_args[key] = (self._needed(seg), seg, np.ascontiguousarray(m.capsule_a[caps]),
-                                       np.ascontiguousarray(m.capsule_b[caps]), self._radii[caps])  # fmt: skip
-        return self._capsule_args[key]
-
-    def _for_points(self, pts: np.ndarray) -> tuple:
-        key = pts.dtype.str.encode() + pts.tobytes()
-        if key not in self._point_args:
-            m = self.model
-            seg = np.ascontiguousarray(m.point_segment[pts])
-            self._point_args[key] = (self._needed(seg), seg, np.ascontiguousarray(m.point_local[pts]))
-        return self._point_args[key]
+            seg, pt_seg = np.ascontiguousarray(m.capsule_segment[caps]), np.ascontiguousarray(m.point_segment[pts])
+            self._args[key] = (self._needed(np.concatenate([seg, pt_seg])), seg, np.ascontiguousarray(m.capsule_a[caps]),
+                               np.ascontiguousarray(m.capsule_b[caps]), self._radii[caps], pt_seg,
+                               np.ascontiguousarray(m.point_local[pts]))  # fmt: skip
+        return self._args[key]
 
     def capsules(self, Q: np.ndarray, caps: np.ndarray | None = None) -> Projected:
         """Poses Q (N, D) -> the capsules ``caps`` (default: all) projected in every view."""
@@ -214,9 +210,7 @@ class PoseProjector:
         """Poses Q (N, D) -> the capsules ``caps`` projected in every view and the positions
         (N, len(pts), 3) of the points ``pts``, from one pass of the kinematics (each bit for bit as
         :meth:`capsules` and :meth:`points` give it alone)."""
-        need_c, seg, cap_a, cap_b, radii = self._for_capsules(np.asarray(caps))
-        need_p, pt_seg, local = self._for_points(np.asarray(pts))
+        need, seg, cap_a, cap_b, radii, pt_seg, local = self._selection(np.asarray(caps), np.asarray(pts))
         Q = np.ascontiguousarray(np.atleast_2d(Q), np.float64)
-        a, b, ra, rb, out = _kinematics(Q, need_c | need_p, *self._chain, seg, cap_a, cap_b, radii, *self._cams,
-                                        pt_seg, local)  # fmt: skip
+        a, b, ra, rb, out = _kinematics(Q, need, *self._chain, seg, cap_a, cap_b, radii, *self._cams, pt_seg, local)
         return Projected(a, b, ra, rb), out
