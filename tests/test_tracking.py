@@ -284,6 +284,77 @@ def test_capsules_and_points_from_one_pass_equal_each_alone(embedded_session, rn
     assert np.allclose(points, model.forward(Q)[:, pts], atol=1e-12)
 
 
+def test_layer_kernels_equal_the_likelihood_and_prior_they_stand_for(embedded_session, rng):
+    """The factored filter's compiled layer steps give, bit for bit, what the numpy expressions they
+    replace give: the particles moved, clipped (pelvis heading wrapped) and made into poses; the
+    log-weights = SilhouetteLikelihood.score + Tracker.log_prior, with and without the legs' gap, for
+    every node's DOF and for the root moving alone (its DOF and the held ones)."""
+    from gaitcap.tracking.factored_ipf import FactoredIPF
+    from gaitcap.tracking.particles import layer_log_weights, layer_poses
+
+    truth, rig, model = _truth_setup(embedded_session.session)
+    views = tracking_views(rig, 0.5)
+    lik = SilhouetteLikelihood(views, beta=40.0)
+    tracker = FactoredIPF(model, lik, load_tracking_config(model=model), np.random.default_rng(0))
+    obs = observe(views, [truth.mask(c, 20) for c in rig.names])
+    areas = np.maximum(obs.areas, 1.0)
+    selections = [tracker._explored[s] for s in tracker.order]
+    selections.append(np.union1d(tracker._explored[tracker._root], tracker._held))
+    gaps = 0
+    for idx in selections:
+        n, k = 60, len(idx)
+        q = truth.poses[20] + rng.normal(0, 0.05, model.n_dofs)
+        X = q[idx] + rng.normal(0, 1.5, (n, k))  # far enough to leave the limits and wrap the heading
+        K = rng.integers(-4, 5, (n, k))
+        step = rng.uniform(0.01, 0.2, k)
+        best = X[5].copy()
+        want = X + K * step
+        want[0] = best
+        want = model.clip(want, idx)
+        want_Q = np.repeat(model.clip(q[None]), n, axis=0)
+        want_Q[:, idx] = want
+        wrap, lower, upper = tracker._limits(idx)
+        got, Q = layer_poses(X, K, step, best, idx, wrap, lower, upper, model.clip(q[None])[0])
+        assert np.array_equal(got, want) and np.array_equal(Q, want_Q)
+        caps = np.arange(len(model.capsule_segment))
+        proj, legs = tracker.projector.capsules_and_points(Q, caps, tracker.leg_points)
+        gap = tracker.needs_leg_gap(idx)
+        gaps += gap
+        I, M = lik.terms(obs, proj)
+        got_w = layer_log_weights(I, M, areas, lik.beta, Q, idx, tracker.prior_sigma,
+                                  legs if gap else np.zeros((0, 6, 3)), tracker._gap_min, tracker._gap_sigma)
+        want_w = lik.score(obs, proj) + tracker.log_prior(Q, idx, legs if gap else None)
+        assert np.isfinite(want_w).all() and np.array_equal(got_w, want_w)
+    assert 0 < gaps < len(selections)  # both kinds were compared
+
+
+def test_free_rows_computed_where_the_kernel_reads_equal_every_row(embedded_session, rng):
+    """FreeRows (a further pass's Img_n, computed only on the rows the particles reach) gives the
+    kernel's sums of free_prefixes over every row, bit for bit, with the rows it leaves out poisoned
+    (NaN): the kernel reads no row that rows_reached does not name."""
+    from gaitcap.tracking.likelihood import FreeRows
+
+    truth, rig, model = _truth_setup(embedded_session.session)
+    views = tracking_views(rig, 0.5)
+    lik = SilhouetteLikelihood(views, beta=40.0)
+    projector = PoseProjector(model, views)
+    obs = observe(views, [truth.mask(c, 30) for c in rig.names])
+    placed = [np.zeros_like(s) for s in obs.silhouettes]
+    for c in range(len(views)):  # the trunk and arms placed (a leg node's Img_n)
+        lik.fill(c, projector.capsules(truth.poses[30][None], np.arange(6, 17)), placed[c])
+    full = lik.free_prefixes(obs, placed)
+    shape = (len(views), *obs.silhouettes[0].shape)
+    into = (np.full((*shape[:2], shape[2] + 1), np.nan), np.full((*shape[:2], shape[2] + 1), np.nan))
+    rows = FreeRows(obs, placed, into)
+    for spread in (0.02, 0.3):  # near the pose, then farther: the computed rows grow
+        Q = model.clip(truth.poses[30] + rng.normal(0, spread, (40, model.n_dofs)))
+        proj = projector.capsules(Q, np.arange(3))
+        got = lik.terms(obs, proj, rows.cover(proj))
+        want = lik.terms(obs, proj, full)
+        assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
+    assert np.isnan(into[0]).any()  # rows were left out
+
+
 def test_posture_prior_and_coupled_dofs_are_validated(tmp_path):
     model = load_body_model()
     cfg = load_tracking_config()

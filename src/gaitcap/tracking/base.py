@@ -94,6 +94,11 @@ class Tracker:
         The interval [-h, h] (h: the DOF's half-width x shrink x widen) is cut into steps of
         ``layer.step_deg`` (``step_m`` for translations); each offset is a whole number of steps.
         """
+        k, step = self.grid_steps(n, dofs, layer, widen)
+        return k * step
+
+    def grid_steps(self, n: int, dofs: np.ndarray, layer: Layer, widen: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`grid_offsets` as whole numbers of steps (n, len(dofs)) int64 and the steps (len(dofs),)."""
         key = (np.asarray(dofs).dtype.str, np.asarray(dofs).tobytes(), layer.step_deg, layer.step_m, layer.shrink, widen)
         if key not in self._grids:  # the grid of a node's DOF and layer, built once
             rot = self.model.is_rotation[dofs]
@@ -102,8 +107,7 @@ class Tracker:
             m = np.maximum(1, np.floor(h / step + 1e-9)).astype(int)
             self._grids[key] = (step, -m, m + 1)
         step, lo, hi = self._grids[key]
-        k = self.rng.integers(lo, hi, size=(n, len(step)))
-        return k * step
+        return self.rng.integers(lo, hi, size=(n, len(step))), step
 
     def log_prior(self, Q: np.ndarray, dofs: np.ndarray | slice = slice(None), legs: np.ndarray | None = None) -> np.ndarray:
         """The posture prior over the DOF ``dofs`` of poses Q (N, D): shape (N,).

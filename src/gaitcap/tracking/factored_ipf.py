@@ -45,7 +45,9 @@ import numpy as np
 from gaitcap.errors import ConfigError
 from gaitcap.tracking.base import Estimate, Tracker, weighted_spread
 from gaitcap.tracking.chain import subtrees
+from gaitcap.tracking.likelihood import FreeRows
 from gaitcap.tracking.observation import Observation
+from gaitcap.tracking.particles import layer_log_weights, layer_poses
 from gaitcap.tracking.resampling import ess, normalise_log_weights, systematic
 
 
@@ -86,6 +88,8 @@ class FactoredIPF(Tracker):
         self._held = np.concatenate([np.arange(self.model.segments[c].dof_start, self.model.segments[c].dof_stop)
                                      for c in [*self.model.children(self._root), *self._anchors.values()]]
                                     or [np.zeros(0, int)])  # fmt: skip
+        self._idx_limits: dict[bytes, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}  # _limits' cache
+        self._no_legs = np.zeros((0, 6, 3))  # layer_log_weights without the legs' gap
         #: position in the order of the first node that explores a leg DOF (the mirrored search
         #: with ``swap_search: legs`` walks the chain from there)
         self._legs_from = min(i for i, s in enumerate(self.order) if np.intersect1d(self._explored[s], legs_dofs).size)
@@ -290,7 +294,7 @@ class FactoredIPF(Tracker):
                 if p > 0:
                     placed, into = self._scratch(obs)
                     self._draw(q, self._outside[s], placed)  # all segments outside s's subtree
-                    free = self.likelihood.free_prefixes(obs, placed, into)
+                    free = FreeRows(obs, placed, into)  # the rows the node's particles reach
                 alone = p > 0 and s == self._root and cfg.root_refine == "alone"
                 q, logw, Q = self._node(obs, q, self._explored[s], sub, free, n, widen, layers, alone)
                 evaluations += n * len(layers)
@@ -314,28 +318,29 @@ class FactoredIPF(Tracker):
         root only): the segments attached to the root keep their world orientation."""
         model = self.model
         X = np.repeat(q[None, idx], n, axis=0)
-        clipped = np.repeat(model.clip(q[None]), n, axis=0)  # the DOF outside idx, as every layer's clip leaves them
+        template = model.clip(q[None])[0]  # the DOF outside idx, as every layer's clip leaves them
         prior_dofs = np.union1d(idx, self._held) if alone else idx
         gap = self.needs_leg_gap(prior_dofs)
         logw = np.zeros(n)
         best_x, best_ll = q[idx].copy(), -np.inf
         best_held = q[self._held].copy()
+        wrap, lower, upper = self._limits(idx)
+        areas = np.maximum(obs.areas, 1.0)
         for li, layer in enumerate(layers):
             W = normalise_log_weights(logw)
             if li > 0 or ess(W) < self.config.factored_ipf.ess_threshold * n:
                 X = X[systematic(W, n, self.rng)]
-            X = X + self.grid_offsets(n, idx, layer, widen)
-            X[0] = best_x  # the best so far competes unchanged
-            X = model.clip(X, idx)
-            Q = clipped.copy()
-            Q[:, idx] = X
+            K, step = self.grid_steps(n, idx, layer, widen)
+            X, Q = layer_poses(X, K, step, best_x, idx, wrap, lower, upper, template)  # the best so far competes
             if alone:
                 Q[:, self._held] = self._held_angles(q, Q)
             if gap:  # the capsules and the legs' gap from one pass of the kinematics
                 proj, legs = self.projector.capsules_and_points(Q, sub.capsules, self.leg_points)
             else:
-                proj, legs = self.projector.capsules(Q, sub.capsules), None
-            logw = self.likelihood.score(obs, proj, free) + self.log_prior(Q, prior_dofs, legs)
+                proj, legs = self.projector.capsules(Q, sub.capsules), self._no_legs
+            I, M = self.likelihood.terms(obs, proj, free.cover(proj) if isinstance(free, FreeRows) else free)
+            logw = layer_log_weights(I, M, areas, self.likelihood.beta, Q, prior_dofs, self.prior_sigma, legs,
+                                     self._gap_min, self._gap_sigma)  # fmt: skip
             i = int(np.argmax(logw))
             if logw[i] > best_ll:
                 best_ll, best_x, best_held = float(logw[i]), X[i].copy(), Q[i, self._held].copy()
@@ -344,6 +349,15 @@ class FactoredIPF(Tracker):
         if alone:
             q[self._held] = best_held
         return q, logw, Q
+
+    def _limits(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The DOF ``idx``'s wrapping mask and lower and upper limits (k,) each, for :func:`layer_poses`."""
+        key = idx.tobytes()
+        if key not in self._idx_limits:
+            m = self.model
+            self._idx_limits[key] = (np.ascontiguousarray(m.wrap[idx]), np.ascontiguousarray(m.lower[idx], np.float64),
+                                     np.ascontiguousarray(m.upper[idx], np.float64))  # fmt: skip
+        return self._idx_limits[key]
 
     def _held_angles(self, q: np.ndarray, Q: np.ndarray) -> np.ndarray:
         """Joint angles (N, len(_held)) for the root taking the pose of Q (N, D) while what it carries

@@ -21,7 +21,8 @@ import numpy as np
 
 from gaitcap.tracking.observation import Observation, TrackingView
 from gaitcap.tracking.projector import Projected
-from gaitcap.tracking.raster import capsule_sums_views, fill_capsules, free_prefix_rows, free_prefixes, free_prefixes_views
+from gaitcap.tracking.raster import (capsule_sums_views, fill_capsules, free_prefix_rows, free_prefixes,
+                                    free_prefixes_views, rows_reached)
 
 
 class SilhouetteLikelihood:
@@ -102,3 +103,39 @@ class SilhouetteLikelihood:
         rows ``rows`` (first, last) of each view only: the same values as computing them anew."""
         for s, p, (C1, C2), (y0, y1) in zip(obs.silhouettes, placed, free, rows):
             free_prefix_rows(s, p, C1, C2, y0, y1)
+
+
+class FreeRows:
+    """:meth:`SilhouetteLikelihood.free_prefixes` computed row by row, as the capsules scored reach
+    them (:meth:`cover`): a node of the factored filter's further passes, scored against the pixels
+    all the other segments leave free, reaches a fraction of the image's rows. The rows read are
+    the same values as computing every row; the others hold whatever the arrays held."""
+
+    def __init__(self, obs: Observation, placed: list[np.ndarray], into: tuple[np.ndarray, np.ndarray] | None) -> None:
+        self._obs, self._placed = obs, placed
+        if into is None:  # views of different sizes
+            into_views = [(np.empty((h, w + 1)), np.empty((h, w + 1))) for h, w in (s.shape for s in obs.silhouettes)]
+        else:
+            into_views = list(zip(into[0], into[1]))
+        #: the prefix sums per view, as :meth:`SilhouetteLikelihood.free_prefixes` returns them
+        self.free: list[tuple[np.ndarray, np.ndarray]] = into_views
+        self._heights = np.array([s.shape[0] for s in obs.silhouettes], np.int64)
+        self._done = [(1, 0)] * len(placed)  # per view, the rows computed (first > last: none)
+
+    def cover(self, proj: Projected) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Compute the rows the projected capsules reach that are not yet computed; returns :attr:`free`."""
+        need = rows_reached(proj.a, proj.b, proj.ra, proj.rb, self._heights)
+        for c, (lo, hi) in enumerate(need):
+            if lo > hi:
+                continue
+            s, p, (C1, C2) = self._obs.silhouettes[c], self._placed[c], self.free[c]
+            d0, d1 = self._done[c]
+            if d0 > d1:
+                free_prefix_rows(s, p, C1, C2, lo, hi)
+                self._done[c] = (lo, hi)
+                continue
+            # the computed rows stay one interval: the gaps on either side are filled
+            free_prefix_rows(s, p, C1, C2, lo, d0 - 1)
+            free_prefix_rows(s, p, C1, C2, d1 + 1, hi)
+            self._done[c] = (min(lo, d0), max(hi, d1))
+        return self.free

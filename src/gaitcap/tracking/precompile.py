@@ -1,7 +1,8 @@
 """Compile the numba kernels into numba's on-disk cache before their first use.
 
 ``python -m gaitcap.tracking.precompile`` fills the ``__pycache__`` folders next to
-:mod:`gaitcap.tracking.raster`, :mod:`gaitcap.tracking.projector`, :mod:`gaitcap.tracking.contact` and
+:mod:`gaitcap.tracking.raster`, :mod:`gaitcap.tracking.projector`, :mod:`gaitcap.tracking.contact`,
+:mod:`gaitcap.tracking.particles` and
 :mod:`gaitcap.synth.zbuffer` (``*.nbi`` indexes, ``*.nbc``
 object code). The wheel build runs it on the built package (``setup.py``), so that ``pip install .``
 installs the cache with the sources and the first run compiles nothing. A cache entry is used only
@@ -23,7 +24,7 @@ import time
 from collections.abc import Sequence
 
 from gaitcap.synth import zbuffer
-from gaitcap.tracking import contact, projector, raster
+from gaitcap.tracking import contact, particles, projector, raster
 
 log = logging.getLogger("gaitcap.precompile")
 
@@ -39,6 +40,7 @@ def compile_kernels(view_counts: Sequence[int] = VIEW_COUNTS) -> None:
         raster.warm_up(n)
     projector.warm_up()
     contact.warm_up()
+    particles.warm_up()
     zbuffer.warm_up()  # the synthetic renderer's (gaitcap synth, gaitcap demo)
 
 

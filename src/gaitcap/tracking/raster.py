@@ -192,6 +192,27 @@ def capsule_sums_views(a: np.ndarray, b: np.ndarray, ra: np.ndarray, rb: np.ndar
     return s1, s2
 
 
+@cached_njit(nogil=True)
+def rows_reached(a: np.ndarray, b: np.ndarray, ra: np.ndarray, rb: np.ndarray, heights: np.ndarray) -> np.ndarray:
+    """The first and last rows (C, 2) that :func:`capsule_sums_views` reads in each view for capsules
+    a, b (C, N, K, 2), ra, rb (C, N, K) in views of ``heights`` (C,) rows (first > last: none)."""
+    C, N, K = ra.shape
+    out = np.empty((C, 2), np.int64)
+    geo = np.empty((1, _G))
+    for c in range(C):
+        lo, hi = heights[c], -1
+        for n in range(N):
+            for k in range(K):
+                geo[0, 0], geo[0, 1], geo[0, 2] = a[c, n, k, 0], a[c, n, k, 1], ra[c, n, k]
+                geo[0, 3], geo[0, 4], geo[0, 5] = b[c, n, k, 0], b[c, n, k, 1], rb[c, n, k]
+                y0, y1 = _row_range(geo, 0, heights[c])
+                if y0 <= y1:
+                    lo = min(lo, y0)
+                    hi = max(hi, y1)
+        out[c, 0], out[c, 1] = lo, hi
+    return out
+
+
 @cached_njit(nogil=True, inline="always")
 def _free_prefixes_into(silhouette: np.ndarray, placed: np.ndarray, C1: np.ndarray, C2: np.ndarray,
                         y0: int = 0, y1: int = -1) -> None:  # fmt: skip
@@ -283,3 +304,4 @@ def warm_up(n_views: int = 2) -> None:
     free_prefixes_views((m,) * n_views, (m,) * n_views)
     fill_capsules(np.zeros((4, 4), np.float32), z[0, 0], z[0, 0] + 1, r[0, 0], r[0, 0], 1.0)
     free_prefix_rows(m, m, c, c, 1, 2)
+    rows_reached(z, z + 1, r, r, np.full(n_views, 4, np.int64))
