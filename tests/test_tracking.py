@@ -355,6 +355,32 @@ def test_free_rows_computed_where_the_kernel_reads_equal_every_row(embedded_sess
     assert np.isnan(into[0]).any()  # rows were left out
 
 
+def test_poses_sharing_their_ancestors_project_as_each_alone(embedded_session, rng):
+    """The kinematics reuse the previous pose's frame for a segment whose DOF and ancestors' DOF are
+    the same (a node's particles): the batch equals every pose projected alone, also where a parent
+    changed and its child did not (fails when a child's frame is reused under a moved parent), and
+    where a DOF is 0.0 in one pose and -0.0 in the next (equal values either way)."""
+    truth, rig, model = _truth_setup(embedded_session.session)
+    projector = PoseProjector(model, tracking_views(rig, 0.5))
+    q = model.clip(truth.poses[12][None])[0]
+    thigh = model.segment("thigh_l")
+    pelvis = model.segment("pelvis")
+    Q = np.repeat(q[None], 12, axis=0)
+    Q[1:4, thigh.dof_start : thigh.dof_stop] += rng.normal(0, 0.2, (3, thigh.n_dofs))  # a leg node's particles
+    Q[5, pelvis.dof_start + 3] += 0.1  # the root turned: every frame below it changes
+    Q[7:9, pelvis.dof_start + 4] = 0.0
+    Q[8, pelvis.dof_start + 4] = -0.0  # the same number, another sign
+    Q[10, model.dof_index("knee_flexion_l")] += 0.3
+    everything = np.arange(len(model.capsule_segment))
+    proj, points = projector.capsules_and_points(Q, everything, np.arange(model.n_points))
+    for n in range(len(Q)):
+        one, one_points = projector.capsules_and_points(Q[n : n + 1], everything, np.arange(model.n_points))
+        for got, want in zip((proj.a, proj.b, proj.ra, proj.rb), (one.a, one.b, one.ra, one.rb)):
+            assert np.array_equal(got[:, n], want[:, 0])
+        assert np.array_equal(points[n], one_points[0])
+    assert not np.array_equal(proj.a[:, 5], proj.a[:, 4])
+
+
 def test_posture_prior_and_coupled_dofs_are_validated(tmp_path):
     model = load_body_model()
     cfg = load_tracking_config()

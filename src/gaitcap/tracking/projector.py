@@ -17,6 +17,7 @@ both against the numpy path to 1e-9.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -54,9 +55,13 @@ def _rotate(R: np.ndarray, n: int, s: int, axis: int, angle: float) -> None:
 
 
 @cached_njit(inline="always")
-def _frames(Q, n, need, parent, origin, dof_start, dof_stop, axis, sign, trans, R, o) -> None:
+def _frames(Q, n, need, parent, origin, dof_start, dof_stop, axis, sign, trans, R, o, same) -> None:
     """World frames of the segments ``need`` (S,) bool (closed under parents) for pose Q[n]:
     R[n] (S, 3, 3), o[n] (S, 3), in place. The other segments are left unset.
+
+    A segment whose DOF and whose ancestors' DOF equal pose n - 1's takes that pose's frame, the
+    same numbers the arithmetic would give (the particles of a node differ in its DOF only: their
+    ancestors' frames are computed once). ``same`` (S,) bool scratch.
 
     Indexes the arrays element by element: taking row views (Q[n], R[s]) costs two atomic
     reference-count updates each, more than the arithmetic."""
@@ -65,6 +70,16 @@ def _frames(Q, n, need, parent, origin, dof_start, dof_stop, axis, sign, trans, 
         if not need[s]:
             continue
         p = parent[s]
+        same[s] = n > 0 and (p < 0 or same[p])
+        for d in range(dof_start[s], dof_stop[s]):  # equal, and of the same sign where zero
+            if same[s] and not (Q[n, d] == Q[n - 1, d] and math.copysign(1.0, Q[n, d]) == math.copysign(1.0, Q[n - 1, d])):
+                same[s] = False
+        if same[s]:
+            for i in range(3):
+                o[n, s, i] = o[n - 1, s, i]
+                for j in range(3):
+                    R[n, s, i, j] = R[n - 1, s, i, j]
+            continue
         if p < 0:
             for i in range(3):
                 o[n, s, i] = 0.0
@@ -133,8 +148,9 @@ def _kinematics(Q, need, parent, origin, dof_start, dof_stop, axis, sign, trans,
     out = np.empty((N, pt_seg.shape[0], 3))
     R = np.empty((N, S, 3, 3))
     o = np.empty((N, S, 3))
+    same = np.zeros(S, np.bool_)
     for n in range(N):
-        _frames(Q, n, need, parent, origin, dof_start, dof_stop, axis, sign, trans, R, o)
+        _frames(Q, n, need, parent, origin, dof_start, dof_stop, axis, sign, trans, R, o, same)
         _project_pose(R, o, n, cap_seg, cap_a, cap_b, cap_r, cam_R, cam_t, cam_k, a, b, ra, rb)
         _pose_points(R, o, n, pt_seg, pt_local, out)
     return a, b, ra, rb, out
