@@ -313,8 +313,8 @@ def test_layer_kernels_equal_the_likelihood_and_prior_they_stand_for(embedded_se
         want = model.clip(want, idx)
         want_Q = np.repeat(model.clip(q[None]), n, axis=0)
         want_Q[:, idx] = want
-        wrap, lower, upper = tracker._limits(idx)
-        got, Q = layer_poses(X, K, step, best, idx, wrap, lower, upper, model.clip(q[None])[0])
+        got, Q = layer_poses(X, K, step, best, idx, model.wrap[idx], model.lower[idx], model.upper[idx],
+                             model.clip(q[None])[0])  # fmt: skip
         assert np.array_equal(got, want) and np.array_equal(Q, want_Q)
         caps = np.arange(len(model.capsule_segment))
         proj, legs = tracker.projector.capsules_and_points(Q, caps, tracker.leg_points)

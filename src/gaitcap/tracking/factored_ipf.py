@@ -88,7 +88,6 @@ class FactoredIPF(Tracker):
         self._held = np.concatenate([np.arange(self.model.segments[c].dof_start, self.model.segments[c].dof_stop)
                                      for c in [*self.model.children(self._root), *self._anchors.values()]]
                                     or [np.zeros(0, int)])  # fmt: skip
-        self._idx_limits: dict[bytes, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}  # _limits' cache
         self._no_legs = np.zeros((0, 6, 3))  # layer_log_weights without the legs' gap
         #: position in the order of the first node that explores a leg DOF (the mirrored search
         #: with ``swap_search: legs`` walks the chain from there)
@@ -324,7 +323,7 @@ class FactoredIPF(Tracker):
         logw = np.zeros(n)
         best_x, best_ll = q[idx].copy(), -np.inf
         best_held = q[self._held].copy()
-        wrap, lower, upper = self._limits(idx)
+        wrap, lower, upper = model.wrap[idx], model.lower[idx], model.upper[idx]  # for layer_poses' clip
         areas = np.maximum(obs.areas, 1.0)
         for li, layer in enumerate(layers):
             W = normalise_log_weights(logw)
@@ -349,15 +348,6 @@ class FactoredIPF(Tracker):
         if alone:
             q[self._held] = best_held
         return q, logw, Q
-
-    def _limits(self, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The DOF ``idx``'s wrapping mask and lower and upper limits (k,) each, for :func:`layer_poses`."""
-        key = idx.tobytes()
-        if key not in self._idx_limits:
-            m = self.model
-            self._idx_limits[key] = (np.ascontiguousarray(m.wrap[idx]), np.ascontiguousarray(m.lower[idx], np.float64),
-                                     np.ascontiguousarray(m.upper[idx], np.float64))  # fmt: skip
-        return self._idx_limits[key]
 
     def _held_angles(self, q: np.ndarray, Q: np.ndarray) -> np.ndarray:
         """Joint angles (N, len(_held)) for the root taking the pose of Q (N, D) while what it carries
