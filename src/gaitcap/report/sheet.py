@@ -20,7 +20,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from gaitcap.body.model import BodyModel, load_body_model
+from gaitcap.body.model import BodyModel
+from gaitcap.body.recorded import recorded_model
 from gaitcap.body.shape import ProjectedCapsules, draw_capsule, project_capsules
 from gaitcap.camera import Camera
 from gaitcap.errors import GaitcapError
@@ -90,22 +91,9 @@ def open_session(fit: FitRecord, override: Path | None = None) -> tuple[Session 
 
 
 def tracked_model(fit: FitRecord) -> tuple[BodyModel | None, str]:
-    """The body model the run tracked (its height and recorded proportions), or None and why."""
-    attrs, shape = fit.record.attrs, str(fit.record.attrs.get("shape", "off"))
-    proportions = fit.record.proportions()
-    if "height_m" not in attrs:
-        return None, "the run does not record the subject's height: the skeleton only is drawn"
-    if proportions is None and not (shape == "off" or shape.startswith("skipped")):
-        return None, ("the run does not record the proportions its shape calibration gave the body model "
-                      "(it predates their recording): the skeleton only is drawn")  # fmt: skip
-    scales, shifts = proportions if proportions is not None else (None, None)
-    try:
-        model = load_body_model(height_m=float(attrs["height_m"]), scales=scales, shifts=shifts)
-    except GaitcapError as e:
-        return None, f"the body model cannot be rebuilt ({e}): the skeleton only is drawn"
-    if model.dof_names != fit.record.dof_names:
-        return None, "the body model's degrees of freedom changed since this run: the skeleton only is drawn"
-    return model, ""
+    """The body model the run tracked (:func:`gaitcap.body.recorded.recorded_model`), or None and why."""
+    model, why = recorded_model(fit.record)
+    return model, (f"{why}: the skeleton only is drawn" if model is None else "")
 
 
 def project_model(camera: Camera, model: BodyModel, q: np.ndarray) -> ProjectedCapsules:
