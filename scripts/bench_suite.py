@@ -17,6 +17,14 @@ Deterministic for a given seed list (the renderer and the tracker are seeded). S
     python scripts/bench_suite.py --only-external
     python scripts/bench_suite.py --work DIR --true-masks   # each session tracked from its true masks
 
+    python scripts/bench_suite.py --work DIR2 --body-from DIR   # each session with its body from DIR's run
+    python scripts/bench_suite.py --work DIR2 --only-external --body DIR/runs/ext_ktk_a   # one subject's body
+
+``--body-from`` / ``--body`` track with an earlier run's body (``gaitcap track --body``: no shape
+calibration): with ``--body-from`` each session's own calibrated body (what the calibration's stages
+cost, and what tracking a known body gives), with ``--body`` one body for every session (sessions of one
+subject, such as the external ones: a body calibrated on one trial used on the others).
+
 ``--true-masks`` tracks, instead of each session, a copy whose videos are its true masks drawn white on
 black with black plates (built once under ``WORK/true_sessions``): what the tracker makes of perfect
 silhouettes. Beside a run on the sessions themselves, it splits each session's error into what its
@@ -128,9 +136,11 @@ def longest_run(runs: list) -> int:
 
 
 def measure(session: Path, truth: Path, truth_masks: Path, run: Path, reuse: bool = False,
-            silhouettes_only: bool = False, config: Path | None = None, re_eval: bool = False) -> dict:  # fmt: skip
+            silhouettes_only: bool = False, config: Path | None = None, re_eval: bool = False,
+            body: Path | None = None) -> dict:  # fmt: skip
     """Track, evaluate and score one session (``reuse``: the row of an earlier run, if it finished;
-    with ``re_eval`` its tracking scored again by the current ``gaitcap eval``)."""
+    with ``re_eval`` its tracking scored again by the current ``gaitcap eval``; ``body``: an earlier
+    run's output whose body is tracked, ``gaitcap track --body``)."""
     row_file = run / "suite_row.json"
     if reuse and row_file.exists() and not silhouettes_only:
         row = json.loads(row_file.read_text())
@@ -138,7 +148,7 @@ def measure(session: Path, truth: Path, truth_masks: Path, run: Path, reuse: boo
             row.update(evaluate_run(run, truth))
             row_file.write_text(json.dumps(row, default=str))
         return row
-    row = _measure(session, truth, truth_masks, run, silhouettes_only, config)
+    row = _measure(session, truth, truth_masks, run, silhouettes_only, config, body)
     if silhouettes_only:
         return row
     run.mkdir(parents=True, exist_ok=True)
@@ -178,12 +188,12 @@ def silhouette_row(masks: Path, truth_masks: Path, session: Path, truth: Path) -
 
 
 def _measure(session: Path, truth: Path, truth_masks: Path, run: Path,
-             silhouettes_only: bool = False, config: Path | None = None) -> dict:  # fmt: skip
+             silhouettes_only: bool = False, config: Path | None = None, body: Path | None = None) -> dict:  # fmt: skip
     if silhouettes_only:
         gaitcap("silhouettes", str(session), "-o", str(run), "--force", check=False)
         return {"status": "silhouettes only", **silhouette_row(run / "silhouettes.h5", truth_masks, session, truth)}
     t0 = time.perf_counter()
-    extra = ["-c", str(config)] if config else []
+    extra = (["-c", str(config)] if config else []) + (["--body", str(body)] if body else [])
     tr = gaitcap("track", str(session), "-o", str(run), "--force", "--save-masks", *extra, check=False)
     row: dict = {"seconds": time.perf_counter() - t0, "status": "ok"}
     row.update(silhouette_row(run / "silhouettes.h5", truth_masks, session, truth))
@@ -422,6 +432,11 @@ def main() -> None:
                     "current `gaitcap eval` (new metrics; the tracking is not repeated)")
     ap.add_argument("--silhouettes-only", action="store_true", help="only the silhouettes' IoU (no tracking): a minute")
     ap.add_argument("--config", type=Path, help="tracking configuration YAML given to every `gaitcap track`")
+    ap.add_argument("--body", type=Path, help="track every session with this earlier run's body (gaitcap track "
+                    "--body): sessions of one subject, with --only")
+    ap.add_argument("--body-from", type=Path, metavar="WORK", help="track each session with the body of its own "
+                    "run in an earlier suite's WORK/runs/<name> (gaitcap track --body): the calibration's cost and "
+                    "what tracking with a known body gives")
     ap.add_argument("--only", nargs="+", metavar="NAME", help="only these sessions (names as in the tables)")
     ap.add_argument("--true-masks", action="store_true", help="track each session's copy drawn from its true masks "
                     "(perfect silhouettes: what the masks cost)")
@@ -441,8 +456,9 @@ def main() -> None:
         if args.true_masks:
             s = {**s, "session": true_mask_session(s["session"], s["masks"], args.work / "true_sessions" / s["name"])}
         r = {k: v for k, v in s.items() if k not in ("session", "truth", "masks")}
+        body = args.body or (args.body_from / "runs" / s["name"] if args.body_from else None)
         r.update(measure(s["session"], s["truth"], s["masks"], args.work / ("sil_runs" if args.silhouettes_only else "runs") / s["name"], args.reuse,
-                         args.silhouettes_only, args.config, args.re_eval))
+                         args.silhouettes_only, args.config, args.re_eval, body))
         rows.append(r)
         print(f"[{i + 1}/{len(todo)}] {s['name']}: lower {fmt(r.get('lower_mm'))} mm, knee {fmt(r.get('knee_deg'))} deg, "
               f"IoU {fmt(r.get('iou'))}, {r.get('seconds', 0):.0f} s", file=sys.stderr, flush=True)  # fmt: skip

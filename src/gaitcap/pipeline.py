@@ -27,13 +27,14 @@ import yaml
 from tqdm import tqdm
 
 from gaitcap.body.measures import model_lengths, outside_ranges
-from gaitcap.body.model import load_body_model
-from gaitcap.errors import OutputError, TrackingError
+from gaitcap.body.model import BodyModel, load_body_model
+from gaitcap.body.recorded import recorded_model
+from gaitcap.errors import ConfigError, InputError, OutputError, TrackingError
 from gaitcap.io.atomic import write_text_atomic
 from gaitcap.io.silhouettes_h5 import SILHOUETTES_FILE, SilhouetteWriter
 from gaitcap.io.spool import FrameSpool
 from gaitcap.io.track_h5 import (QUALITY_NOT_INITIALISED, QUALITY_OK, QUALITY_OUT_OF_VIEW, QUALITY_POOR_FIT,
-                                 TrackWriter, proportions_attrs, tracked_frames)  # fmt: skip
+                                 TrackWriter, proportions_attrs, read_track_record, tracked_frames)  # fmt: skip
 from gaitcap.io.trc import write_trc
 from gaitcap.prefetch import Head, Prefetched
 from gaitcap.quality import assess
@@ -131,18 +132,28 @@ def run_track(
     session: Path, out: Path, *, config: Path | None = None, tracker: str | None = None,
     height_m: float | None = None, force: bool = False, progress: bool = True, max_frames: int | None = None,
     on_frame: Callable[[int, FrameTiming], None] | None = None, save_masks: bool = False,
+    body: Path | None = None,
 ) -> TrackSummary:  # fmt: skip
     """Track one session into ``out`` (see the module docstring). Returns the run's summary.
 
     ``save_masks``: also stream the full-resolution silhouettes the tracker saw, frame by frame, to
     ``out/silhouettes.h5`` (the layout of ``gaitcap silhouettes``; ``gaitcap eval`` scores them).
+    ``body``: an earlier run's output folder (or its ``trajectories.h5``) whose body model, height
+    and calibrated proportions, is tracked as it is (:func:`read_body`): another clip of the same
+    subject, without the shape calibration; not with ``height_m``.
     """
     t_start = time.perf_counter()
     stages = Stages()
     session, out = Path(session), Path(out)
+    if body is not None and height_m is not None:
+        raise ConfigError("give the subject's height (--height) or an earlier run's body (--body), not both: "
+                          "the body carries its height")  # fmt: skip
+    reused = read_body(body) if body is not None else None
     cfg = load_tracking_config(config, model=load_body_model())  # names only: the height comes later
     if tracker is not None:
         cfg.tracker = tracker  # validated by the schema
+    if reused is not None:
+        cfg.shape.enabled = False  # the body is the subject's already
     ses = Session.open(session)
     videos = check_session_videos(ses)  # the calibration's geometry included
     _check_out(out, force)
@@ -171,10 +182,47 @@ def run_track(
         if saver is not None:
             saver.open()
         summary = _track_session(session, out, ses, videos, cfg, views, likelihood, head, stream, height_m, n_frames,
-                                 progress, on_frame, t_start, stages)  # fmt: skip
+                                 progress, on_frame, t_start, stages, reused)  # fmt: skip
     if saver is not None:
         saver.finish()
     return summary
+
+
+@dataclass(frozen=True)
+class ReusedBody:
+    """An earlier run's body model (``gaitcap track --body``).
+
+    Attributes:
+        model: the model that run tracked, rebuilt exactly (:func:`gaitcap.body.recorded.recorded_model`).
+        path: the run's ``trajectories.h5``.
+        shape: that run's shape note (how its proportions were found).
+    """
+
+    model: BodyModel
+    path: Path
+    shape: str
+
+
+def read_body(path: Path) -> ReusedBody:
+    """The body model of an earlier run, ``path`` its output folder or its ``trajectories.h5``.
+
+    Raises:
+        InputError: the file is missing, not a tracking run's, or its body cannot be rebuilt (named).
+    """
+    path = Path(path)
+    file = path / "trajectories.h5" if path.is_dir() else path
+    if not file.is_file():
+        raise InputError(f"{file}: no such file: --body takes an earlier gaitcap track output folder")
+    record = read_track_record(file)
+    if record is None:
+        raise InputError(f"{file}: not a gaitcap track output (no per-frame record): its body cannot be reused")
+    model, why = recorded_model(record)
+    if model is None:
+        raise InputError(f"{file}: its body cannot be reused: {why}")
+    shape = str(record.attrs.get("shape", "off"))
+    if shape == "off" or shape.startswith(("skipped", "rejected", "reused")):
+        log.warning("%s: its body is not a calibration of its own (shape: %s)", file, shape.split(";")[0])
+    return ReusedBody(model, file, shape)
 
 
 def _buffered_frames(cfg: TrackingConfig) -> int:
@@ -323,10 +371,15 @@ def _save_masks(writer: SilhouetteWriter, t: int, sources: dict[str, Source], pr
 
 def _track_session(session: Path, out: Path, ses: Session, videos, cfg: TrackingConfig, views, likelihood,
                    head: Head[Observation], stream: Iterator[Observation], height_m: float | None, n_frames: int,
-                   progress: bool, on_frame, t_start: float, stages: Stages) -> TrackSummary:  # fmt: skip
+                   progress: bool, on_frame, t_start: float, stages: Stages,
+                   reused: ReusedBody | None = None) -> TrackSummary:  # fmt: skip
     """:func:`run_track` once the output folder is ready: ``head`` the buffered first frames, the
-    others read from ``stream``."""
-    height, height_source = _height(ses, height_m)
+    others read from ``stream``; ``reused``: the body to track (no shape calibration)."""
+    if reused is not None:
+        height, height_source = reused.model.height_m, "--body"
+        _check_reused_height(ses, reused)
+    else:
+        height, height_source = _height(ses, height_m)
     if height is None:
         first = head.take(head.limit)
         pos = subject_positions(views, first)
@@ -336,9 +389,11 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
             raise TrackingError(f"{session}: cannot estimate the subject's height; give it with --height or in session.yaml")
         height = est
         log.warning("subject height not given: estimated %.2f m from the silhouettes (give --height for accuracy)", height)
-    model = load_body_model(height_m=height)
+    model = load_body_model(height_m=height) if reused is None else reused.model
     filt = _new_tracker(cfg, model, likelihood)
     start, settled, shape_note, body_problems = None, False, "off", []
+    if reused is not None:
+        shape_note = f"reused from {reused.path} (its shape: {reused.shape})"
     if cfg.shape.enabled:  # its serial parts on shape.workers kernel threads: the prefetch thread waits meanwhile
         with stages.timed("shape"), kernel_threads(max(_thread_count(cfg.threads), cfg.shape.workers)):
             filt, start, settled, shape_note, body_problems = _calibrate_shape(filt, likelihood, views, cfg, head,
@@ -352,7 +407,7 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
         with FrameSpool() if cfg.backward.enabled else nullcontext() as spool:
             with stages.timed("tracking"):
                 tracked = _track_frames(filt, likelihood, views, cfg, head.take(head.limit), stream, writer, n_frames,
-                                        progress, timing, on_frame, start, settled, spool)  # fmt: skip
+                                        progress, timing, on_frame, start, settled, spool, stages)  # fmt: skip
             if spool is not None:
                 # the videos are read and the prefetch thread idle: the kernels take every core
                 with stages.timed("backward"), kernel_threads(None):
@@ -395,6 +450,18 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
                                  "segment_lengths_m": {k: round(v, 4) for k, v in model_lengths(filt.model).items()}})  # fmt: skip
     write_track_json(summary)
     return summary
+
+
+#: a session's stated height that differs from a reused body's by more than this (metres) is warned about
+_HEIGHT_MISMATCH_M = 0.02
+
+
+def _check_reused_height(ses: Session, reused: ReusedBody) -> None:
+    """Warn when the session states a subject height other than the reused body's: another subject?"""
+    stated = ses.info.subject.height_m
+    if stated is not None and abs(stated - reused.model.height_m) > _HEIGHT_MISMATCH_M:
+        log.warning("%s: session.yaml gives the subject %.2f m, the body of %s is %.2f m tall: another subject? "
+                    "tracking with the body's", ses.root, stated, reused.path, reused.model.height_m)  # fmt: skip
 
 
 def _new_tracker(cfg: TrackingConfig, model, likelihood):
@@ -514,13 +581,16 @@ def _concurrent_kernels() -> bool:
 
 def _track_frames(filt, likelihood, views, cfg: TrackingConfig, first, stream: Iterator[Observation],
                   writer: TrackWriter, n_frames: int, progress: bool, timing: FrameTiming, on_frame,
-                  start=None, settled: bool = False, spool: FrameSpool | None = None) -> int:  # fmt: skip
+                  start=None, settled: bool = False, spool: FrameSpool | None = None,
+                  stages: Stages | None = None) -> int:  # fmt: skip
     """The per-frame loop (streaming): observe, (re)initialise, track, flag, append. ``start``: the
     first frame's pose when already known (shape calibration); ``settled``: whether its leg
     assignment was settled over several frames (else the first frame weighs its mirror too);
     ``spool``: every frame's observation is also stored there, for :func:`_backward_pass`.
-    ``timing.total_s`` also counts the time spent waiting for the next observation."""
+    ``timing.total_s`` also counts the time spent waiting for the next observation; ``stages``: the
+    initialisations are timed there (``initialisation``), apart from the tracking."""
     model = filt.model
+    stages = stages or Stages()
     bar = tqdm(total=n_frames, desc=f"tracking ({cfg.tracker})", unit="frame", disable=not progress, leave=False)
     lost = True
     pending = list(first)
@@ -553,9 +623,11 @@ def _track_frames(filt, likelihood, views, cfg: TrackingConfig, first, stream: I
             if lost:
                 window = pending[count:] if count < len(pending) else [obs]
                 try:
-                    init = initialise(filt, likelihood, views, window[: cfg.init.frames] or [obs],
-                                      cfg.init.heading_step_deg, cfg.init.refine_passes, cfg.init.widen,
-                                      leg_frames=cfg.init.leg_frames)  # fmt: skip
+                    # every core: the prefetch thread waits with the frames the initialisation looks at
+                    with stages.timed("initialisation"), kernel_threads(None):
+                        init = initialise(filt, likelihood, views, window[: cfg.init.frames] or [obs],
+                                          cfg.init.heading_step_deg, cfg.init.refine_passes, cfg.init.widen,
+                                          leg_frames=cfg.init.leg_frames)  # fmt: skip
                     filt.start(init.q, fresh=not init.legs_settled)
                     lost = False
                     log.info("frame %d: subject found (fit %.2f)", count, init.fit)

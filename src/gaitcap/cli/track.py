@@ -26,6 +26,10 @@ log = logging.getLogger("gaitcap")
               help="Tracking configuration YAML (default: the shipped configs/tracking.yaml).")
 @click.option("--height", "height_m", type=click.FloatRange(0.5, 2.6), default=None,
               help="Subject height in metres (default: session.yaml, else estimated).")
+@click.option("--body", type=click.Path(exists=True, path_type=Path), default=None,
+              help="Track with the body of an earlier run of the same subject (its output folder, or its "
+                   "trajectories.h5): its height and calibrated proportions, without calibrating the shape again. "
+                   "Not with --height.")
 @click.option("--max-frames", type=click.IntRange(min=1), default=None, help="Track only the first N frames.")
 @click.option("-j", "--jobs", type=click.IntRange(min=1), default=1, show_default=True,
               help="Sessions tracked in parallel (folders of sessions).")
@@ -38,7 +42,7 @@ log = logging.getLogger("gaitcap")
 @click.pass_context
 @handle_errors
 def command(ctx: click.Context, source: Path, out: Path, tracker: str | None, config: Path | None,
-            height_m: float | None, max_frames: int | None, jobs: int, scheduler: str | None, save_masks: bool,
+            height_m: float | None, body: Path | None, max_frames: int | None, jobs: int, scheduler: str | None, save_masks: bool,
             force: bool) -> None:
     """Track the subject in a session (or every session of a folder).
 
@@ -49,14 +53,18 @@ def command(ctx: click.Context, source: Path, out: Path, tracker: str | None, co
     sessions gives OUT/<session>/..., a log per session and a summary; finished sessions are
     skipped unless --force; the exit code is 1 when any session failed.
 
+    The subject's proportions are calibrated on the first frames of each session; for more clips
+    of the same subject, --body OUT1 reuses those of an earlier run (a shorter run: no calibration).
+
     \b
     Example:
         gaitcap track sessions/walk01 -o results/walk01
+        gaitcap track sessions/walk02 -o results/walk02 --body results/walk01
         gaitcap track sessions/ -o results/ --jobs 2
     """
     quiet = bool(ctx.obj.get("quiet"))
     kwargs = {"config": config, "tracker": tracker, "height_m": height_m, "max_frames": max_frames,
-              "save_masks": save_masks}
+              "save_masks": save_masks, "body": body}
     if is_session(source) and scheduler is None:
         summary = run_track(source, out, force=force, progress=not quiet, **kwargs)
         log.info("%s", summary.message)
