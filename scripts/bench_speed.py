@@ -1,6 +1,6 @@
 """End-to-end speed of ``gaitcap track`` on short and long clips, stage by stage, against its floor.
 
-    PYTHONPATH=src python scripts/bench_speed.py [--runs 3] [--seconds 2.5 5 20] [--fps 25]
+    PYTHONPATH=src python scripts/bench_speed.py [--runs 3] [--seconds 2.5 5 20] [--fps 25] [--reuse-body]
         [--work /tmp/gaitcap-bench] [-- extra gaitcap track options]
 
 The sessions are those of scripts/bench_memory.py: the embedded walk rendered once (2 cameras,
@@ -20,6 +20,9 @@ the table gives the medians of:
   pass over the clip, tracking/backward.py), writing (read-back,
   smoothing, CSV/TRC); background (its fitting, in the prefetch thread, overlapping setup, kernels
   and first frames) is shown apart;
+- with ``--reuse-body``, each clip is also tracked ``--runs`` times with the body its first run
+  calibrated (``gaitcap track --body``: a lab's further clips of the same subject, no shape
+  calibration), in a row of its own marked "--body"; the stages it skips show 0;
 - floor: in this process, the same decoding and silhouettes alone (gaitcap.pipeline's
   observation stream: background fitting, decoding, extraction and preparation of every frame of
   both cameras, side by side as in a run), and wall / floor; floor CPU ms/frame: the process's
@@ -30,6 +33,7 @@ the table gives the medians of:
 from __future__ import annotations
 
 import argparse
+import shutil
 import statistics
 import sys
 import time
@@ -83,6 +87,8 @@ def main() -> None:
     ap.add_argument("--seconds", type=float, nargs="+", default=[2.5, 5.0, 20.0], help="clip lengths")
     ap.add_argument("--fps", type=float, default=25.0)
     ap.add_argument("--work", type=Path, default=Path("/tmp/gaitcap-bench"))
+    ap.add_argument("--reuse-body", action="store_true",
+                    help="also time each clip tracked with the body its first run calibrated (gaitcap track --body)")
     ap.add_argument("extra", nargs="*", help="options passed on to gaitcap track (after --)")
     args = ap.parse_args()
     source = base_session(args.work, args.fps)
@@ -92,15 +98,27 @@ def main() -> None:
     for seconds in args.seconds:
         n = int(round(seconds * args.fps))
         session = long_session(source, args.work / f"{source.name}-{n}frames", n, args.fps)
-        runs = []
-        for k in range(args.runs):
-            runs.append(measure(session, args.work / f"{session.name}-speed-out", args.extra))
-            print(f"<!-- {seconds:g} s, run {k + 1}: wall {runs[-1]['wall']:.1f} s, floor {runs[-1]['floor']:.2f} s -->",
-                  flush=True)  # fmt: skip
-        med = {c: statistics.median(r[c] for r in runs) for c in ["frames", *cols, "floor CPU ms/frame"]}
-        print(f"| {seconds:g} | {med['frames']:.0f} | {med['frames'] / med['wall']:.1f} | "
-              + " | ".join(f"{med[c]:.2f}" for c in cols)
-              + f" | {med['wall'] / med['floor']:.0f} | {med['floor CPU ms/frame']:.1f} |", flush=True)  # fmt: skip
+        out = args.work / f"{session.name}-speed-out"
+        body = args.work / f"{session.name}-body"
+        variants = [("", args.extra)] + ([(" (--body)", [*args.extra, "--body", str(body)])] if args.reuse_body else [])
+        for label, extra in variants:
+            runs = []
+            for k in range(args.runs):
+                runs.append(measure(session, out, extra))
+                print(f"<!-- {seconds:g} s{label}, run {k + 1}: wall {runs[-1]['wall']:.1f} s, "
+                      f"floor {runs[-1]['floor']:.2f} s -->", flush=True)  # fmt: skip
+                if args.reuse_body and not label and k == 0:  # the body the first run calibrated
+                    shutil.rmtree(body, ignore_errors=True)
+                    shutil.copytree(out, body)
+            print_row(f"{seconds:g}{label}", runs, cols)
+
+
+def print_row(label: str, runs: list[dict[str, float]], cols: list[str]) -> None:
+    """The table's row of ``runs``: the medians of each column (a stage a run skipped counts 0)."""
+    med = {c: statistics.median(0.0 if r[c] != r[c] else r[c] for r in runs) for c in ["frames", *cols, "floor CPU ms/frame"]}
+    print(f"| {label} | {med['frames']:.0f} | {med['frames'] / med['wall']:.1f} | "
+          + " | ".join(f"{med[c]:.2f}" for c in cols)
+          + f" | {med['wall'] / med['floor']:.0f} | {med['floor CPU ms/frame']:.1f} |", flush=True)  # fmt: skip
 
 
 if __name__ == "__main__":
