@@ -83,3 +83,20 @@ def test_cli_body_with_height_exits_with_the_reason(tracked_session, tmp_path):
     assert result.exit_code == 1
     assert "--body" in result.output and "not both" in result.output
     assert not (tmp_path / "out").exists()
+
+
+def test_an_uncalibrated_body_is_reused_with_a_warning(tracked_session, tmp_path, caplog):
+    """A run whose calibration was skipped or rejected tracked body.yaml's proportions: reusing them
+    is allowed, and said."""
+    _, first, _ = tracked_session
+    copy = tmp_path / "skipped" / "trajectories.h5"
+    copy.parent.mkdir()
+    shutil.copy(first / "trajectories.h5", copy)
+    with h5py.File(copy, "a") as f:
+        f.attrs["shape"] = "skipped: subject not in view in the first frames"
+    caplog.set_level("WARNING")
+    read_body(copy.parent)
+    assert "its body was not calibrated (shape: skipped" in caplog.text
+    caplog.clear()
+    read_body(first)
+    assert "not calibrated" not in caplog.text

@@ -220,8 +220,8 @@ def read_body(path: Path) -> ReusedBody:
     if model is None:
         raise InputError(f"{file}: its body cannot be reused: {why}")
     shape = str(record.attrs.get("shape", "off"))
-    if shape == "off" or shape.startswith(("skipped", "rejected", "reused")):
-        log.warning("%s: its body is not a calibration of its own (shape: %s)", file, shape.split(";")[0])
+    if shape == "off" or shape.startswith(("skipped", "rejected")):  # body.yaml's proportions at that height
+        log.warning("%s: its body was not calibrated (shape: %s)", file, shape.split(";")[0])
     return ReusedBody(model, file, shape)
 
 
