@@ -33,6 +33,7 @@ the table gives the medians of:
 from __future__ import annotations
 
 import argparse
+import math
 import shutil
 import statistics
 import sys
@@ -115,7 +116,8 @@ def main() -> None:
 
 def print_row(label: str, runs: list[dict[str, float]], cols: list[str]) -> None:
     """The table's row of ``runs``: the medians of each column (a stage a run skipped counts 0)."""
-    med = {c: statistics.median(0.0 if r[c] != r[c] else r[c] for r in runs) for c in ["frames", *cols, "floor CPU ms/frame"]}
+    keys = ["frames", *cols, "floor CPU ms/frame"]
+    med = {c: statistics.median(0.0 if math.isnan(r[c]) else r[c] for r in runs) for c in keys}
     print(f"| {label} | {med['frames']:.0f} | {med['frames'] / med['wall']:.1f} | "
           + " | ".join(f"{med[c]:.2f}" for c in cols)
           + f" | {med['wall'] / med['floor']:.0f} | {med['floor CPU ms/frame']:.1f} |", flush=True)  # fmt: skip

@@ -391,9 +391,8 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
         log.warning("subject height not given: estimated %.2f m from the silhouettes (give --height for accuracy)", height)
     model = load_body_model(height_m=height) if reused is None else reused.model
     filt = _new_tracker(cfg, model, likelihood)
-    start, settled, shape_note, body_problems = None, False, "off", []
-    if reused is not None:
-        shape_note = f"reused from {reused.path} (its shape: {reused.shape})"
+    shape_note = "off" if reused is None else f"reused from {reused.path} (its shape: {reused.shape})"
+    start, settled, body_problems = None, False, []
     if cfg.shape.enabled:  # its serial parts on shape.workers kernel threads: the prefetch thread waits meanwhile
         with stages.timed("shape"), kernel_threads(max(_thread_count(cfg.threads), cfg.shape.workers)):
             filt, start, settled, shape_note, body_problems = _calibrate_shape(filt, likelihood, views, cfg, head,
@@ -487,7 +486,7 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, head: Head[Ob
     run side by side, the k-th with the random streams of seed + k x ``_REPEAT_SEED_STEP``, and their factors are
     averaged (:func:`~gaitcap.tracking.shape.average_shapes`).
     """
-    stages = stages or Stages()  # timed for track.json, or for nobody
+    stages = Stages() if stages is None else stages  # timed for track.json, or for nobody (an empty one is falsy)
     early = head.take(cfg.init.frames)
     init, error = None, None
     if _in_view(early, cfg):  # else the window is not in view either: no initialisation
@@ -590,7 +589,7 @@ def _track_frames(filt, likelihood, views, cfg: TrackingConfig, first, stream: I
     ``timing.total_s`` also counts the time spent waiting for the next observation; ``stages``: the
     initialisations are timed there (``initialisation``), apart from the tracking."""
     model = filt.model
-    stages = stages or Stages()
+    stages = Stages() if stages is None else stages
     bar = tqdm(total=n_frames, desc=f"tracking ({cfg.tracker})", unit="frame", disable=not progress, leave=False)
     lost = True
     pending = list(first)
@@ -623,7 +622,8 @@ def _track_frames(filt, likelihood, views, cfg: TrackingConfig, first, stream: I
             if lost:
                 window = pending[count:] if count < len(pending) else [obs]
                 try:
-                    # every core: the prefetch thread waits with the frames the initialisation looks at
+                    # every core: at the first frame the prefetch thread waits with the frames the
+                    # initialisation looks at (a re-initialisation later in the clip shares the cores with it)
                     with stages.timed("initialisation"), kernel_threads(None):
                         init = initialise(filt, likelihood, views, window[: cfg.init.frames] or [obs],
                                           cfg.init.heading_step_deg, cfg.init.refine_passes, cfg.init.widen,

@@ -42,8 +42,8 @@ log = logging.getLogger("gaitcap")
 @click.pass_context
 @handle_errors
 def command(ctx: click.Context, source: Path, out: Path, tracker: str | None, config: Path | None,
-            height_m: float | None, body: Path | None, max_frames: int | None, jobs: int, scheduler: str | None, save_masks: bool,
-            force: bool) -> None:
+            height_m: float | None, body: Path | None, max_frames: int | None, jobs: int, scheduler: str | None,
+            save_masks: bool, force: bool) -> None:
     """Track the subject in a session (or every session of a folder).
 
     Writes OUT/trajectories.h5 (points, per-point uncertainty, poses, likelihood, quality),
