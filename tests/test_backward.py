@@ -17,6 +17,7 @@ from gaitcap.tracking.backward import (
     choose_backward,
     crossing_frames,
     leg_points,
+    merge_passes,
     order_legs,
     order_sign,
 )
@@ -55,6 +56,32 @@ def test_agreeing_frames_take_the_better_fit_frame_by_frame() -> None:
     fit_b = np.where(np.arange(T) % 2 == 0, 0.81, 0.79)
     take = choose_backward(fwd, bwd, fit_f, fit_b, 0.03)
     assert np.array_equal(take, np.arange(T) % 2 == 0)
+
+
+@dataclass
+class _Est:
+    q: np.ndarray
+    points: np.ndarray
+    fit: float
+
+
+def test_merge_passes_takes_the_second_pass_where_choose_backward_gives_it() -> None:
+    """The merged list holds the second pass's estimates (the objects themselves) exactly on the
+    frames choose_backward gives it, the first's elsewhere; passes of other lengths are refused."""
+    T, legs = 12, np.array([1, 3])
+    pts = RNG.normal(0.0, 0.2, (T, 5, 3))
+    first = [_Est(np.zeros(3), pts[t], 0.8) for t in range(T)]
+    moved = pts.copy()
+    moved[3:7, legs] += 0.2  # disagree on frames 3-6, with a better summed fit there
+    moved[:, 0] += 1.0  # a point that is not a leg's: not compared
+    second = [_Est(np.ones(3), moved[t], 0.85 if 3 <= t < 7 else 0.79) for t in range(T)]
+    merged = merge_passes(first, second, legs, 0.03)
+    expected = choose_backward(pts[:, legs], moved[:, legs], np.full(T, 0.8), np.array([e.fit for e in second]), 0.03)
+    assert [m is b for m, b in zip(merged, second)] == list(expected)
+    assert [m is a for m, a in zip(merged, first)] == list(~expected)
+    assert expected[3:7].all() and not expected[7:].any() and not expected[:3].any()
+    with pytest.raises(ValueError, match="same frames"):
+        merge_passes(first, second[:-1], legs, 0.03)
 
 
 def test_a_frame_missing_from_one_pass_takes_the_other() -> None:
@@ -320,3 +347,83 @@ def test_order_legs_leaves_a_stretch_the_silhouettes_prefer() -> None:
     assert set(source) == {"f"}
     source, _ = _order(truth, truth, forward, forward, (0.80, 0.80, 0.80))  # the forward pass alternates already
     assert set(source) == {"f"}
+
+
+class _FakeTracker:
+    """What _backward_pass asks of a tracker: start and step (an estimate per frame, fit 0.8)."""
+
+    def __init__(self, n_points: int) -> None:
+        names = ("knee_l", "knee_r", "ankle_l", "ankle_r", "toe_l", "toe_r")[:n_points]
+        self.model = type("M", (), {"point_names": names})()
+        self.n_points = n_points
+
+    def start(self, q0, fresh: bool = True) -> None:
+        pass
+
+    def step(self, obs):
+        from gaitcap.tracking.base import Estimate
+
+        return Estimate(np.zeros(3), np.zeros((self.n_points, 3)), np.zeros(self.n_points), 0.0, 0.8, 1)
+
+
+class _FakeWriter:
+    """A forward pass of T tracked frames; ``replaced``: frame -> the estimate written over it."""
+
+    def __init__(self, T: int, n_points: int) -> None:
+        self.T, self.n_points, self.replaced = T, n_points, {}
+
+    def read_back(self):
+        return np.zeros((self.T, self.n_points, 3)), np.full(self.T, QUALITY_OK, np.uint8)
+
+    def read_poses(self):
+        return np.arange(self.T * 3, dtype=float).reshape(self.T, 3)
+
+    def read_fit(self):
+        return np.full(self.T, 0.8)
+
+    def replace(self, i, points, uncertainty, pose, likelihood, fit, quality) -> None:
+        self.replaced[i] = pose
+
+
+@pytest.mark.parametrize(
+    "doubts, second, restarted, kept",
+    [([0], True, False, "first"), ([4, 3], True, True, "second"), ([4, 4], True, True, "second"),
+     ([4, 5], True, True, "first"), ([4], False, True, "first")],
+)  # fmt: skip
+def test_a_second_hypothesis_only_for_a_run_in_doubt_and_kept_if_no_worse(monkeypatch, doubts, second, restarted,
+                                                                          kept):  # fmt: skip
+    """backward.restart's gate: the fresh start is asked for only when the merged run's legs are in
+    doubt (legs_in_doubt > 0), with the forward pass's last pose and the run's bounds; its merge
+    replaces the first only if it leaves no more frames in doubt; none to be had (None) keeps the first."""
+    from gaitcap import pipeline
+    from gaitcap.tracking.base import Estimate
+
+    T, P = 6, 4
+    cfg = load_tracking_config()
+    doubt = iter(doubts)
+    monkeypatch.setattr(pipeline, "legs_in_doubt", lambda points, names, rate, vcfg: next(doubt))
+    marker = {"first": np.full(3, 1.0), "second": np.full(3, 2.0)}
+    merges = []
+
+    def merge_run(tracker, spool, raw, poses, fit, back, s, e, cfg_, rate_hz):
+        which = "second" if merges else "first"
+        merges.append(which)
+        return {0: Estimate(marker[which], np.zeros((P, 3)), np.zeros(P), 0.0, 0.8, 1)}
+
+    monkeypatch.setattr(pipeline, "_merge_run", merge_run)
+    calls = []
+
+    def restart(spool, q_last, s, e):
+        calls.append((q_last.copy(), s, e))
+        return [_FakeTracker(P).step(None) for _ in range(e - s)] if second else None
+
+    writer = _FakeWriter(T, P)
+    spool = type("Spool", (), {"read": lambda self, t: [np.zeros((2, 2), np.float32)]})()
+    pipeline._backward_pass(_FakeTracker(P), spool, writer, cfg, 25.0, restart)
+    assert bool(calls) == restarted
+    if restarted:
+        np.testing.assert_array_equal(calls[0][0], writer.read_poses()[T - 1])
+        assert calls[0][1:] == (0, T)
+    assert merges == (["first", "second"] if restarted and second else ["first"])
+    np.testing.assert_array_equal(writer.replaced[0], marker[kept])
+

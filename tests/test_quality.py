@@ -17,6 +17,7 @@ from gaitcap.quality import (
     calibrated_uncertainty,
     crossed_ankles,
     judge,
+    legs_in_doubt,
     out_of_rhythm,
     run_signals,
     stride_frequency,
@@ -191,6 +192,24 @@ def test_a_walk_in_rhythm_is_not_exchanged(exchanged):
     shaken = points + np.random.default_rng(0).normal(0, 0.02, points.shape)
     v = _judge(shaken, names)
     assert v.verdict == "ok", v.reasons
+
+
+@pytest.mark.parametrize(
+    "exchanged, crossed, expected",
+    [(slice(0), slice(0), 0), (slice(18, 20), slice(0), 0), (slice(14, 24), slice(0), 8),
+     (slice(0), slice(0, 5), 5), (slice(0), slice(0, 4), 0), (slice(14, 24), slice(0, 5), 13)],
+)  # fmt: skip
+def test_legs_in_doubt_counts_the_frames_the_verdict_doubts(exchanged, crossed, expected):
+    """legs_in_doubt (the backward pass's gate for a second hypothesis) is 0 exactly when the
+    verdict has no leg reason, else the frames it counts: out of rhythm (at least 3 needed) plus
+    ankles crossed (at least a tenth of the 50 frames, 5)."""
+    points, names = _walking(2 * np.pi * np.arange(T) / 25.0, exchanged)
+    points = _cross(points, names, crossed, 0.08)
+    cfg = VerdictConfig()
+    v = _judge(points, names, cfg=cfg)
+    assert legs_in_doubt(points, names, RATE, cfg) == expected
+    leg_reasons = [r for r in v.reasons if "ankles" in r]
+    assert bool(leg_reasons) == (expected > 0)
 
 
 def test_a_long_walk_is_judged_in_pieces():

@@ -791,6 +791,80 @@ def test_initialise_reports_the_fit_of_the_pose_it_returns(embedded_session, mon
     assert abs(other - result.fit) > 1e-3  # the two assignments fit differently: reporting the wrong one shows
 
 
+def test_initialise_with_a_known_heading_searches_around_it_on_frames_taken_backwards(embedded_session, monkeypatch):
+    """Given the heading (the backward pass's fresh start: the frames run backwards in time, so
+    their motion points the other way), the candidates' headings are within 20 degrees of it and
+    the pose found faces that way; from the frames' motion alone it would face backwards."""
+    import gaitcap.tracking.init as init_module
+
+    truth, rig, views, tracker, _, _ = _swap_setup(embedded_session.session)
+    model = tracker.model
+    yaw = model.dof_index("pelvis_rotation")
+    last = len(truth.poses) - 1
+    frames = [observe(views, [truth.mask(c, f) for c in rig.names]) for f in range(last, last - 8, -1)]
+    heading = float(truth.poses[last, yaw])
+    searched = []
+    candidates = init_module._candidate_poses
+    monkeypatch.setattr(init_module, "_candidate_poses",
+                        lambda m, pos, headings: searched.extend(headings) or candidates(m, pos, headings))  # fmt: skip
+
+    def off(a: float) -> float:  # degrees between a heading and the truth's
+        return abs(np.degrees(np.angle(np.exp(1j * (a - heading)))))
+
+    result = init_module.initialise(tracker, tracker.likelihood, views, frames, 15, 2, 2.5, heading_rad=heading)
+    assert max(off(h) for h in searched) == pytest.approx(20)
+    assert off(result.heading_rad) < 20
+    searched.clear()
+    init_module.initialise(tracker, tracker.likelihood, views, frames, 15, 2, 2.5)
+    assert min(off(h) for h in searched) > 150  # the motion of frames taken backwards: the other way
+
+
+@pytest.mark.parametrize("mirrored", [False, True])
+def test_a_fresh_start_at_the_end_is_tracked_back_only_when_its_legs_disagree(embedded_session, monkeypatch,
+                                                                               mirrored):  # fmt: skip
+    """The backward pass's second hypothesis: initialised on the run's last frames, taken backwards
+    with the forward pass's heading; a start whose legs agree with the forward pass's last pose
+    adds nothing (None), one that disagrees is tracked back to the run's first frame."""
+    from gaitcap import pipeline
+    from gaitcap.io.spool import FrameSpool
+    from gaitcap.tracking.init import InitResult
+
+    truth, rig, views, tracker, _, apart = _swap_setup(embedded_session.session)
+    t = next(i for i in range(6, len(apart)) if apart[i] > 20)  # the legs apart: the mirror's are far
+    s, e = t - 5, t + 1
+    q_last = truth.poses[t].copy()
+    found = tracker.mirrored(q_last) if mirrored else q_last.copy()
+    calls = []
+
+    def initialise(tr, likelihood, views_, frames, *args, heading_rad=None, **kwargs):
+        calls.append((frames, heading_rad))
+        return InitResult(q=found, heading_rad=heading_rad, walking_direction_known=True, fit=0.8, legs_settled=True)
+
+    monkeypatch.setattr(pipeline, "initialise", initialise)
+    cfg = tracker.config
+    with FrameSpool() as spool:
+        for f in range(e):
+            spool.append(observe(views, [truth.mask(c, f) for c in rig.names]).silhouettes)
+        second = pipeline._restart_pass(tracker.model, tracker.likelihood, views, cfg, spool, q_last, s, e)
+    yaw = tracker.model.dof_index("pelvis_rotation")
+    (frames, heading), = calls
+    assert heading == pytest.approx(q_last[yaw])
+    n = min(cfg.init.frames, e - s)
+    assert len(frames) == n  # the run's last frames, the last first
+    for k, f in ((0, e - 1), (n - 1, e - n)):
+        for got, mask in zip(frames[k].silhouettes, observe(views, [truth.mask(c, f) for c in rig.names]).silhouettes):
+            np.testing.assert_array_equal(got, mask)
+    if not mirrored:
+        assert second is None
+        return
+    assert len(second) == e - s
+    legs = [tracker.model.point_index(n) for n in ("ankle_l", "ankle_r")]
+    truth_pts = tracker.projector.points(truth.poses[s:e])[:, legs]
+    own = np.linalg.norm(np.array([b.points[legs] for b in second]) - truth_pts, axis=2).mean(axis=1)
+    swapped = np.linalg.norm(np.array([b.points[legs][::-1] for b in second]) - truth_pts, axis=2).mean(axis=1)
+    assert own[-1] > swapped[-1]  # its last frame tracked from the mirror: the ankles exchanged
+
+
 @pytest.mark.parametrize("fit_drop", [0.04, None])
 def test_fit_drop_searches_the_mirror_with_the_legs_apart(embedded_session, fit_drop):
     """Legs swapped while far apart (no mirror by closeness): a first pass fitting worse than the

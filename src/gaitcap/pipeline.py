@@ -37,7 +37,7 @@ from gaitcap.io.track_h5 import (QUALITY_NOT_INITIALISED, QUALITY_OK, QUALITY_OU
                                  TrackWriter, proportions_attrs, read_track_record, tracked_frames)  # fmt: skip
 from gaitcap.io.trc import write_trc
 from gaitcap.prefetch import Head, Prefetched
-from gaitcap.quality import assess
+from gaitcap.quality import assess, legs_in_doubt
 from gaitcap.session import CALIBRATION_FILE, Session
 from gaitcap.session_check import check_session_videos, check_silhouettes_meet
 from gaitcap.silhouette.config import SilhouetteConfig
@@ -45,7 +45,7 @@ from gaitcap.silhouette.joint import JointExtractor
 from gaitcap.silhouette.run import Source, camera_attrs, file_attrs, prepare_extractor, quality_row
 from gaitcap.timeseries import finite_runs
 from gaitcap.track_summary import TrackSummary, is_finished, write_track_json
-from gaitcap.tracking.backward import choose_backward, leg_points, order_legs
+from gaitcap.tracking.backward import choose_backward, leg_points, merge_passes, order_legs
 from gaitcap.tracking.condensation import Condensation
 from gaitcap.tracking.config import TrackingConfig, load_tracking_config
 from gaitcap.tracking.factored_ipf import FactoredIPF
@@ -410,8 +410,10 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
             if spool is not None:
                 # the videos are read and the prefetch thread idle: the kernels take every core
                 with stages.timed("backward"), kernel_threads(None):
+                    restart = partial(_restart_pass, filt.model, likelihood, views, cfg)
+                    restart = restart if cfg.backward.restart else None
                     replaced = _backward_pass(_new_tracker(cfg, filt.model, likelihood), spool, writer, cfg,
-                                              videos.fps)
+                                              videos.fps, restart)  # fmt: skip
                 log.info("backward pass and leg order: %d of %d frames replaced", replaced, tracked)
         t_writing = time.perf_counter()
         raw, quality = writer.read_back()
@@ -659,13 +661,41 @@ def _fit_quality(fit: float, cfg: TrackingConfig) -> int:
     return QUALITY_OK if fit >= cfg.quality.min_fit else QUALITY_POOR_FIT
 
 
-def _backward_pass(tracker, spool: FrameSpool, writer: TrackWriter, cfg: TrackingConfig, rate_hz: float) -> int:
+def _restart_pass(model: BodyModel, likelihood, views, cfg: TrackingConfig, spool: FrameSpool, q_last: np.ndarray,
+                  s: int, e: int) -> list | None:  # fmt: skip
+    """A second backward hypothesis for the run of frames s..e-1 (a fresh tracker of ``model``): the
+    subject initialised afresh on the run's last frames (taken backwards, the heading the forward
+    pass's last pose ``q_last`` has), then tracked back to s; None when that pose's legs agree with
+    ``q_last``'s."""
+    tracker = _new_tracker(cfg, model, likelihood)
+    frames = [Observation(spool.read(t)) for t in range(e - 1, max(s, e - cfg.init.frames) - 1, -1)]
+    try:
+        init = initialise(tracker, likelihood, views, frames, cfg.init.heading_step_deg, cfg.init.refine_passes,
+                          cfg.init.widen, leg_frames=cfg.init.leg_frames,
+                          heading_rad=float(q_last[model.dof_index("pelvis_rotation")]))  # fmt: skip
+    except TrackingError:
+        return None
+    legs = leg_points(model.point_names)
+    pts = tracker.projector.points(np.stack([init.q, q_last]))[:, legs]
+    gap = float(np.linalg.norm(pts[0] - pts[1], axis=1).mean())
+    log.info("backward pass: a fresh start at frame %d, its legs %.0f mm from the forward pass's", e - 1, 1000 * gap)
+    if gap < cfg.backward.agree_m:
+        return None
+    tracker.start(init.q, fresh=not init.legs_settled)
+    return [tracker.step(Observation(spool.read(t))) for t in range(e - 1, s - 1, -1)][::-1]
+
+
+def _backward_pass(tracker, spool: FrameSpool, writer: TrackWriter, cfg: TrackingConfig, rate_hz: float,
+                   restart: Callable[[FrameSpool, np.ndarray, int, int], list | None] | None = None) -> int:  # fmt: skip
     """Track every run of tracked frames again from its last frame to its first (``tracker``, a
     fresh one, started from the forward pass's last pose of the run) and overwrite in ``writer``
     the frames :func:`~gaitcap.tracking.backward.choose_backward` gives to the backward pass; then,
     with ``backward.leg_order``, put right the stretches whose leading leg does not alternate
-    (:func:`~gaitcap.tracking.backward.order_legs`). Returns how many frames were overwritten.
-    Memory: one run's estimates (about a kilobyte a frame)."""
+    (:func:`~gaitcap.tracking.backward.order_legs`). A run whose merged legs the verdict would
+    doubt (:func:`~gaitcap.quality.legs_in_doubt`) is merged again with the backward pass
+    ``restart`` gives (:func:`_restart_pass`), merged with the first
+    (:func:`~gaitcap.tracking.backward.merge_passes`), if that leaves no more frames in doubt.
+    Returns how many frames were overwritten. Memory: one run's estimates (about a kilobyte a frame)."""
     raw, quality = writer.read_back()
     poses, fit = writer.read_poses(), writer.read_fit()
     names = tracker.model.point_names
@@ -674,26 +704,57 @@ def _backward_pass(tracker, spool: FrameSpool, writer: TrackWriter, cfg: Trackin
     for s, e in finite_runs(tracked_frames(quality)):
         tracker.start(poses[e - 1], fresh=False)
         back = [tracker.step(Observation(spool.read(t))) for t in range(e - 1, s - 1, -1)][::-1]
-        take = choose_backward(raw[s:e, legs], np.array([b.points[legs] for b in back]), fit[s:e],
-                               np.array([b.fit for b in back]), cfg.backward.agree_m)  # fmt: skip
-        chosen = {int(i): back[i] for i in np.flatnonzero(take)}  # frame of the run -> its estimate (else forward)
-        if cfg.backward.leg_order:
-
-            def again(q0: np.ndarray, a: int, b: int, backwards: bool, s: int = s) -> list:  # frames a..b-1 from q0
-                tracker.start(q0, fresh=False)
-                frames = range(b - 1, a - 1, -1) if backwards else range(a, b)
-                ests = [tracker.step(Observation(spool.read(s + t))) for t in frames]
-                return ests[::-1] if backwards else ests
-
-            def refine(q0: np.ndarray, t: int, s: int = s):  # frame t searched from q0 alone
-                return tracker.refine(Observation(spool.read(s + t)), q0)
-
-            order_legs(chosen, raw[s:e], fit[s:e], poses[s:e], back, names, rate_hz, again, tracker.mirrored,
-                       cfg.backward, cfg.verdict.exchanged_margin_m, refine)  # fmt: skip
+        chosen = _merge_run(tracker, spool, raw, poses, fit, back, s, e, cfg, rate_hz)
+        doubt = 0
+        if restart is not None:
+            doubt = legs_in_doubt(_merged_points(raw[s:e], chosen), names, rate_hz, cfg.verdict)
+        second = restart(spool, poses[e - 1], s, e) if doubt else None
+        if second is not None:
+            back = merge_passes(back, second, legs, cfg.backward.agree_m)
+            again = _merge_run(tracker, spool, raw, poses, fit, back, s, e, cfg, rate_hz)
+            doubt_again = legs_in_doubt(_merged_points(raw[s:e], again), names, rate_hz, cfg.verdict)
+            log.info("frames %d-%d: legs in doubt in %d frames; the backward pass from a fresh start at the end "
+                     "(%d of %d frames) leaves %d: %s", s, e - 1, doubt, sum(b is c for b, c in zip(back, second)),
+                     e - s, doubt_again, "kept" if doubt_again <= doubt else "not kept")  # fmt: skip
+            if doubt_again <= doubt:
+                chosen = again
         for i, b in chosen.items():
             writer.replace(s + i, b.points, b.uncertainty, b.q, b.log_likelihood, b.fit, _fit_quality(b.fit, cfg))
         replaced += len(chosen)
     return replaced
+
+
+def _merge_run(tracker, spool: FrameSpool, raw: np.ndarray, poses: np.ndarray, fit: np.ndarray, back: list, s: int,
+               e: int, cfg: TrackingConfig, rate_hz: float) -> dict:  # fmt: skip
+    """The frames of the run s..e-1 (forward pass: ``raw`` points (T, P, 3), ``poses`` (T, D), ``fit``
+    (T,)) that take another estimate than the forward pass's: frame of the run -> its estimate,
+    from the backward pass ``back`` (e - s estimates) or tracked again by ``backward.leg_order``."""
+    legs = leg_points(tracker.model.point_names)
+    take = choose_backward(raw[s:e, legs], np.array([b.points[legs] for b in back]), fit[s:e],
+                           np.array([b.fit for b in back]), cfg.backward.agree_m)  # fmt: skip
+    chosen = {int(i): back[i] for i in np.flatnonzero(take)}
+    if cfg.backward.leg_order:
+
+        def again(q0: np.ndarray, a: int, b: int, backwards: bool) -> list:  # frames a..b-1 from q0
+            tracker.start(q0, fresh=False)
+            frames = range(b - 1, a - 1, -1) if backwards else range(a, b)
+            ests = [tracker.step(Observation(spool.read(s + t))) for t in frames]
+            return ests[::-1] if backwards else ests
+
+        def refine(q0: np.ndarray, t: int):  # frame t searched from q0 alone
+            return tracker.refine(Observation(spool.read(s + t)), q0)
+
+        order_legs(chosen, raw[s:e], fit[s:e], poses[s:e], back, tracker.model.point_names, rate_hz, again,
+                   tracker.mirrored, cfg.backward, cfg.verdict.exchanged_margin_m, refine)  # fmt: skip
+    return chosen
+
+
+def _merged_points(forward: np.ndarray, chosen: dict) -> np.ndarray:
+    """A run's points (T, P, 3): the forward pass's ``forward``, with ``chosen``'s estimates where it has one."""
+    points = forward.copy()
+    for i, b in chosen.items():
+        points[i] = b.points
+    return points
 
 
 def _finish_points(raw: np.ndarray, quality: np.ndarray, rate_hz: float, cfg: TrackingConfig) -> tuple[np.ndarray, str]:

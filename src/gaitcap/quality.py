@@ -345,6 +345,25 @@ def run_signals(points: np.ndarray, names: tuple[str, ...], quality: np.ndarray,
     )  # fmt: skip
 
 
+def _leg_doubts(s: RunSignals, cfg: VerdictConfig) -> tuple[bool, bool]:
+    """Whether the verdict doubts the legs: (ankles crossed too often, out of the stride's rhythm too often)."""
+    return bool(s.n_tracked and s.crossed_fraction >= cfg.max_crossed_fraction), s.n_exchanged >= cfg.min_exchanged_frames
+
+
+def legs_in_doubt(points: np.ndarray, names: tuple[str, ...], rate_hz: float, cfg: VerdictConfig) -> int:
+    """How many frames of a run tracked throughout, points (T, P, 3) sampled at ``rate_hz``, make the
+    verdict doubt its legs (:func:`judge`: the frames whose ankles cross, when they are too many,
+    plus those out of the stride's rhythm, when they are too many); 0 when it would not doubt them."""
+    points = np.asarray(points, float)
+    crossed = crossed_ankles(points, names, cfg.crossed_margin_m)
+    exchanged = out_of_rhythm(points, names, np.ones(len(points), bool), rate_hz, cfg.exchanged_margin_m)
+    T = len(points)
+    signals = RunSignals(n_frames=T, n_tracked=T, n_ok=T, n_crossed=int(crossed.sum()), floor_m=float("nan"),
+                         crossed=crossed, exchanged=exchanged)  # fmt: skip
+    doubt_crossed, doubt_exchanged = _leg_doubts(signals, cfg)
+    return doubt_crossed * signals.n_crossed + doubt_exchanged * signals.n_exchanged
+
+
 def judge(signals: RunSignals, cfg: VerdictConfig) -> RunVerdict:
     """The verdict of a run from its signals: ``failed`` when too few frames fit
     (``cfg.min_ok_fraction``), else ``doubtful`` when any check fails, else ``ok``; with the
@@ -354,11 +373,12 @@ def judge(signals: RunSignals, cfg: VerdictConfig) -> RunVerdict:
         count = f"only {s.n_ok} of {n} frames fit" if s.n_ok else f"none of the {n} frames fits"
         return RunVerdict("failed", (f"{count} the silhouettes (fit below quality.min_fit, or subject not found)",))
     reasons = []
+    crossed, exchanged = _leg_doubts(s, cfg)
     if s.flagged_fraction > cfg.max_flagged_fraction:
         reasons.append(f"a poor fit for {n - s.n_ok} of {n} frames")
-    if s.n_tracked and s.crossed_fraction >= cfg.max_crossed_fraction:
+    if crossed:
         reasons.append(f"the ankles cross in {s.n_crossed} of {s.n_tracked} frames: a suspected leg swap")
-    if s.n_exchanged >= cfg.min_exchanged_frames:
+    if exchanged:
         reasons.append(f"legs possibly exchanged fore and aft in {s.n_exchanged} frames: there the ankles' fore-aft "
                        "order goes against the stride's rhythm")  # fmt: skip
     if np.isfinite(s.floor_m) and abs(s.floor_m) > cfg.max_floor_offset_m:

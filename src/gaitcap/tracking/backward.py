@@ -24,6 +24,13 @@ the mirrored legs, or the merge with the legs exchanged in the frames that lead 
 searched again), that leads as it must, if that fits nearly as well. This assumes that the
 feet pass each other; a step-to gait (the trailing foot brought up to the leading one, not past it)
 breaks it, and should be tracked with ``backward.leg_order: false``.
+
+Both passes start from the forward pass's choice of legs, so a run trapped from its first frame
+(both legs stacked on the near one, whose mirror is itself) stays trapped in both. With
+``backward.restart``, a run whose merged legs the verdict would doubt gets a second backward pass,
+from a pose initialised afresh on the run's last frames; it is merged with the first
+(:func:`merge_passes`, the same rule) and the run merged again, kept if it leaves no more frames in
+doubt (``gaitcap.pipeline._backward_pass``).
 """
 
 from __future__ import annotations
@@ -43,6 +50,12 @@ log = logging.getLogger("gaitcap.tracking.backward")
 
 #: the points that decide whether the two passes agree: the legs below the hips
 LEG_POINT_PREFIXES = ("knee_", "ankle_", "heel_", "toe_")
+
+
+class _Estimate(Protocol):  # what order_legs reads of an estimate (gaitcap.tracking.base.Estimate)
+    q: np.ndarray
+    points: np.ndarray
+    fit: float
 
 
 def leg_points(names: tuple[str, ...]) -> np.ndarray:
@@ -72,6 +85,17 @@ def choose_backward(forward: np.ndarray, backward: np.ndarray, fit_forward: np.n
     for s, e in finite_runs(disagree):
         choice[s:e] = np.sum(fit_b[s:e]) > np.sum(fit_f[s:e])
     return choice
+
+
+def merge_passes(first: list[_Estimate], second: list[_Estimate], legs: np.ndarray, agree_m: float) -> list[_Estimate]:
+    """Two passes' estimates of the same T frames, merged frame by frame as :func:`choose_backward`
+    merges the forward and the backward pass (a run of disagreeing frames goes whole to the pass
+    with the higher summed fit); ``legs``: the indices of the points compared (:func:`leg_points`)."""
+    if len(first) != len(second):
+        raise ValueError(f"the passes must cover the same frames, got {len(first)} and {len(second)}")
+    take = choose_backward(np.array([e.points[legs] for e in first]), np.array([e.points[legs] for e in second]),
+                           np.array([e.fit for e in first]), np.array([e.fit for e in second]), agree_m)  # fmt: skip
+    return [b if k else a for a, b, k in zip(first, second, take, strict=True)]
 
 
 #: half-width of the window in which a foot passing is the closest approach (seconds): the feet pass
@@ -193,12 +217,6 @@ def alternating_stretches(d_forward: np.ndarray, d_backward: np.ndarray, d_merge
                     for (a, b), sign in zip(stretches, signs))  # fmt: skip
     flip = -1 if votes < 0 else 1
     return [(a, b, flip * sign) for (a, b), sign in zip(stretches, signs)]
-
-
-class _Estimate(Protocol):  # what order_legs reads of an estimate (gaitcap.tracking.base.Estimate)
-    q: np.ndarray
-    points: np.ndarray
-    fit: float
 
 
 def order_legs(chosen: dict[int, _Estimate], forward: np.ndarray, fit: np.ndarray, poses: np.ndarray,

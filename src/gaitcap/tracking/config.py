@@ -265,6 +265,7 @@ class BackwardConfig(Strict):
     leg_order: bool = True
     crossing_m: float = Field(default=0.10, gt=0, le=0.5)
     order_fit_tolerance: float = Field(default=0.015, ge=0, le=1)
+    restart: bool = True
 
 
 class LegGapConfig(Strict):

@@ -131,9 +131,12 @@ def _candidate_poses(model: BodyModel, position: np.ndarray, headings: list[floa
 def initialise(
     tracker: Tracker, likelihood: SilhouetteLikelihood, views: list[TrackingView], observations: list[Observation],
     heading_step_deg: float, refine_passes: int, widen: float, keep: int = 3, leg_frames: int = 0,
+    heading_rad: float | None = None,
 ) -> InitResult:  # fmt: skip
     """Find the first pose (see the module docstring). ``observations[0]`` is the frame to start at;
-    with ``leg_frames`` > 1 and as many observations, its leg assignment is chosen over them."""
+    with ``leg_frames`` > 1 and as many observations, its leg assignment is chosen over them.
+    ``heading_rad``: the subject's heading when already known (radians; the frames need not run
+    forwards in time), searched within 20 degrees instead of the walking direction."""
     model = tracker.model
     positions = subject_positions(views, observations)
     seen = np.where(np.all(np.isfinite(positions), axis=1))[0]
@@ -142,7 +145,10 @@ def initialise(
     start = positions[0]
     motion = positions[seen[-1]] - start
     known = bool(np.hypot(motion[0], motion[1]) > MIN_MOTION_M)
-    if known:
+    if heading_rad is not None:
+        known = True
+        headings = [heading_rad + np.radians(d) for d in (-20, -10, 0, 10, 20)]
+    elif known:
         h0 = float(np.arctan2(motion[1], motion[0]))
         headings = [h0 + np.radians(d) for d in (-20, -10, 0, 10, 20)]
         log.info("walking direction from the first %d frames: %.0f degrees", len(observations), np.degrees(h0))
