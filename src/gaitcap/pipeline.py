@@ -45,7 +45,7 @@ from gaitcap.silhouette.joint import JointExtractor
 from gaitcap.silhouette.run import Source, camera_attrs, file_attrs, prepare_extractor, quality_row
 from gaitcap.timeseries import finite_runs
 from gaitcap.track_summary import TrackSummary, is_finished, write_track_json
-from gaitcap.tracking.backward import choose_backward, leg_points, merge_passes, order_legs
+from gaitcap.tracking.backward import choose_backward, leg_points, legs_apart, merge_passes, order_legs
 from gaitcap.tracking.condensation import Condensation
 from gaitcap.tracking.config import TrackingConfig, load_tracking_config
 from gaitcap.tracking.factored_ipf import FactoredIPF
@@ -677,11 +677,16 @@ def _restart_pass(model: BodyModel, likelihood, views, cfg: TrackingConfig, spoo
         return None
     legs = leg_points(model.point_names)
     pts = tracker.projector.points(np.stack([init.q, q_last]))[:, legs]
-    gap = float(np.linalg.norm(pts[0] - pts[1], axis=1).mean())
+    gap = float(legs_apart(pts[0], pts[1]))
     log.info("backward pass: a fresh start at frame %d, its legs %.0f mm from the forward pass's", e - 1, 1000 * gap)
     if gap < cfg.backward.agree_m:
         return None
-    tracker.start(init.q, fresh=not init.legs_settled)
+    return _tracked_back(tracker, spool, init.q, s, e, fresh=not init.legs_settled)
+
+
+def _tracked_back(tracker, spool: FrameSpool, q0: np.ndarray, s: int, e: int, fresh: bool = False) -> list:
+    """The estimates of frames s..e-1 (in that order), tracked from pose ``q0`` (D,) at frame e - 1 back to s."""
+    tracker.start(q0, fresh=fresh)
     return [tracker.step(Observation(spool.read(t))) for t in range(e - 1, s - 1, -1)][::-1]
 
 
@@ -702,8 +707,7 @@ def _backward_pass(tracker, spool: FrameSpool, writer: TrackWriter, cfg: Trackin
     legs = leg_points(names)
     replaced = 0
     for s, e in finite_runs(tracked_frames(quality)):
-        tracker.start(poses[e - 1], fresh=False)
-        back = [tracker.step(Observation(spool.read(t))) for t in range(e - 1, s - 1, -1)][::-1]
+        back = _tracked_back(tracker, spool, poses[e - 1], s, e)
         chosen = _merge_run(tracker, spool, raw, poses, fit, back, s, e, cfg, rate_hz)
         doubt = 0
         if restart is not None:
@@ -736,10 +740,10 @@ def _merge_run(tracker, spool: FrameSpool, raw: np.ndarray, poses: np.ndarray, f
     if cfg.backward.leg_order:
 
         def again(q0: np.ndarray, a: int, b: int, backwards: bool) -> list:  # frames a..b-1 from q0
+            if backwards:
+                return _tracked_back(tracker, spool, q0, s + a, s + b)
             tracker.start(q0, fresh=False)
-            frames = range(b - 1, a - 1, -1) if backwards else range(a, b)
-            ests = [tracker.step(Observation(spool.read(s + t))) for t in frames]
-            return ests[::-1] if backwards else ests
+            return [tracker.step(Observation(spool.read(s + t))) for t in range(a, b)]
 
         def refine(q0: np.ndarray, t: int):  # frame t searched from q0 alone
             return tracker.refine(Observation(spool.read(s + t)), q0)

@@ -63,6 +63,12 @@ def leg_points(names: tuple[str, ...]) -> np.ndarray:
     return np.array([i for i, n in enumerate(names) if n.startswith(LEG_POINT_PREFIXES)], int)
 
 
+def legs_apart(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The mean distance (metres) between two sets of leg points, (..., K, 3) each -> (...): two
+    passes agree on a frame when it is below ``backward.agree_m``."""
+    return np.linalg.norm(a - b, axis=-1).mean(axis=-1)
+
+
 def choose_backward(forward: np.ndarray, backward: np.ndarray, fit_forward: np.ndarray, fit_backward: np.ndarray,
                     agree_m: float) -> np.ndarray:  # fmt: skip
     """(T,) bool: the frames that take the backward pass (module docstring).
@@ -79,7 +85,7 @@ def choose_backward(forward: np.ndarray, backward: np.ndarray, fit_forward: np.n
         raise ValueError(f"agree_m must be > 0, got {agree_m}")
     fit_f = np.where(np.isfinite(fit_forward), fit_forward, -np.inf)
     fit_b = np.where(np.isfinite(fit_backward), fit_backward, -np.inf)
-    distance = np.linalg.norm(forward - backward, axis=2).mean(axis=1)  # NaN where either is not tracked
+    distance = legs_apart(forward, backward)  # NaN where either is not tracked
     choice = fit_b > fit_f  # where they agree (and where one pass is missing)
     disagree = np.where(np.isfinite(distance), distance >= agree_m, False)
     for s, e in finite_runs(disagree):
