@@ -10,6 +10,7 @@ import yaml
 from gaitcap.body.model import load_body_model
 from gaitcap.camera import Camera, CameraRig
 from gaitcap.config import load_yaml_model
+from gaitcap import quality
 from gaitcap.errors import ConfigError
 from gaitcap.io.track_h5 import QUALITY_OK, QUALITY_OUT_OF_VIEW, QUALITY_POOR_FIT
 from gaitcap.quality import (
@@ -21,6 +22,7 @@ from gaitcap.quality import (
     out_of_rhythm,
     run_signals,
     stride_frequency,
+    turns,
 )
 from gaitcap.tracking.config import TrackingConfig, UncertaintyConfig, VerdictConfig, load_tracking_config
 
@@ -224,6 +226,55 @@ def test_a_long_walk_is_judged_in_pieces():
                - 0.8) < 0.02  # fmt: skip
     exchanged = out_of_rhythm(*_walking(phase, slice(400, 410)), tracked, RATE, 0.05)
     assert 4 <= exchanged.sum() <= 10 and set(np.flatnonzero(exchanged)) <= set(range(400, 410))
+
+
+def _turned_back(points: np.ndarray, names: tuple[str, ...], at: int) -> np.ndarray:
+    """points (T, P, 3) of a walk along +x with frames ``at`` onwards turned half round about the
+    vertical through frame ``at - 1``'s pelvis: the subject turns there and walks back the way it came."""
+    out = points.copy()
+    x0 = points[at - 1, names.index("pelvis"), 0]
+    out[at:, :, 0] = 2 * x0 - points[at:, :, 0]
+    out[at:, :, 1] = -points[at:, :, 1]
+    return out
+
+
+def test_a_walk_that_turns_back_is_judged_apart_on_each_side_of_the_turn(monkeypatch):
+    """Up the room for 2 strides, turned, back for 2: along the fixed walking line the left ankle's
+    lead flips sign at the turn (the rhythm's phase jumps by half a stride), which a single rhythm
+    over the 4 strides would call out of it; judged apart on each side of the turn, no frame is. A
+    stretch exchanged after the turn is still found."""
+    n, at = 100, 50
+    phase = 2 * np.pi * np.arange(n) / 25.0
+    points, names = _walking(phase)
+    turned = _turned_back(points, names, at)
+    assert turns(turned, names).tolist() == [at]
+    tracked = np.ones(n, bool)
+    assert not out_of_rhythm(turned, names, tracked, RATE, 0.05).any()
+    # the same frames judged as one piece (no turn found): many of them against the rhythm
+    monkeypatch.setattr(quality, "TURN_M", 1e9)
+    assert out_of_rhythm(turned, names, tracked, RATE, 0.05).sum() >= 10
+    monkeypatch.undo()
+    exchanged = out_of_rhythm(_turned_back(_walking(phase, slice(64, 74))[0], names, at), names, tracked, RATE, 0.05)
+    assert 4 <= exchanged.sum() <= 10 and set(np.flatnonzero(exchanged)) <= set(range(64, 74))
+
+
+def test_a_walk_taken_backwards_turns_where_it_reverses():
+    """A walk followed by the same frames backwards (as the speed benchmark's clips loop their video)
+    turns once, after the last forward frame; a straight walk shaken by 2 cm (seeded) and a walk on
+    the spot (its pelvis swaying fore and aft further than a turn's 10 cm) do not turn; frames
+    without a pelvis are skipped."""
+    points, names = _walking(2 * np.pi * np.arange(T) / 25.0)
+    there_and_back = points[np.r_[0:T, T - 2 : -1 : -1]]
+    assert turns(there_and_back, names).tolist() == [T]
+    assert not out_of_rhythm(there_and_back, names, np.ones(2 * T - 1, bool), RATE, 0.05).any()
+    shaken = points + np.random.default_rng(0).normal(0, 0.02, points.shape)
+    assert turns(shaken, names).size == 0
+    on_the_spot = points.copy()  # on a treadmill, the pelvis swaying 14 cm fore and aft twice a stride
+    on_the_spot[..., 0] -= points[:, :1, 0] - 0.07 * np.sin(4 * np.pi * np.arange(T) / 25.0)[:, None]
+    assert turns(on_the_spot, names).size == 0
+    gaps = there_and_back.copy()
+    gaps[T - 3 : T + 2] = np.nan
+    assert turns(gaps, names).tolist() == [T - 3]  # just after the last frame seen before the turn
 
 
 def test_every_failed_check_is_named(walk):

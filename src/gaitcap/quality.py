@@ -21,7 +21,9 @@ walking person passes:
   and a frame is out of rhythm where that sinusoid puts the legs well apart (beyond half its
   amplitude: 60 degrees of phase either side of a peak) and d has the other sign by more than
   ``exchanged_margin_m``. The run is judged in pieces of :data:`RHYTHM_STRIDES` strides, each with
-  its own walking line and frequency (the cadence drifts, a walk turns);
+  its own walking line and frequency (the cadence drifts, a walk turns), and apart before and after
+  each point where the walk turns back (:func:`turns`: a subject walking up and down the room; the
+  stride's phase starts afresh there);
 - the lowest foot point's height above the floor, median over the frames: one foot stands on the
   floor in every frame of a walk (z = 0 in the calibration's world frame); a model floating above
   it, or sunk into it, has collapsed onto something else;
@@ -62,6 +64,7 @@ from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Literal
 
 import numpy as np
+from scipy.signal import find_peaks
 
 from gaitcap.body.measures import model_lengths, segment_lengths
 from gaitcap.body.model import load_body_model
@@ -190,14 +193,9 @@ def walking_line(points: np.ndarray, names: tuple[str, ...]) -> np.ndarray | Non
     axis of the pelvis positions when they travel :data:`MIN_TRAVEL_M` or more along it, else the
     perpendicular of the hips' mean horizontal axis (walking on the spot); None when neither can
     be measured (NaN frames ignored)."""
-    if "pelvis" in names:
-        xy = points[:, names.index("pelvis"), :2]
-        xy = xy[np.all(np.isfinite(xy), axis=1)]
-        if len(xy) >= 2:
-            centred = xy - xy.mean(axis=0)
-            axis = np.linalg.svd(centred, full_matrices=False)[2][0]
-            if np.ptp(centred @ axis) >= MIN_TRAVEL_M:
-                return axis
+    axis = _travel_axis(points, names)
+    if axis is not None:
+        return axis
     if "hip_l" not in names or "hip_r" not in names:
         return None
     hips = points[:, names.index("hip_l"), :2] - points[:, names.index("hip_r"), :2]
@@ -205,6 +203,20 @@ def walking_line(points: np.ndarray, names: tuple[str, ...]) -> np.ndarray | Non
     mean = hips.mean(axis=0) if len(hips) else np.zeros(2)
     norm = float(np.linalg.norm(mean))
     return np.array([-mean[1], mean[0]]) / norm if norm > 1e-9 else None
+
+
+def _travel_axis(points: np.ndarray, names: tuple[str, ...]) -> np.ndarray | None:
+    """Unit horizontal vector (2,): the principal horizontal axis of the pelvis positions of points
+    (T, P, 3) (NaN frames ignored) when they travel :data:`MIN_TRAVEL_M` or more along it, else None."""
+    if "pelvis" not in names:
+        return None
+    xy = points[:, names.index("pelvis"), :2]
+    xy = xy[np.all(np.isfinite(xy), axis=1)]
+    if len(xy) < 2:
+        return None
+    centred = xy - xy.mean(axis=0)
+    axis = np.linalg.svd(centred, full_matrices=False)[2][0]
+    return axis if np.ptp(centred @ axis) >= MIN_TRAVEL_M else None
 
 
 def view_angles(points: np.ndarray, names: tuple[str, ...], rig: CameraRig | None) -> dict[str, float]:
@@ -230,6 +242,10 @@ STRIDE_HZ = (0.3, 1.6)
 STRIDE_HZ_STEP = 0.005
 #: a run is judged for its rhythm in pieces of about this many strides (at least one piece)
 RHYTHM_STRIDES = 3
+#: metres the pelvis travels back along the walking line, and had travelled forth, where the walk
+#: turns (:func:`turns`); a walk never takes the pelvis backwards (the tracked pelvis of the suite's
+#: walks goes back 2 mm at most: docs/validation.md)
+TURN_M = 0.1
 #: a frame's fore-aft order is judged where the rhythm puts the legs beyond this fraction of their
 #: largest separation (0.5: 60 degrees of phase either side of a peak)
 APART = 0.5
@@ -307,9 +323,28 @@ def out_of_rhythm(points: np.ndarray, names: tuple[str, ...], tracked: np.ndarra
     if measured is None:
         return np.zeros(len(points), bool)
     stride = rate_hz / stride_frequency(measured[0] / rate_hz, measured[1])  # frames
-    n_pieces = max(1, int(len(points) // (RHYTHM_STRIDES * stride)))
-    return np.concatenate([_piece_out_of_rhythm(pts[idx], names, rate_hz, margin_m)
-                           for idx in np.array_split(np.arange(len(points)), n_pieces)])  # fmt: skip
+    pieces = []
+    for leg in np.split(np.arange(len(points)), turns(pts, names)):
+        n_pieces = max(1, int(len(leg) // (RHYTHM_STRIDES * stride)))
+        pieces += np.array_split(leg, n_pieces)
+    return np.concatenate([_piece_out_of_rhythm(pts[idx], names, rate_hz, margin_m) for idx in pieces])
+
+
+def turns(points: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
+    """(K,) int, increasing: the frames of points (T, P, 3) just after each point where the walk
+    turns back: the pelvis, having travelled :data:`TURN_M` or more one way along the walking line,
+    travels as far back (a peak of its position along the line with that prominence). A turn
+    restarts the stride's phase: before and after it the fore-aft rhythm is judged apart. Empty
+    without a pelvis that travels :data:`MIN_TRAVEL_M` (a walk on the spot, whose pelvis sways fore and
+    aft, has no turns); NaN frames ignored."""
+    line = _travel_axis(points, names)
+    if line is None:
+        return np.zeros(0, int)
+    xy = points[:, names.index("pelvis"), :2]
+    frames = np.flatnonzero(np.all(np.isfinite(xy), axis=1))
+    along = xy[frames] @ line
+    peaks = np.concatenate([find_peaks(sign * along, prominence=TURN_M)[0] for sign in (1.0, -1.0)])
+    return np.sort(frames[peaks]) + 1
 
 
 def _image_heights(points: np.ndarray, rig: CameraRig | None) -> dict[str, float]:
