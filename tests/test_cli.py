@@ -2,6 +2,8 @@ from __future__ import annotations
 
 import json
 import re
+import subprocess
+import sys
 
 import click
 import pytest
@@ -76,3 +78,13 @@ def test_demo_runs_end_to_end(runner, tmp_path):
     mpjpe = re.search(r"lower-limb MPJPE ([0-9.]+) mm", result.output)
     assert mpjpe and float(mpjpe.group(1)) == pytest.approx(doc["positions_mm"]["lower_limb"]["mpjpe_mm"], abs=0.05)
     assert "knee flexion RMSE left" in result.output
+
+
+def test_track_starts_without_the_scipy_modules_imported_late():
+    """scipy.signal and scipy.spatial.transform (about half a second of imports) are imported while
+    the prefetch thread fits the backgrounds (gaitcap.pipeline._import_late), not when `gaitcap
+    track` starts: importing the CLI and the pipeline leaves them out."""
+    late = ("scipy.signal", "scipy.spatial.transform")
+    code = f"import sys, gaitcap.cli.main, gaitcap.pipeline; print([m for m in {late!r} if m in sys.modules])"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"

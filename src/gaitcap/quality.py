@@ -64,7 +64,6 @@ from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Literal
 
 import numpy as np
-from scipy.signal import find_peaks
 
 from gaitcap.body.measures import model_lengths, segment_lengths
 from gaitcap.body.model import load_body_model
@@ -337,6 +336,8 @@ def turns(points: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
     restarts the stride's phase: before and after it the fore-aft rhythm is judged apart. Empty
     without a pelvis that travels :data:`MIN_TRAVEL_M` (a walk on the spot, whose pelvis sways fore and
     aft, has no turns); NaN frames ignored."""
+    from scipy.signal import find_peaks  # here, not at start-up (gaitcap.pipeline._import_late)
+
     line = _travel_axis(points, names)
     if line is None:
         return np.zeros(0, int)
