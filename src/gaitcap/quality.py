@@ -243,7 +243,7 @@ STRIDE_HZ_STEP = 0.005
 RHYTHM_STRIDES = 3
 #: metres the pelvis travels back along the walking line, and had travelled forth, where the walk
 #: turns (:func:`turns`); a walk never takes the pelvis backwards (the tracked pelvis of the suite's
-#: walks goes back 2 mm at most: docs/validation.md)
+#: walks goes back 1 cm at most: docs/validation.md)
 TURN_M = 0.1
 #: a frame's fore-aft order is judged where the rhythm puts the legs beyond this fraction of their
 #: largest separation (0.5: 60 degrees of phase either side of a peak)
