@@ -1,0 +1,70 @@
+"""A walk that turns back, as a TRC of joint centres for ``gaitcap synth``: the embedded walk, a standing
+pivot about the pelvis, then the walk again, turned round, from the frame whose legs match the last one's.
+
+    python scripts/make_turn_walk.py -o turn_walk.trc [--turn-seconds 1.0] [--degrees 180]
+    gaitcap synth turn_walk.trc -o SESSION --seed 3 --height 1.639
+    gaitcap track SESSION -o OUT && gaitcap eval OUT --truth SESSION/truth.h5
+
+The pivot keeps the walk's last pose and turns it about the vertical through the pelvis, with a
+smooth start and stop (the angle follows half a cosine), so its fastest rate is pi/2 times the mean.
+The walk back starts from the frame at least 0.6 s before the end whose legs, relative to the pelvis,
+are nearest the last frame's (a stride earlier), so that the pose does not jump. The feet slide
+during the pivot: a test of the tracker's heading through a turn, not of a turning gait.
+"""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from gaitcap.data import embedded_walk
+from gaitcap.io.trc import write_trc
+from gaitcap.markers.motion import read_motion
+
+#: the walk back starts at least this long before the walk's last frame
+MIN_BACK_S = 0.6
+
+
+def _about_z(angle: float) -> np.ndarray:
+    """(3, 3) rotation by ``angle`` radians about the vertical."""
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def turned_walk(points: np.ndarray, pelvis: int, rate_hz: float, turn_s: float, degrees: float) -> np.ndarray:
+    """Points (T, P, 3) of a walk (z up) -> the walk, a pivot of ``degrees`` over ``turn_s`` seconds about
+    the pelvis, and the walk again from a stride before its end, turned by the same angle: (T', P, 3)."""
+    end = points[-1]
+    centre = end[pelvis] * [1.0, 1.0, 0.0]
+    n_turn = max(1, round(turn_s * rate_hz))
+    total = np.radians(degrees)
+    angles = total * (1 - np.cos(np.linspace(0, np.pi, n_turn + 1)[1:])) / 2
+    pivot = np.stack([(end - centre) @ _about_z(a).T + centre for a in angles])
+    relative = points - points[:, pelvis : pelvis + 1]
+    earliest = len(points) - max(1, round(MIN_BACK_S * rate_hz))
+    k = int(np.argmin(np.linalg.norm(relative[:earliest] - relative[-1], axis=-1).mean(axis=1)))
+    back = (points[k:] - points[k, pelvis] * [1.0, 1.0, 0.0]) @ _about_z(total).T + pivot[-1][pelvis] * [1.0, 1.0, 0.0]
+    back[..., 2] = points[k:, :, 2]
+    return np.concatenate([points, pivot, back[1:]])
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("-o", "--out", type=Path, required=True, help="the TRC to write")
+    ap.add_argument("--turn-seconds", type=float, default=1.0, help="the pivot's duration (s, > 0)")
+    ap.add_argument("--degrees", type=float, default=180.0, help="the pivot's angle (degrees)")
+    args = ap.parse_args()
+    if args.turn_seconds <= 0:
+        ap.error("--turn-seconds must be > 0")
+    walk = read_motion(embedded_walk())
+    points = turned_walk(walk.points, walk.names.index("pelvis"), walk.rate_hz, args.turn_seconds, args.degrees)
+    write_trc(args.out, replace(walk, points=points, events=()), units="mm")
+    print(f"{args.out}: {len(points)} samples at {walk.rate_hz:g} Hz ({len(points) / walk.rate_hz:.2f} s); "
+          f"synth it with --height {walk.meta.get('height_m', 1.639):g}")  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
