@@ -19,6 +19,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from gaitcap.data import embedded_walk
 from gaitcap.io.trc import write_trc
@@ -26,12 +27,6 @@ from gaitcap.markers.motion import read_motion
 
 #: the walk back starts at least this long before the walk's last frame
 MIN_BACK_S = 0.6
-
-
-def _about_z(angle: float) -> np.ndarray:
-    """(3, 3) rotation by ``angle`` radians about the vertical."""
-    c, s = np.cos(angle), np.sin(angle)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 def turned_walk(points: np.ndarray, pelvis: int, rate_hz: float, turn_s: float, degrees: float) -> np.ndarray:
@@ -42,11 +37,12 @@ def turned_walk(points: np.ndarray, pelvis: int, rate_hz: float, turn_s: float, 
     n_turn = max(1, round(turn_s * rate_hz))
     total = np.radians(degrees)
     angles = total * (1 - np.cos(np.linspace(0, np.pi, n_turn + 1)[1:])) / 2
-    pivot = np.stack([(end - centre) @ _about_z(a).T + centre for a in angles])
+    pivot = (end - centre) @ Rotation.from_euler("z", angles[:, None]).as_matrix().transpose(0, 2, 1) + centre
     relative = points - points[:, pelvis : pelvis + 1]
     earliest = len(points) - max(1, round(MIN_BACK_S * rate_hz))
     k = int(np.argmin(np.linalg.norm(relative[:earliest] - relative[-1], axis=-1).mean(axis=1)))
-    back = (points[k:] - points[k, pelvis] * [1.0, 1.0, 0.0]) @ _about_z(total).T + pivot[-1][pelvis] * [1.0, 1.0, 0.0]
+    turn_round = Rotation.from_euler("z", total).as_matrix()
+    back = (points[k:] - points[k, pelvis] * [1.0, 1.0, 0.0]) @ turn_round.T + pivot[-1][pelvis] * [1.0, 1.0, 0.0]
     back[..., 2] = points[k:, :, 2]
     return np.concatenate([points, pivot, back[1:]])
 

@@ -410,8 +410,7 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
             if spool is not None:
                 # the videos are read and the prefetch thread idle: the kernels take every core
                 with stages.timed("backward"), kernel_threads(None):
-                    restart = partial(_restart_pass, filt.model, likelihood, views, cfg)
-                    restart = restart if cfg.backward.restart else None
+                    restart = partial(_restart_pass, filt.model, likelihood, views, cfg) if cfg.backward.restart else None
                     replaced = _backward_pass(_new_tracker(cfg, filt.model, likelihood), spool, writer, cfg,
                                               videos.fps, restart)  # fmt: skip
                 log.info("backward pass and leg order: %d of %d frames replaced", replaced, tracked)

@@ -145,13 +145,12 @@ def initialise(
     start = positions[0]
     motion = positions[seen[-1]] - start
     known = bool(np.hypot(motion[0], motion[1]) > MIN_MOTION_M)
+    if heading_rad is None and known:
+        heading_rad = float(np.arctan2(motion[1], motion[0]))
+        log.info("walking direction from the first %d frames: %.0f degrees", len(observations), np.degrees(heading_rad))
     if heading_rad is not None:
         known = True
         headings = [heading_rad + np.radians(d) for d in (-20, -10, 0, 10, 20)]
-    elif known:
-        h0 = float(np.arctan2(motion[1], motion[0]))
-        headings = [h0 + np.radians(d) for d in (-20, -10, 0, 10, 20)]
-        log.info("walking direction from the first %d frames: %.0f degrees", len(observations), np.degrees(h0))
     else:
         headings = list(np.radians(np.arange(0, 360, heading_step_deg)))
         log.info("the subject barely moves in the first frames: searching every heading")
