@@ -176,7 +176,7 @@ class ShapeConfig(Strict):
     planted: bool = True
     #: after the coordinate search, this many random candidates moving every parameter at once
     #: (each factor times exp(sigma z), z ~ N(0, 1)); a better one replaces the current shape
-    random_candidates: int = Field(default=10, ge=0)
+    random_candidates: int = Field(default=0, ge=0)
     random_sigma: float = Field(default=0.04, gt=0.0, lt=0.5)
     #: track the window again with the shape found so far before each round of ``steps`` but the
     #: first (the re-fits of a round start from poses tracked with a wrong shape otherwise)
