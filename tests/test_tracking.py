@@ -775,6 +775,31 @@ def test_settle_legs_keeps_the_assignment_the_frames_support(embedded_session, s
     assert not tracker._fresh
 
 
+@pytest.mark.parametrize("decisive,margin", [(None, 0.0), (1.0, 0.0), (None, 1.0)])
+def test_settle_legs_cuts_the_mirror_short_once_one_start_clearly_leads(embedded_session, monkeypatch, decisive,
+                                                                      margin):  # fmt: skip
+    """From a start with the legs swapped and apart, every frame is tracked from it, then the mirror's
+    track stops after ``LEAST_FRAMES`` frames, where one start leads by ``DECISIVE_FIT`` over the same
+    frames: the same choice as over every frame, for fewer steps. With a lead no fit can reach (or a
+    margin as large) every frame is tracked from both."""
+    import gaitcap.tracking.init as init_module
+
+    truth, rig, views, tracker, hips, apart = _swap_setup(embedded_session.session, swap_fit_drop=None)
+    t = next(i for i in range(len(apart) - 6) if min(apart[i : i + 6]) > tracker.config.factored_ipf.swap_within_deg + 5)
+    start = tracker.mirrored(truth.poses[t])
+    frames = [observe(views, [truth.mask(c, f) for c in rig.names]) for f in range(t, t + 6)]
+    if decisive is not None:
+        monkeypatch.setattr(init_module, "DECISIVE_FIT", decisive)
+    steps = []
+    step = tracker.step
+    monkeypatch.setattr(tracker, "step", lambda obs, *a, **k: steps.append(obs) or step(obs, *a, **k))
+    q = init_module.settle_legs(tracker, frames, start, margin)
+    cut = decisive is None and margin == 0.0
+    n = init_module.LEAST_FRAMES if cut else len(frames)
+    assert [id(o) for o in steps] == [id(o) for o in frames + frames[:n]] and (n < len(frames)) == cut
+    np.testing.assert_array_equal(q, start if margin else tracker.mirrored(start))
+
+
 @pytest.mark.parametrize("mirror", [False, True])
 def test_initialise_reports_the_fit_of_the_pose_it_returns(embedded_session, monkeypatch, mirror):
     """InitResult.fit is the fit of InitResult.q on the first frame, also when settling the legs
