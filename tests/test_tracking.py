@@ -844,6 +844,54 @@ def test_initialise_with_a_known_heading_searches_around_it_on_frames_taken_back
     assert min(off(h) for h in searched) > 150  # the motion of frames taken backwards: the other way
 
 
+def test_a_start_facing_backwards_is_turned_round_over_the_first_frames(embedded_session):
+    """A subject walking on the spot (a treadmill) gives no walking direction: the first frame
+    alone may prefer a pose facing backwards. ``_facing`` tracks it and the best pose facing the
+    other way over the first frames and keeps the better mean fit; the tracker's random stream is
+    given back, so a run where the check keeps its pose is the run without the check."""
+    import gaitcap.tracking.init as init_module
+
+    truth, rig, views, tracker, _, _ = _swap_setup(embedded_session.session)
+    model = tracker.model
+    yaw = model.dof_index("pelvis_rotation")
+    frames = [observe(views, [truth.mask(c, f) for c in rig.names]) for f in range(8)]
+    position = init_module.subject_positions(views, frames)[0]
+    heading = float(truth.poses[0, yaw])
+
+    def off(q) -> float:  # degrees between a pose's heading and the truth's
+        return abs(np.degrees(np.angle(np.exp(1j * (q[yaw] - heading)))))
+
+    turned = [heading + np.pi + np.radians(d) for d in (-10, 0, 10)]
+    backwards = init_module._refined(tracker, tracker.likelihood, frames[0],
+                                     init_module._candidate_poses(model, position, turned), 3, 2, 2.5)  # fmt: skip
+    assert off(backwards[1]) > 150
+    stream = tracker.rng.bit_generator.state
+    fit, q = init_module._facing(tracker, tracker.likelihood, frames, position, backwards, 3, 2, 2.5)
+    assert off(q) < 30
+    assert fit == pytest.approx(tracker.full_fit(frames[0], q)[1], abs=0.05)
+    assert tracker.rng.bit_generator.state == stream
+    forwards = (fit, q)
+    assert init_module._facing(tracker, tracker.likelihood, frames, position, forwards, 3, 2, 2.5) is forwards
+
+
+@pytest.mark.parametrize("moving", [True, False])
+def test_which_way_the_subject_faces_is_checked_only_without_a_walking_direction(embedded_session, monkeypatch,
+                                                                                   moving):  # fmt: skip
+    """The facing check runs when the first frames show no walking direction (every heading
+    searched), not when the subject's motion gives it (headings within 20 degrees of it)."""
+    import gaitcap.tracking.init as init_module
+
+    truth, rig, views, tracker, _, _ = _swap_setup(embedded_session.session)
+    frames = [observe(views, [truth.mask(c, f) for c in rig.names]) for f in range(8)]
+    checked = []
+    monkeypatch.setattr(init_module, "_facing", lambda *args: checked.append(args[4]) or args[4])
+    if not moving:
+        monkeypatch.setattr(init_module, "MIN_MOTION_M", 100.0)  # the motion counts as none
+    result = init_module.initialise(tracker, tracker.likelihood, views, frames, 30, 1, 2.5, leg_frames=8)
+    assert result.walking_direction_known == moving
+    assert len(checked) == (0 if moving else 1)
+
+
 @pytest.mark.parametrize("mirrored", [False, True])
 def test_a_fresh_start_at_the_end_is_tracked_back_only_when_its_legs_disagree(embedded_session, monkeypatch,
                                                                                mirrored):  # fmt: skip
