@@ -161,10 +161,12 @@ def initialise(
     obs = observations[0]
     fit, q = _refined(tracker, likelihood, obs, _candidate_poses(model, start, headings), keep, refine_passes, widen)
     settled = leg_frames > 1 and len(observations) > 1
+    own = None  # the fits of q's track over the first frames, when already tracked
     if settled and not known:
-        fit, q = _facing(tracker, likelihood, observations[:leg_frames], start, (fit, q), keep, refine_passes, widen)
+        fit, q, own = _facing(tracker, likelihood, observations[:leg_frames], start, (fit, q), keep, refine_passes,
+                              widen)  # fmt: skip
     if settled:
-        kept = settle_legs(tracker, observations[:leg_frames], q)
+        kept = settle_legs(tracker, observations[:leg_frames], q, own=own)
         if not np.array_equal(kept, q):  # the mirror: its own fit, not the refined pose's
             fit = tracker.full_fit(obs, kept)[1]
         q = kept
@@ -198,37 +200,45 @@ def _refined(tracker: Tracker, likelihood: SilhouetteLikelihood, obs: Observatio
     return best
 
 
-def _mean_fit(tracker: Tracker, observations: list[Observation], q: np.ndarray) -> float:
-    """The mean fit of the frames ``observations`` tracked from pose q (D,), started as settled."""
+def _fits(tracker: Tracker, observations: list[Observation], q: np.ndarray) -> list[float]:
+    """The fit of each frame of ``observations`` tracked from pose q (D,), started as settled (as
+    :func:`settle_legs` tracks its first start)."""
     tracker.start(np.array(q, float, copy=True), fresh=False)
-    return float(np.mean([tracker.step(o).fit for o in observations]))
+    return [tracker.step(o).fit for o in observations]
 
 
 def _facing(tracker: Tracker, likelihood: SilhouetteLikelihood, observations: list[Observation],
             position: np.ndarray, found: tuple[float, np.ndarray], keep: int, refine_passes: int, widen: float
-            ) -> tuple[float, np.ndarray]:  # fmt: skip
+            ) -> tuple[float, np.ndarray, list[float] | None]:  # fmt: skip
     """Which way a subject whose walking direction is unknown faces: the pose ``found`` (fit on the
     first frame, pose (D,)) and the best refined pose facing the other way (headings within 20
     degrees of the opposite one) are each tracked over ``observations``, and the one with the
-    better mean fit is returned, (fit on the first frame, pose). One frame cannot tell: a silhouette
-    seen from the front or the back is nearly the same either way, and from the side a body facing
+    better mean fit is returned: (fit on the first frame, pose, and for ``found`` the fits of its
+    track, :func:`settle_legs`'s first track, else None). One frame cannot tell: a silhouette seen
+    from the front or the back is nearly the same either way, and from the side a body facing
     backwards bends its knees to mimic the stride (on a walk on the spot, with the legs half lost
     over a floor of their colour, a start facing backwards was tracked so through the whole clip:
-    300 mm off, its fit 0.60 against 0.67 facing forwards); over frames the legs' motion shows it."""
+    300 mm off, its fit 0.60 against 0.67 facing forwards); over frames the legs' motion shows it.
+
+    ``found`` is tracked first, with the tracker's random stream as it was; the stream is then left
+    where that track left it when ``found`` is kept, else where it was: either way the run goes on
+    as it would have without the check."""
     model = tracker.model
-    # the check's random draws are given back: where ``found`` is kept, the run is the one without it
     stream = tracker.rng.bit_generator.state
+    own = _fits(tracker, observations, found[1])
+    after = tracker.rng.bit_generator.state
     back = float(found[1][model.dof_index("pelvis_rotation")]) + np.pi
     headings = [back + np.radians(d) for d in (-20, -10, 0, 10, 20)]
     other = _refined(tracker, likelihood, observations[0], _candidate_poses(model, position, headings), keep,
                      refine_passes, widen)  # fmt: skip
-    fits = [_mean_fit(tracker, observations, start[1]) for start in (found, other)]
-    tracker.rng.bit_generator.state = stream
+    fits = (float(np.mean(own)), float(np.mean(_fits(tracker, observations, other[1]))))
     if fits[1] > fits[0]:
         log.info("first pose: facing the other way fits the first %d frames better (%.3f against %.3f)",
                  len(observations), fits[1], fits[0])  # fmt: skip
-        return other
-    return found
+        tracker.rng.bit_generator.state = stream
+        return other[0], other[1], None
+    tracker.rng.bit_generator.state = after
+    return found[0], found[1], own
 
 
 #: the mirror's frames left are not tracked once, over its first :data:`LEAST_FRAMES` frames or more,
@@ -239,7 +249,8 @@ DECISIVE_FIT = 0.03
 LEAST_FRAMES = 3
 
 
-def settle_legs(tracker: Tracker, observations: list[Observation], q: np.ndarray, margin: float = 0.0) -> np.ndarray:
+def settle_legs(tracker: Tracker, observations: list[Observation], q: np.ndarray, margin: float = 0.0,
+                own: list[float] | None = None) -> np.ndarray:  # fmt: skip
     """The leg assignment of a first pose q (D,) that the frames ``observations`` support: they are
     tracked from q and from its leg-swapped mirror, each started as settled (no mirror weighed
     on the first frame, which would make both tracks the same), and the mirror is returned when its
@@ -247,18 +258,18 @@ def settle_legs(tracker: Tracker, observations: list[Observation], q: np.ndarray
     margin when q's assignment is one already chosen, which a tie should not overturn), else q.
     The mirror's track stops early, both compared over the frames it covered, once one start leads
     by :data:`DECISIVE_FIT` (and ``margin``) after :data:`LEAST_FRAMES` frames or more. The tracker is
-    left started there, settled."""
+    left started there, settled. ``own``: the fits of q's track over ``observations`` when it was
+    tracked already, the tracker's random stream left where that track left it (:func:`_facing`)."""
     starts = (np.array(q, float, copy=True), tracker.mirrored(q))
-    tracker.start(starts[0], fresh=False)
-    own = np.cumsum([tracker.step(o).fit for o in observations])
+    totals = np.cumsum(own if own is not None else _fits(tracker, observations, starts[0]))
     tracker.start(starts[1], fresh=False)
     mirror, n = 0.0, 0
     for o in observations:
         mirror += tracker.step(o).fit
         n += 1
-        if n >= LEAST_FRAMES and abs(mirror - own[n - 1]) > n * max(DECISIVE_FIT, margin):
+        if n >= LEAST_FRAMES and abs(mirror - totals[n - 1]) > n * max(DECISIVE_FIT, margin):
             break
-    fits = (float(own[n - 1]) / n, mirror / n) if n else (0.0, 0.0)
+    fits = (float(totals[n - 1]) / n, mirror / n) if n else (0.0, 0.0)
     kept = int(fits[1] > fits[0] + margin)
     if kept:
         log.info("first pose: the leg-swapped start fits the first %d frames better (%.3f against %.3f)", n, fits[1],
