@@ -154,7 +154,7 @@ def initialise(
         log.info("walking direction from the first %d frames: %.0f degrees", len(observations), np.degrees(heading_rad))
     if heading_rad is not None:
         known = True
-        headings = [heading_rad + np.radians(d) for d in (-20, -10, 0, 10, 20)]
+        headings = _headings_around(heading_rad)
     else:
         headings = list(np.radians(np.arange(0, 360, heading_step_deg)))
         log.info("the subject barely moves in the first frames: searching every heading")
@@ -172,6 +172,11 @@ def initialise(
         q = kept
     heading = float(q[model.dof_index("pelvis_rotation")])
     return InitResult(q=q, heading_rad=heading, walking_direction_known=known, fit=fit, legs_settled=settled)
+
+
+def _headings_around(heading_rad: float) -> list[float]:
+    """The headings (radians) searched around a known one: within 20 degrees of it, 10 apart."""
+    return [heading_rad + np.radians(d) for d in (-20, -10, 0, 10, 20)]
 
 
 def _refined(tracker: Tracker, likelihood: SilhouetteLikelihood, obs: Observation, Q: np.ndarray, keep: int,
@@ -227,9 +232,8 @@ def _facing(tracker: Tracker, likelihood: SilhouetteLikelihood, observations: li
     stream = tracker.rng.bit_generator.state
     own = _fits(tracker, observations, found[1])
     after = tracker.rng.bit_generator.state
-    back = float(found[1][model.dof_index("pelvis_rotation")]) + np.pi
-    headings = [back + np.radians(d) for d in (-20, -10, 0, 10, 20)]
-    other = _refined(tracker, likelihood, observations[0], _candidate_poses(model, position, headings), keep,
+    back = _headings_around(float(found[1][model.dof_index("pelvis_rotation")]) + np.pi)
+    other = _refined(tracker, likelihood, observations[0], _candidate_poses(model, position, back), keep,
                      refine_passes, widen)  # fmt: skip
     fits = (float(np.mean(own)), float(np.mean(_fits(tracker, observations, other[1]))))
     if fits[1] > fits[0]:
