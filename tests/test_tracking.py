@@ -882,22 +882,52 @@ def test_a_start_facing_backwards_is_turned_round_over_the_first_frames(embedded
     assert tracker.rng.bit_generator.state == after
 
 
-@pytest.mark.parametrize("moving", [True, False])
-def test_which_way_the_subject_faces_is_checked_only_without_a_walking_direction(embedded_session, monkeypatch,
-                                                                                   moving):  # fmt: skip
-    """The facing check runs when the first frames show no walking direction (every heading
-    searched), not when the subject's motion gives it (headings within 20 degrees of it)."""
+@pytest.mark.parametrize("case", ["moving", "on the spot", "heading given"])
+def test_which_way_the_subject_faces_is_checked_unless_the_heading_is_given(embedded_session, monkeypatch, case):
+    """The facing check runs whether the first frames show a walking direction (a subject may walk
+    backwards) or none (every heading searched), not when the caller gives the heading (the
+    backward pass's fresh start, whose heading the forward pass found). With a walking direction,
+    the other way's track stops once one way leads decisively."""
     import gaitcap.tracking.init as init_module
 
     truth, rig, views, tracker, _, _ = _swap_setup(embedded_session.session)
     frames = [observe(views, [truth.mask(c, f) for c in rig.names]) for f in range(8)]
     checked = []
-    monkeypatch.setattr(init_module, "_facing", lambda *args: checked.append(args[4]) or (*args[4], None))
-    if not moving:
+    monkeypatch.setattr(init_module, "_facing",
+                        lambda *args, decisive=None: checked.append(decisive) or (*args[4], None))  # fmt: skip
+    if case == "on the spot":
         monkeypatch.setattr(init_module, "MIN_MOTION_M", 100.0)  # the motion counts as none
-    result = init_module.initialise(tracker, tracker.likelihood, views, frames, 30, 1, 2.5, leg_frames=8)
-    assert result.walking_direction_known == moving
-    assert len(checked) == (0 if moving else 1)
+    heading = float(truth.poses[0, tracker.model.dof_index("pelvis_rotation")]) if case == "heading given" else None
+    result = init_module.initialise(tracker, tracker.likelihood, views, frames, 30, 1, 2.5, leg_frames=8,
+                                    heading_rad=heading)  # fmt: skip
+    assert result.walking_direction_known == (case != "on the spot")
+    assert len(checked) == (0 if case == "heading given" else 1)
+    if case == "moving":  # the other way is given up once it trails decisively
+        assert checked == [init_module.DECISIVE_FIT]
+    if case == "on the spot":  # no direction to favour: both ways tracked over every frame
+        assert checked == [None]
+
+
+def test_a_subject_walking_backwards_is_initialised_facing_the_way_it_faces(embedded_session):
+    """The first frames taken in reverse order show a subject walking backwards: its motion points
+    behind it. Searched around the motion alone, the first pose faces the motion (the way the
+    frames move, away from the truth's heading); over the first frames the facing check turns it
+    round to the truth's."""
+    import gaitcap.tracking.init as init_module
+
+    truth, rig, views, tracker, _, _ = _swap_setup(embedded_session.session)
+    yaw = tracker.model.dof_index("pelvis_rotation")
+    last = len(truth.poses) - 1
+    frames = [observe(views, [truth.mask(c, f) for c in rig.names]) for f in range(last, last - 8, -1)]
+
+    def off(q) -> float:  # degrees between a pose's heading and the truth's at the first frame
+        return abs(np.degrees(np.angle(np.exp(1j * (q[yaw] - truth.poses[last, yaw])))))
+
+    facing_motion = init_module.initialise(tracker, tracker.likelihood, views, frames, 15, 2, 2.5)  # no leg frames
+    assert off(facing_motion.q) > 150
+    result = init_module.initialise(tracker, tracker.likelihood, views, frames, 15, 2, 2.5, leg_frames=8)
+    assert result.walking_direction_known
+    assert off(result.q) < 30
 
 
 @pytest.mark.parametrize("mirrored", [False, True])
