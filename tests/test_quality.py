@@ -168,6 +168,31 @@ def test_a_walk_on_the_spot_takes_its_line_from_the_way_the_hips_face(walk):
     assert all(abs(still[k] - walking[k]) < 3 for k in still), (still, walking)
 
 
+def test_a_body_moving_against_the_way_it_faces_is_noted(walk):
+    """The walk played backwards (a subject walking backwards, or a forward walker tracked facing the
+    wrong way) gets a note naming the frames, the verdict left ok; the walk itself and a walk on the
+    spot get none."""
+    points, names = walk
+    forwards = _judge(points, names)
+    assert forwards.verdict == "ok" and forwards.notes == (), forwards.notes
+    backwards = _judge(points[::-1].copy(), names)
+    assert backwards.verdict == "ok", backwards.reasons
+    assert len(backwards.notes) == 1 and "moves backwards" in backwards.notes[0], backwards.notes
+    half = round(quality.SPEED_SPAN_S * RATE / 2)
+    assert f"in {T - 2 * half} of the {T - 2 * half} frames" in backwards.notes[0]
+    on_the_spot = points.copy()
+    on_the_spot[..., 0] -= points[:, :1, 0] - points[:, 0, 0].mean()
+    assert quality.moving_backwards(on_the_spot, names, RATE) == (0, 0)
+    swaying = on_the_spot.copy()  # 10 cm back and forth in 0.4 s (0.25 m/s): on the spot all the same
+    swaying[..., 0] += 0.05 * np.sign(np.sin(2 * np.pi * np.arange(T) / 20.0))[:, None]
+    assert quality.moving_backwards(swaying, names, RATE) == (0, 0)
+    # frames without a pose count as neither
+    flagged = np.zeros(T, np.uint8)
+    flagged[:20] = QUALITY_OUT_OF_VIEW
+    signals = run_signals(points[::-1].copy(), names, flagged, HEIGHT, rate_hz=RATE)
+    assert signals.moving_backwards == (T - 20 - 2 * half,) * 2  # frames whose span holds no flagged frame
+
+
 def test_legs_exchanged_fore_and_aft_are_doubtful():
     """Legs exchanged fore and aft for a stretch (each foot on its own side: the ankles do not cross)
     go against the stride's rhythm in the frames where the legs are well apart: 60 degrees of phase

@@ -37,7 +37,13 @@ walking person passes:
   the feet equally (up to perspective), so which leg is ahead cannot be told. A camera whose line of sight lies ``min_oblique_deg`` or more from both the
   walking line and its perpendicular sees a mix of both separations and tells them apart. The
   walking line is the principal horizontal axis of the tracked pelvis, or the way the hips face
-  for a walk on the spot (a treadmill).
+  for a walk on the spot (a treadmill);
+- (a note too) whether the tracked body faces against its motion: the way the hips face (their
+  axis turned a quarter-turn about the vertical, the left hip on the left) against the pelvis's
+  horizontal velocity, over the frames where it moves at :data:`MIN_SPEED_M_S` or more. A subject
+  walking backwards does (a rehabilitation exercise); a subject walking forwards does only if the
+  model faces the wrong way, which the legs' rhythm does not reveal (a body facing backwards bends
+  its knees to mimic the stride).
 
 :func:`judge` turns them into ``ok`` / ``doubtful`` / ``failed`` with the reasons (and the
 camera layout's note), by the thresholds of ``tracking.yaml``'s ``verdict`` section.
@@ -102,6 +108,8 @@ class RunSignals:
             the subject and the walking line (empty without cameras).
         exchanged: (T,) bool, the tracked frames whose ankles' fore-aft order goes against the
             stride's rhythm (:func:`out_of_rhythm`): legs possibly exchanged fore and aft.
+        moving_backwards: (frames moving against the way the hips face, frames moving) over the
+            tracked frames (:func:`moving_backwards`).
     """
 
     n_frames: int
@@ -115,6 +123,7 @@ class RunSignals:
     body_problems: tuple[str, ...] = ()
     view_angles_deg: dict[str, float] = field(default_factory=dict)
     exchanged: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    moving_backwards: tuple[int, int] = (0, 0)
 
     @property
     def n_exchanged(self) -> int:
@@ -216,6 +225,34 @@ def _travel_axis(points: np.ndarray, names: tuple[str, ...]) -> np.ndarray | Non
     centred = xy - xy.mean(axis=0)
     axis = np.linalg.svd(centred, full_matrices=False)[2][0]
     return axis if np.ptp(centred @ axis) >= MIN_TRAVEL_M else None
+
+
+#: the pelvis moves when its horizontal speed is at least this (m/s; a slow walk is 0.4-0.8)
+MIN_SPEED_M_S = 0.2
+#: the pelvis's velocity is its displacement over this span (seconds), centred on the frame
+SPEED_SPAN_S = 0.4
+
+
+def moving_backwards(points: np.ndarray, names: tuple[str, ...], rate_hz: float) -> tuple[int, int]:
+    """(frames whose pelvis moves against the way the hips face, frames whose pelvis moves) of
+    points (T, P, 3) sampled at ``rate_hz``: the velocity is the pelvis's horizontal displacement
+    over :data:`SPEED_SPAN_S` centred on the frame, moving at :data:`MIN_SPEED_M_S` or more; the
+    hips face (y, -x) of the left-minus-right hip (x, y) (z up). NaN frames count as neither; a
+    pelvis that travels less than :data:`MIN_TRAVEL_M` moves in no frame (a walk on the spot, whose
+    sway and jitter a 0.4 s span can take for motion)."""
+    if not {"pelvis", "hip_l", "hip_r"} <= set(names) or _travel_axis(points, names) is None:
+        return 0, 0
+    half = max(1, round(SPEED_SPAN_S * rate_hz / 2))
+    xy = points[:, names.index("pelvis"), :2]
+    if len(xy) <= 2 * half:
+        return 0, 0
+    velocity = (xy[2 * half :] - xy[: -2 * half]) * (rate_hz / (2 * half))  # frames half .. T - half - 1
+    hips = (points[:, names.index("hip_l"), :2] - points[:, names.index("hip_r"), :2])[half:-half]
+    facing = np.stack([hips[:, 1], -hips[:, 0]], axis=1)
+    with np.errstate(invalid="ignore"):
+        moving = np.linalg.norm(velocity, axis=1) >= MIN_SPEED_M_S
+        against = moving & (np.sum(velocity * facing, axis=1) < 0)
+    return int(against.sum()), int(moving.sum())
 
 
 def view_angles(points: np.ndarray, names: tuple[str, ...], rig: CameraRig | None) -> dict[str, float]:
@@ -378,6 +415,7 @@ def run_signals(points: np.ndarray, names: tuple[str, ...], quality: np.ndarray,
         segment_ratios=_segment_ratios(pts, names, height_m), image_height_px=_image_heights(pts, rig),
         crossed=crossed, view_angles_deg=view_angles(pts, names, rig),
         exchanged=out_of_rhythm(points, names, tracked, rate_hz, exchanged_margin_m),
+        moving_backwards=moving_backwards(np.where(tracked[:, None, None], points, np.nan), names, rate_hz),
     )  # fmt: skip
 
 
@@ -433,7 +471,7 @@ def judge(signals: RunSignals, cfg: VerdictConfig) -> RunVerdict:
     if small:
         listed = ", ".join(f"{v:.0f} px in {k}" for k, v in small.items())
         reasons.append(f"the subject is too small in the image ({listed})")
-    return RunVerdict("doubtful" if reasons else "ok", tuple(reasons), _layout_notes(s, cfg))
+    return RunVerdict("doubtful" if reasons else "ok", tuple(reasons), _layout_notes(s, cfg) + _direction_notes(s))
 
 
 def _layout_notes(s: RunSignals, cfg: VerdictConfig) -> tuple[str, ...]:
@@ -448,6 +486,16 @@ def _layout_notes(s: RunSignals, cfg: VerdictConfig) -> tuple[str, ...]:
             "from beside and in line with the walkway only, which leg is ahead is ambiguous; check the legs where "
             "they pass each other")  # fmt: skip
     return (note,)
+
+
+def _direction_notes(s: RunSignals) -> tuple[str, ...]:
+    """A note (not a reason) when the tracked body moves against the way it faces in most of the
+    frames where it moves: a subject walking backwards, or a model facing the wrong way."""
+    against, moving = s.moving_backwards
+    if moving == 0 or against <= moving / 2:
+        return ()
+    return (f"the tracked body moves backwards (against the way it faces) in {against} of the {moving} frames where "
+            "it moves: right for a subject walking backwards; otherwise the model faces the wrong way",)
 
 
 def point_residuals(points: np.ndarray, rate_hz: float, cutoff_hz: float) -> np.ndarray:
