@@ -83,6 +83,23 @@ def test_angles_do_not_depend_on_the_walking_heading() -> None:
         assert a1[k][0] == pytest.approx(a0[k][0], abs=1e-6), k
 
 
+def test_a_subject_walking_backwards_keeps_the_pelvis_angles_of_the_way_it_faces() -> None:
+    """The pose facing +x (obliquity, rotation and sagittal angles set) walked the other way (-x, a
+    subject walking backwards): every angle is that of the walk facing its direction, pelvis
+    rotation near 0 rather than 180 degrees and tilt and obliquity with their usual signs."""
+    tilted = {"l": np.array([-0.03, 0.09, 0.92]), "r": np.array([0.03, -0.09, 0.88])}
+    tr = _pose(_leg(25, 35, 5), _leg(-5, 10, -10), hips=tilted)
+    thorax = np.array([0.04, 0.0, 1.4])  # leaning forward: anterior "tilt" of the pelvis-thorax line
+    pts = tr.points.copy()
+    pts[0, POINT_NAMES.index("thorax")] = thorax
+    tr = Trajectory(tr.names, pts, tr.rate_hz)
+    backwards = WalkingDirection(-FWD.forward, -FWD.left, "test", 1.0, False)
+    a0, a1 = joint_angles(tr, FWD)[0], joint_angles(tr, backwards)[0]
+    assert a0["pelvis_tilt_l"][0] > 1 and a0["pelvis_obliquity_l"][0] > 5 and a0["pelvis_rotation_r"][0] > 5
+    for k in a0:
+        assert a1[k][0] == pytest.approx(a0[k][0], abs=1e-6), k
+
+
 def test_missing_points_give_nan_angles_not_errors() -> None:
     tr = _pose(_leg(20, 30, 0), _leg(20, 30, 0))
     pts = np.repeat(tr.points, 3, axis=0)

@@ -3,7 +3,10 @@
 Segment frames (columns X, Y, Z of a rotation matrix, world coordinates), as in Plug-in-Gait:
 X anterior, Y to the subject's left, Z proximal (up), for both sides.
 
-- progression frame: X = walking direction (estimated), Y = left, Z = world up.
+- progression frame: X = walking direction (estimated), Y = left, Z = world up; turned round when
+  the pelvis faces against the walking direction over the trial (a subject walking backwards), so
+  that the pelvis angles stay about the way the subject faces (rotation near 0, not near 180
+  degrees; tilt and obliquity with their usual signs).
 - pelvis: Y = hip_r -> hip_l. When ASIS and PSIS markers are in the trajectory (``LASI/RASI/LPSI/
   RPSI`` or ``asis_l/asis_r/psis_l/psis_r``), the Plug-in-Gait pelvis: Y = RASI -> LASI,
   X = mid-PSIS -> mid-ASIS made orthogonal to Y. From joint centres only, the pelvis tilt is not
@@ -154,9 +157,16 @@ def leg_frames(traj: Trajectory, side: Side, pelvis: np.ndarray) -> tuple[np.nda
     return femur, tibia, foot
 
 
-def progression_frame(direction: WalkingDirection, n_frames: int) -> np.ndarray:
-    """The progression frame repeated, shape (T, 3, 3)."""
-    R = np.stack([direction.forward, direction.left, [0.0, 0.0, 1.0]], axis=-1)
+def progression_frame(direction: WalkingDirection, n_frames: int, pelvis: np.ndarray | None = None) -> np.ndarray:
+    """The progression frame repeated, shape (T, 3, 3); turned half a turn about the vertical when
+    the pelvis frames ``pelvis`` (T, 3, 3), given, face against ``direction`` on average (their X
+    axes' mean against its forward: a subject walking backwards)."""
+    forward, left = direction.forward, direction.left
+    if pelvis is not None:
+        facing = np.nanmean(pelvis[:, :, 0], axis=0) if np.isfinite(pelvis[:, :, 0]).any() else np.zeros(3)
+        if float(np.dot(facing[:2], forward[:2])) < 0:
+            forward, left = -forward, -left
+    R = np.stack([forward, left, [0.0, 0.0, 1.0]], axis=-1)
     return np.broadcast_to(R, (n_frames, 3, 3)).copy()
 
 
@@ -165,14 +175,15 @@ def joint_angles(traj: Trajectory, direction: WalkingDirection) -> tuple[dict[st
 
     Args:
         traj: trajectory with hip_l/r, knee_l/r, ankle_l/r (and heel/toe, pelvis, thorax if any).
-        direction: the walking direction (pelvis angles are relative to it).
+        direction: the walking direction (pelvis angles are relative to it, or to its opposite
+            when the pelvis faces that way: :func:`progression_frame`).
 
     Returns:
         ``{"<angle>_l" | "<angle>_r": (T,) degrees}`` for every name in :data:`ANGLE_NAMES`, NaN
         where a point is missing; and a dict of notes (``pelvis_frame`` method).
     """
     pel, method = pelvis_frame(traj)
-    prog = progression_frame(direction, traj.n_frames)
+    prog = progression_frame(direction, traj.n_frames, pel)
     p = cardan_yxz(prog, pel)
     out: dict[str, np.ndarray] = {}
     for side in SIDES:
