@@ -873,6 +873,11 @@ def test_a_start_facing_backwards_is_turned_round_over_the_first_frames(embedded
     assert own is None  # turned round: settle_legs tracks the new start itself
     assert fit == pytest.approx(tracker.full_fit(frames[0], q)[1], abs=1e-9)
     assert tracker.rng.bit_generator.state == stream
+    # with a walking direction the other way must lead by ``decisive`` a frame: here it cannot
+    _, kept, own = init_module._facing(tracker, tracker.likelihood, frames, position, backwards, 3, 2, 2.5,
+                                       decisive=1.0)  # fmt: skip
+    assert np.array_equal(kept, backwards[1]) and own is not None
+    tracker.rng.bit_generator.state = stream
     # facing forwards already: kept, with its track over the frames, the stream where that track left it
     fit2, q2, own = init_module._facing(tracker, tracker.likelihood, frames, position, (fit, q), 3, 2, 2.5)
     assert fit2 == fit and np.array_equal(q2, q)
