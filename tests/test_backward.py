@@ -84,6 +84,32 @@ def test_merge_passes_takes_the_second_pass_where_choose_backward_gives_it() -> 
         merge_passes(first, second[:-1], legs, 0.03)
 
 
+def test_a_run_of_disagreeing_frames_switches_once_where_that_gains_enough() -> None:
+    """A subject turning round: over one run where the passes' legs disagree, the first pass fits
+    better before the turn and the second after it. The merge switches once, at the turn, when the
+    split gains SPLIT_GAIN over the run's better pass; a gain of a few hundredths a frame (legs
+    crossing) leaves the run whole, as choose_backward gives it."""
+    from gaitcap.tracking import backward
+
+    T, legs = 40, np.array([1, 3])
+    pts = RNG.normal(0.0, 0.2, (T, 5, 3))
+    first = [_Est(np.zeros(3), pts[t], 0.85 if t < 24 else 0.75) for t in range(T)]
+    moved = pts.copy()
+    moved[:, legs] += 0.2  # the legs disagree on every frame: one run
+    second = [_Est(np.ones(3), moved[t], 0.72 if t < 24 else 0.84) for t in range(T)]
+    merged = merge_passes(first, second, legs, 0.03)
+    assert [m is b for m, b in zip(merged, second)] == [t >= 24 for t in range(T)]
+    # the reverse order: the second pass first
+    merged = merge_passes(second, first, legs, 0.03)
+    assert [m is b for m, b in zip(merged, first)] == [t < 24 for t in range(T)]
+    # a split worth less than SPLIT_GAIN: the run goes whole to the higher summed fit (the first)
+    near = [_Est(np.ones(3), moved[t], 0.84 if t < 24 else 0.76) for t in range(T)]
+    gain = sum(n.fit - f.fit for n, f in zip(near[24:], first[24:]))
+    assert 0 < gain < backward.SPLIT_GAIN
+    assert all(m is f for m, f in zip(merge_passes(first, near, legs, 0.03), first))
+    assert backward._split_run(np.array([0.1])) is None  # one frame: nothing to split
+
+
 def test_a_frame_missing_from_one_pass_takes_the_other() -> None:
     T = 6
     fwd, bwd = _legs(T), _legs(T)

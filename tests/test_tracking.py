@@ -888,11 +888,11 @@ def test_a_start_facing_backwards_is_turned_round_over_the_first_frames(embedded
 
 
 @pytest.mark.parametrize("case", ["moving", "on the spot", "heading given"])
-def test_which_way_the_subject_faces_is_checked_unless_the_heading_is_given(embedded_session, monkeypatch, case):
+def test_which_way_the_subject_faces_is_always_checked(embedded_session, monkeypatch, case):
     """The facing check runs whether the first frames show a walking direction (a subject may walk
-    backwards) or none (every heading searched), not when the caller gives the heading (the
-    backward pass's fresh start, whose heading the forward pass found). With a walking direction,
-    the other way's track stops once one way leads decisively."""
+    backwards), none (every heading searched), or the caller gives the heading (the backward pass's
+    fresh start takes the forward pass's, wrong after a turn the forward pass lost). With a
+    direction, the other way's track stops once one way leads decisively."""
     import gaitcap.tracking.init as init_module
 
     truth, rig, views, tracker, _, _ = _swap_setup(embedded_session.session)
@@ -906,8 +906,8 @@ def test_which_way_the_subject_faces_is_checked_unless_the_heading_is_given(embe
     result = init_module.initialise(tracker, tracker.likelihood, views, frames, 30, 1, 2.5, leg_frames=8,
                                     heading_rad=heading)  # fmt: skip
     assert result.walking_direction_known == (case != "on the spot")
-    assert len(checked) == (0 if case == "heading given" else 1)
-    if case == "moving":  # the other way is given up once it trails decisively
+    assert len(checked) == 1
+    if case != "on the spot":  # the other way is given up once it trails decisively
         assert checked == [init_module.DECISIVE_FIT]
     if case == "on the spot":  # no direction to favour: both ways tracked over every frame
         assert checked == [None]

@@ -93,14 +93,48 @@ def choose_backward(forward: np.ndarray, backward: np.ndarray, fit_forward: np.n
     return choice
 
 
+#: a run of disagreeing frames is split between two passes (:func:`merge_passes`) when the split's
+#: summed fit beats the run's best single pass by this much: a subject turning round, the pass that
+#: faces right before the turn wrong after it and the other the reverse (0.05-0.15 of fit a frame
+#: over the tens of frames either side), not a few hundredths over a crossing of the legs
+SPLIT_GAIN = 1.0
+
+
+def _split_run(gain: np.ndarray) -> tuple[int, bool] | None:
+    """The best single switch in a run of frames whose second pass fits ``gain`` (n,) better than the
+    first frame by frame: (k, second_first) for the first pass's frames [0, k) and the second's [k, n)
+    (or the reverse with ``second_first``) when that beats the whole run's better pass by
+    :data:`SPLIT_GAIN`, else None."""
+    if len(gain) < 2:
+        return None
+    head = np.cumsum(gain)[:-1]  # the second pass on frames [0, k), k = 1 .. n-1
+    tail = gain.sum() - head  # the second pass on frames [k, n)
+    whole = max(0.0, float(gain.sum()))
+    k_tail, k_head = int(np.argmax(tail)), int(np.argmax(head))
+    best, k, second_first = (float(tail[k_tail]), k_tail + 1, False)
+    if head[k_head] > best:
+        best, k, second_first = float(head[k_head]), k_head + 1, True
+    return (k, second_first) if best > whole + SPLIT_GAIN else None
+
+
 def merge_passes(first: list[_Estimate], second: list[_Estimate], legs: np.ndarray, agree_m: float) -> list[_Estimate]:
     """Two passes' estimates of the same T frames, merged frame by frame as :func:`choose_backward`
     merges the forward and the backward pass (a run of disagreeing frames goes whole to the pass
-    with the higher summed fit); ``legs``: the indices of the points compared (:func:`leg_points`)."""
+    with the higher summed fit), except that a run may switch once from one pass to the other where
+    that gains :data:`SPLIT_GAIN` of summed fit (:func:`_split_run`); ``legs``: the indices of the
+    points compared (:func:`leg_points`)."""
     if len(first) != len(second):
         raise ValueError(f"the passes must cover the same frames, got {len(first)} and {len(second)}")
-    take = choose_backward(np.array([e.points[legs] for e in first]), np.array([e.points[legs] for e in second]),
-                           np.array([e.fit for e in first]), np.array([e.fit for e in second]), agree_m)  # fmt: skip
+    a_pts, b_pts = np.array([e.points[legs] for e in first]), np.array([e.points[legs] for e in second])
+    fit_a, fit_b = np.array([e.fit for e in first]), np.array([e.fit for e in second])
+    take = choose_backward(a_pts, b_pts, fit_a, fit_b, agree_m)
+    distance = legs_apart(a_pts, b_pts)
+    disagree = np.where(np.isfinite(distance), distance >= agree_m, False)
+    for s, e in finite_runs(disagree):
+        split = _split_run(np.nan_to_num(fit_b[s:e] - fit_a[s:e]))  # both tracked where the legs disagree
+        if split is not None:
+            k, second_first = split
+            take[s : s + k], take[s + k : e] = second_first, not second_first
     return [b if k else a for a, b, k in zip(first, second, take, strict=True)]
 
 

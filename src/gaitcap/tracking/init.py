@@ -142,7 +142,8 @@ def initialise(
     with ``leg_frames`` > 1 and as many observations, which way the subject faces and its leg
     assignment are chosen over them. ``heading_rad``: the subject's heading when already known
     (radians; the frames need not run forwards in time), searched within 20 degrees instead of the
-    walking direction, and trusted: no facing check."""
+    walking direction; the facing check tests the other way as it does the motion's (the backward
+    pass's fresh start takes the forward pass's last heading, wrong after a turn it lost)."""
     model = tracker.model
     positions = subject_positions(views, observations)
     seen = np.where(np.all(np.isfinite(positions), axis=1))[0]
@@ -151,7 +152,6 @@ def initialise(
     start = positions[0]
     motion = positions[seen[-1]] - start
     known = bool(np.hypot(motion[0], motion[1]) > MIN_MOTION_M)
-    given = heading_rad is not None
     if heading_rad is None and known:
         heading_rad = float(np.arctan2(motion[1], motion[0]))
         log.info("walking direction from the first %d frames: %.0f degrees", len(observations), np.degrees(heading_rad))
@@ -165,10 +165,9 @@ def initialise(
     fit, q = _refined(tracker, likelihood, obs, _candidate_poses(model, start, headings), keep, refine_passes, widen)
     settled = leg_frames > 1 and len(observations) > 1
     own = None  # the fits of q's track over the first frames, when already tracked
-    if settled and not given:
+    if settled:
         fit, q, own = _facing(tracker, likelihood, observations[:leg_frames], start, (fit, q), keep, refine_passes,
                               widen, decisive=DECISIVE_FIT if known else None)  # fmt: skip
-    if settled:
         kept = settle_legs(tracker, observations[:leg_frames], q, own=own)
         if not np.array_equal(kept, q):  # the mirror: its own fit, not the refined pose's
             fit = tracker.full_fit(obs, kept)[1]
