@@ -664,8 +664,8 @@ def _restart_pass(model: BodyModel, likelihood, views, cfg: TrackingConfig, spoo
                   s: int, e: int) -> list | None:  # fmt: skip
     """A second backward hypothesis for the run of frames s..e-1 (a fresh tracker of ``model``): the
     subject initialised afresh on the run's last frames (taken backwards, the heading the forward
-    pass's last pose ``q_last`` has), then tracked back to s; None when that pose's legs agree with
-    ``q_last``'s."""
+    pass's last pose ``q_last`` has, or the opposite one if it fits decisively better), then tracked
+    back to s; None when that pose's legs agree with ``q_last``'s."""
     tracker = _new_tracker(cfg, model, likelihood)
     frames = [Observation(spool.read(t)) for t in range(e - 1, max(s, e - cfg.init.frames) - 1, -1)]
     try:

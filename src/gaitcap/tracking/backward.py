@@ -28,9 +28,11 @@ breaks it, and should be tracked with ``backward.leg_order: false``.
 Both passes start from the forward pass's choice of legs, so a run trapped from its first frame
 (both legs stacked on the near one, whose mirror is itself) stays trapped in both. With
 ``backward.restart``, a run whose merged legs the verdict would doubt gets a second backward pass,
-from a pose initialised afresh on the run's last frames; it is merged with the first
-(:func:`merge_passes`, the same rule) and the run merged again, kept if it leaves no more frames in
-doubt (``gaitcap.pipeline._backward_pass``).
+from a pose initialised afresh on the run's last frames (turned round if the other way fits them
+decisively better: a subject who turned, whose heading the forward pass lost); it is merged with
+the first (:func:`merge_passes`, the same rule, but a run of disagreeing frames may switch passes
+once, at a turn) and the run merged again, kept if it leaves no more frames in doubt
+(``gaitcap.pipeline._backward_pass``).
 """
 
 from __future__ import annotations
