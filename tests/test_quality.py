@@ -179,18 +179,36 @@ def test_a_body_moving_against_the_way_it_faces_is_noted(walk):
     assert backwards.verdict == "ok", backwards.reasons
     assert len(backwards.notes) == 1 and "moves backwards" in backwards.notes[0], backwards.notes
     half = round(quality.SPEED_SPAN_S * RATE / 2)
-    assert f"in {T - 2 * half} of the {T - 2 * half} frames" in backwards.notes[0]
+    assert f"in {T - 2 * half} of the {T - 2 * half} frames where it moves in frames 0-{T - 1}" in backwards.notes[0]
     on_the_spot = points.copy()
     on_the_spot[..., 0] -= points[:, :1, 0] - points[:, 0, 0].mean()
-    assert quality.moving_backwards(on_the_spot, names, RATE) == (0, 0)
+    assert quality.moving_backwards(on_the_spot, names, RATE) == (0, 0, 0, 0)
     swaying = on_the_spot.copy()  # 10 cm back and forth in 0.4 s (0.25 m/s): on the spot all the same
     swaying[..., 0] += 0.05 * np.sign(np.sin(2 * np.pi * np.arange(T) / 20.0))[:, None]
-    assert quality.moving_backwards(swaying, names, RATE) == (0, 0)
+    assert quality.moving_backwards(swaying, names, RATE) == (0, 0, 0, 0)
     # frames without a pose count as neither
     flagged = np.zeros(T, np.uint8)
-    flagged[:20] = QUALITY_OUT_OF_VIEW
+    flagged[:10] = QUALITY_OUT_OF_VIEW
     signals = run_signals(points[::-1].copy(), names, flagged, HEIGHT, rate_hz=RATE)
-    assert signals.moving_backwards == (T - 20 - 2 * half,) * 2  # frames whose span holds no flagged frame
+    n = T - 10 - 2 * half  # frames whose span holds no flagged frame
+    assert signals.moving_backwards == (n, n, 0, T - 1)
+    flagged[:20] = QUALITY_OUT_OF_VIEW  # moving in less than MIN_STRETCH_S: not judged
+    assert run_signals(points[::-1].copy(), names, flagged, HEIGHT, rate_hz=RATE).moving_backwards == (0, 0, 0, 0)
+
+
+def test_a_turn_the_model_did_not_follow_is_noted_after_it(walk):
+    """The walk, then the same poses walked back to the start still facing the first way (a subject
+    who turned round, the model not): over the whole clip half the moving frames go backwards, but
+    the stretch after the turn does so in all of its own, and the note names it."""
+    points, names = walk
+    back = points[::-1].copy()
+    both = np.concatenate([points, back])
+    v = _judge(both, names)
+    turn = int(quality.turns(both, names)[0])
+    assert abs(turn - T) <= 2, turn
+    against, moving, first, last = quality.moving_backwards(both, names, RATE)
+    assert (first, last) == (turn, 2 * T - 1) and against == moving > RATE
+    assert len(v.notes) == 1 and f"in frames {turn}-{2 * T - 1}" in v.notes[0], v.notes
 
 
 def test_legs_exchanged_fore_and_aft_are_doubtful():

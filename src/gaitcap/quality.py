@@ -108,8 +108,9 @@ class RunSignals:
             the subject and the walking line (empty without cameras).
         exchanged: (T,) bool, the tracked frames whose ankles' fore-aft order goes against the
             stride's rhythm (:func:`out_of_rhythm`): legs possibly exchanged fore and aft.
-        moving_backwards: (frames moving against the way the hips face, frames moving) over the
-            tracked frames (:func:`moving_backwards`).
+        moving_backwards: (frames moving against the way the hips face, frames moving, first
+            and last frame) of the tracked frames' stretch between turns that does so most
+            (:func:`moving_backwards`).
     """
 
     n_frames: int
@@ -123,7 +124,7 @@ class RunSignals:
     body_problems: tuple[str, ...] = ()
     view_angles_deg: dict[str, float] = field(default_factory=dict)
     exchanged: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
-    moving_backwards: tuple[int, int] = (0, 0)
+    moving_backwards: tuple[int, int, int, int] = (0, 0, 0, 0)
 
     @property
     def n_exchanged(self) -> int:
@@ -233,26 +234,43 @@ MIN_SPEED_M_S = 0.2
 SPEED_SPAN_S = 0.4
 
 
-def moving_backwards(points: np.ndarray, names: tuple[str, ...], rate_hz: float) -> tuple[int, int]:
-    """(frames whose pelvis moves against the way the hips face, frames whose pelvis moves) of
-    points (T, P, 3) sampled at ``rate_hz``: the velocity is the pelvis's horizontal displacement
-    over :data:`SPEED_SPAN_S` centred on the frame, moving at :data:`MIN_SPEED_M_S` or more; the
-    hips face (y, -x) of the left-minus-right hip (x, y) (z up). NaN frames count as neither; a
-    pelvis that travels less than :data:`MIN_TRAVEL_M` moves in no frame (a walk on the spot, whose
-    sway and jitter a 0.4 s span can take for motion)."""
+#: a stretch between turns is judged for moving backwards when it moves in this many seconds of frames
+MIN_STRETCH_S = 1.0
+
+
+def moving_backwards(points: np.ndarray, names: tuple[str, ...], rate_hz: float) -> tuple[int, int, int, int]:
+    """Where the tracked body moves against the way its hips face, in points (T, P, 3) sampled at
+    ``rate_hz``: (frames moving so, frames moving, first frame, last frame) of the stretch between
+    turns (:func:`turns`) with the largest share of such frames, among those that move in
+    :data:`MIN_STRETCH_S` of frames or more; (0, 0, 0, 0) without one. The velocity is the pelvis's
+    horizontal displacement over :data:`SPEED_SPAN_S` centred on the frame, moving at
+    :data:`MIN_SPEED_M_S` or more; the hips face (y, -x) of the left-minus-right hip (x, y) (z up).
+    NaN frames count as neither; a pelvis that travels less than :data:`MIN_TRAVEL_M` moves in no
+    frame (a walk on the spot, whose sway and jitter a 0.4 s span can take for motion). A subject
+    who turns round while the model keeps facing the first way moves backwards after the turn only:
+    hence the stretches."""
+    none = (0, 0, 0, 0)
     if not {"pelvis", "hip_l", "hip_r"} <= set(names) or _travel_axis(points, names) is None:
-        return 0, 0
+        return none
     half = max(1, round(SPEED_SPAN_S * rate_hz / 2))
+    T = len(points)
+    if T <= 2 * half:
+        return none
     xy = points[:, names.index("pelvis"), :2]
-    if len(xy) <= 2 * half:
-        return 0, 0
-    velocity = (xy[2 * half :] - xy[: -2 * half]) * (rate_hz / (2 * half))  # frames half .. T - half - 1
-    hips = (points[:, names.index("hip_l"), :2] - points[:, names.index("hip_r"), :2])[half:-half]
+    velocity = np.full((T, 2), np.nan)
+    velocity[half:-half] = (xy[2 * half :] - xy[: -2 * half]) * (rate_hz / (2 * half))
+    hips = points[:, names.index("hip_l"), :2] - points[:, names.index("hip_r"), :2]
     facing = np.stack([hips[:, 1], -hips[:, 0]], axis=1)
     with np.errstate(invalid="ignore"):
         moving = np.linalg.norm(velocity, axis=1) >= MIN_SPEED_M_S
         against = moving & (np.sum(velocity * facing, axis=1) < 0)
-    return int(against.sum()), int(moving.sum())
+    bounds = [0, *turns(points, names).tolist(), T]
+    best, share = none, -1.0
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        n, k = int(moving[a:b].sum()), int(against[a:b].sum())
+        if n >= MIN_STRETCH_S * rate_hz and k / n > share:
+            best, share = (k, n, a, b - 1), k / n
+    return best
 
 
 def view_angles(points: np.ndarray, names: tuple[str, ...], rig: CameraRig | None) -> dict[str, float]:
@@ -490,12 +508,14 @@ def _layout_notes(s: RunSignals, cfg: VerdictConfig) -> tuple[str, ...]:
 
 def _direction_notes(s: RunSignals) -> tuple[str, ...]:
     """A note (not a reason) when the tracked body moves against the way it faces in most of the
-    frames where it moves: a subject walking backwards, or a model facing the wrong way."""
-    against, moving = s.moving_backwards
+    frames where it moves, between two turns or over the clip: a subject walking backwards, or a
+    model facing the wrong way (a turn it did not follow)."""
+    against, moving, first, last = s.moving_backwards
     if moving == 0 or against <= moving / 2:
         return ()
     return (f"the tracked body moves backwards (against the way it faces) in {against} of the {moving} frames where "
-            "it moves: right for a subject walking backwards; otherwise the model faces the wrong way",)
+            f"it moves in frames {first}-{last}: right for a subject walking backwards; otherwise the model faces "
+            "the wrong way there",)
 
 
 def point_residuals(points: np.ndarray, rate_hz: float, cutoff_hz: float) -> np.ndarray:
