@@ -696,7 +696,8 @@ def _backward_pass(tracker, spool: FrameSpool, writer: TrackWriter, cfg: Trackin
     the frames :func:`~gaitcap.tracking.backward.choose_backward` gives to the backward pass; then,
     with ``backward.leg_order``, put right the stretches whose leading leg does not alternate
     (:func:`~gaitcap.tracking.backward.order_legs`). A run whose merged legs the verdict would
-    doubt (:func:`~gaitcap.quality.legs_in_doubt`) is merged again with the backward pass
+    doubt (:func:`~gaitcap.quality.legs_in_doubt`: legs crossed or out of rhythm, or a stretch moving
+    against the way the body faces) is merged again with the backward pass
     ``restart`` gives (:func:`_restart_pass`), merged with the first
     (:func:`~gaitcap.tracking.backward.merge_passes`), if that leaves no more frames in doubt.
     Returns how many frames were overwritten. Memory: one run's estimates (about a kilobyte a frame)."""

@@ -445,7 +445,10 @@ def _leg_doubts(s: RunSignals, cfg: VerdictConfig) -> tuple[bool, bool]:
 def legs_in_doubt(points: np.ndarray, names: tuple[str, ...], rate_hz: float, cfg: VerdictConfig) -> int:
     """How many frames of a run tracked throughout, points (T, P, 3) sampled at ``rate_hz``, make the
     verdict doubt its legs (:func:`judge`: the frames whose ankles cross, when they are too many,
-    plus those out of the stride's rhythm, when they are too many); 0 when it would not doubt them."""
+    plus those out of the stride's rhythm, when they are too many), plus those of the note on a body
+    moving against the way it faces (:func:`moving_backwards`: the frames moving so in its stretch,
+    when they are most of it: a turn the model did not follow, its knees bent the wrong way in the
+    stride's rhythm; or a subject walking backwards, whose fresh start then agrees); 0 when none."""
     points = np.asarray(points, float)
     crossed = crossed_ankles(points, names, cfg.crossed_margin_m)
     exchanged = out_of_rhythm(points, names, np.ones(len(points), bool), rate_hz, cfg.exchanged_margin_m)
@@ -453,7 +456,9 @@ def legs_in_doubt(points: np.ndarray, names: tuple[str, ...], rate_hz: float, cf
     signals = RunSignals(n_frames=T, n_tracked=T, n_ok=T, n_crossed=int(crossed.sum()), floor_m=float("nan"),
                          crossed=crossed, exchanged=exchanged)  # fmt: skip
     doubt_crossed, doubt_exchanged = _leg_doubts(signals, cfg)
-    return doubt_crossed * signals.n_crossed + doubt_exchanged * signals.n_exchanged
+    against, moving = moving_backwards(points, names, rate_hz)[:2]
+    backwards = against if moving and against > moving / 2 else 0
+    return doubt_crossed * signals.n_crossed + doubt_exchanged * signals.n_exchanged + backwards
 
 
 def judge(signals: RunSignals, cfg: VerdictConfig) -> RunVerdict:
