@@ -107,7 +107,7 @@ def test_a_run_of_disagreeing_frames_switches_once_where_that_gains_enough() -> 
     gain = sum(n.fit - f.fit for n, f in zip(near[24:], first[24:]))
     assert 0 < gain < backward.SPLIT_GAIN
     assert all(m is f for m, f in zip(merge_passes(first, near, legs, 0.03), first))
-    assert backward._split_run(np.array([0.1])) is None  # one frame: nothing to split
+    assert backward._split_run(np.array([0.1]), backward.SPLIT_GAIN) is None  # one frame: nothing to split
 
 
 def test_a_frame_missing_from_one_pass_takes_the_other() -> None:

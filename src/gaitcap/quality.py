@@ -456,8 +456,7 @@ def legs_in_doubt(points: np.ndarray, names: tuple[str, ...], rate_hz: float, cf
     signals = RunSignals(n_frames=T, n_tracked=T, n_ok=T, n_crossed=int(crossed.sum()), floor_m=float("nan"),
                          crossed=crossed, exchanged=exchanged)  # fmt: skip
     doubt_crossed, doubt_exchanged = _leg_doubts(signals, cfg)
-    against, moving = moving_backwards(points, names, rate_hz)[:2]
-    backwards = against if moving and against > moving / 2 else 0
+    backwards = _backwards_frames(moving_backwards(points, names, rate_hz))
     return doubt_crossed * signals.n_crossed + doubt_exchanged * signals.n_exchanged + backwards
 
 
@@ -511,13 +510,20 @@ def _layout_notes(s: RunSignals, cfg: VerdictConfig) -> tuple[str, ...]:
     return (note,)
 
 
+def _backwards_frames(found: tuple[int, int, int, int]) -> int:
+    """The frames moving backwards of a :func:`moving_backwards` result when they are most of its
+    stretch's moving frames (the note's, and the backward pass's doubt), else 0."""
+    against, moving = found[:2]
+    return against if moving and against > moving / 2 else 0
+
+
 def _direction_notes(s: RunSignals) -> tuple[str, ...]:
     """A note (not a reason) when the tracked body moves against the way it faces in most of the
     frames where it moves, between two turns or over the clip: a subject walking backwards, or a
     model facing the wrong way (a turn it did not follow)."""
-    against, moving, first, last = s.moving_backwards
-    if moving == 0 or against <= moving / 2:
+    if not _backwards_frames(s.moving_backwards):
         return ()
+    against, moving, first, last = s.moving_backwards
     return (f"the tracked body moves backwards (against the way it faces) in {against} of the {moving} frames where "
             f"it moves in frames {first}-{last}: right for a subject walking backwards; otherwise the model faces "
             "the wrong way there",)

@@ -72,13 +72,15 @@ def legs_apart(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def choose_backward(forward: np.ndarray, backward: np.ndarray, fit_forward: np.ndarray, fit_backward: np.ndarray,
-                    agree_m: float) -> np.ndarray:  # fmt: skip
+                    agree_m: float, split_gain: float | None = None) -> np.ndarray:  # fmt: skip
     """(T,) bool: the frames that take the backward pass (module docstring).
 
     Args:
         forward, backward: (T, K, 3) the two passes' leg points, metres (NaN: not tracked).
         fit_forward, fit_backward: (T,) their fits (NaN: not tracked).
         agree_m: the mean distance (metres, > 0) below which the passes agree.
+        split_gain: with it, a run of disagreeing frames may switch passes once, where that gains
+            this much summed fit over the run's better pass (:func:`_split_run`); None: never.
     """
     forward, backward = np.asarray(forward, float), np.asarray(backward, float)
     if forward.shape != backward.shape or forward.ndim != 3:
@@ -91,7 +93,14 @@ def choose_backward(forward: np.ndarray, backward: np.ndarray, fit_forward: np.n
     choice = fit_b > fit_f  # where they agree (and where one pass is missing)
     disagree = np.where(np.isfinite(distance), distance >= agree_m, False)
     for s, e in finite_runs(disagree):
-        choice[s:e] = np.sum(fit_b[s:e]) > np.sum(fit_f[s:e])
+        split = None
+        if split_gain is not None:  # both passes tracked where their legs disagree
+            split = _split_run(np.nan_to_num(np.asarray(fit_backward[s:e]) - np.asarray(fit_forward[s:e])), split_gain)
+        if split is None:
+            choice[s:e] = np.sum(fit_b[s:e]) > np.sum(fit_f[s:e])
+        else:
+            k, backward_first = split
+            choice[s : s + k], choice[s + k : e] = backward_first, not backward_first
     return choice
 
 
@@ -102,11 +111,11 @@ def choose_backward(forward: np.ndarray, backward: np.ndarray, fit_forward: np.n
 SPLIT_GAIN = 1.0
 
 
-def _split_run(gain: np.ndarray) -> tuple[int, bool] | None:
+def _split_run(gain: np.ndarray, min_gain: float) -> tuple[int, bool] | None:
     """The best single switch in a run of frames whose second pass fits ``gain`` (n,) better than the
     first frame by frame: (k, second_first) for the first pass's frames [0, k) and the second's [k, n)
     (or the reverse with ``second_first``) when that beats the whole run's better pass by
-    :data:`SPLIT_GAIN`, else None."""
+    ``min_gain``, else None."""
     if len(gain) < 2:
         return None
     head = np.cumsum(gain)[:-1]  # the second pass on frames [0, k), k = 1 .. n-1
@@ -116,7 +125,7 @@ def _split_run(gain: np.ndarray) -> tuple[int, bool] | None:
     best, k, second_first = (float(tail[k_tail]), k_tail + 1, False)
     if head[k_head] > best:
         best, k, second_first = float(head[k_head]), k_head + 1, True
-    return (k, second_first) if best > whole + SPLIT_GAIN else None
+    return (k, second_first) if best > whole + min_gain else None
 
 
 def merge_passes(first: list[_Estimate], second: list[_Estimate], legs: np.ndarray, agree_m: float) -> list[_Estimate]:
@@ -127,16 +136,9 @@ def merge_passes(first: list[_Estimate], second: list[_Estimate], legs: np.ndarr
     points compared (:func:`leg_points`)."""
     if len(first) != len(second):
         raise ValueError(f"the passes must cover the same frames, got {len(first)} and {len(second)}")
-    a_pts, b_pts = np.array([e.points[legs] for e in first]), np.array([e.points[legs] for e in second])
-    fit_a, fit_b = np.array([e.fit for e in first]), np.array([e.fit for e in second])
-    take = choose_backward(a_pts, b_pts, fit_a, fit_b, agree_m)
-    distance = legs_apart(a_pts, b_pts)
-    disagree = np.where(np.isfinite(distance), distance >= agree_m, False)
-    for s, e in finite_runs(disagree):
-        split = _split_run(np.nan_to_num(fit_b[s:e] - fit_a[s:e]))  # both tracked where the legs disagree
-        if split is not None:
-            k, second_first = split
-            take[s : s + k], take[s + k : e] = second_first, not second_first
+    take = choose_backward(np.array([e.points[legs] for e in first]), np.array([e.points[legs] for e in second]),
+                           np.array([e.fit for e in first]), np.array([e.fit for e in second]), agree_m,
+                           split_gain=SPLIT_GAIN)  # fmt: skip
     return [b if k else a for a, b, k in zip(first, second, take, strict=True)]
 
 
