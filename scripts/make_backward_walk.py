@@ -15,10 +15,12 @@ behind the subject.
 from __future__ import annotations
 
 import argparse
+import sys
 from dataclasses import replace
 from pathlib import Path
 
 from gaitcap.data import embedded_walk
+from gaitcap.errors import GaitcapError
 from gaitcap.io.trc import write_trc
 from gaitcap.markers.motion import read_motion
 
@@ -29,7 +31,10 @@ def main() -> None:
     args = ap.parse_args()
     walk = read_motion(embedded_walk())
     points = walk.points[::-1].copy()
-    write_trc(args.out, replace(walk, points=points, events=()), units="mm")
+    try:
+        write_trc(args.out, replace(walk, points=points, events=()), units="mm")
+    except GaitcapError as e:
+        sys.exit(f"error: {e}")
     print(f"{args.out}: {len(points)} samples at {walk.rate_hz:g} Hz ({len(points) / walk.rate_hz:.2f} s); "
           f"synth it with --height {walk.meta.get('height_m', 1.639):g}")  # fmt: skip
 

@@ -15,6 +15,7 @@ during the pivot: a test of the tracker's heading through a turn, not of a turni
 from __future__ import annotations
 
 import argparse
+import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -22,6 +23,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from gaitcap.data import embedded_walk
+from gaitcap.errors import GaitcapError
 from gaitcap.io.trc import write_trc
 from gaitcap.markers.motion import read_motion
 
@@ -57,7 +59,10 @@ def main() -> None:
         ap.error("--turn-seconds must be > 0")
     walk = read_motion(embedded_walk())
     points = turned_walk(walk.points, walk.names.index("pelvis"), walk.rate_hz, args.turn_seconds, args.degrees)
-    write_trc(args.out, replace(walk, points=points, events=()), units="mm")
+    try:
+        write_trc(args.out, replace(walk, points=points, events=()), units="mm")
+    except GaitcapError as e:
+        sys.exit(f"error: {e}")
     print(f"{args.out}: {len(points)} samples at {walk.rate_hz:g} Hz ({len(points) / walk.rate_hz:.2f} s); "
           f"synth it with --height {walk.meta.get('height_m', 1.639):g}")  # fmt: skip
 
