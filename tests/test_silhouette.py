@@ -255,6 +255,24 @@ def test_a_foot_below_a_trunk_whose_legs_were_lost_is_kept_specks_beside_or_far_
         assert q.components == 1 + shoe
 
 
+def test_a_small_foot_cut_off_at_the_ankle_is_kept_a_small_shadow_piece_beside_it_is_not():
+    plate = np.full((240, 200, 3), 128, np.uint8)
+    frame = plate.copy()
+    frame[20:100, 80:120] = 30  # head and trunk (3200 px)
+    frame[100:160, 100:108] = 30  # a leg down to the ankle (row 160)
+    frame[170:174, 100:105] = 30  # its foot (20 px), 10 rows below: the ankle taken for shadow
+    frame[170:174, 120:125] = 30  # a piece of cast shadow (20 px) beside the foot: nothing above it
+    ex = SilhouetteExtractor(SilhouetteConfig())
+    ex.fit_background(plate=plate)
+    min_area = ex.config.cleanup.min_component_fraction * 240 * 200
+    assert 20 < min_area  # both too small to be kept on their area alone
+    mask, q = ex.process(frame)
+    assert mask[60, 100] == 1 and mask[130, 104] == 1
+    assert mask[172, 102] == 1  # the foot, under the leg it was cut from
+    assert mask[172, 122] == 0  # the shadow piece: no body over or under it
+    assert q.components == 2
+
+
 def test_the_floor_row_keeps_a_foot_whose_leg_was_lost_and_drops_a_shadow_piece_below_found_feet():
     plate = np.full((240, 200, 3), 128, np.uint8)
     lost = plate.copy()

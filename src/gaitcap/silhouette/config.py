@@ -137,7 +137,9 @@ class CleanupConfig(Strict):
         default=0.02, ge=0, le=1, description="fill holes up to this fraction of their component's area"
     )
     min_component_fraction: float = Field(
-        default=0.0005, ge=0, lt=1, description="drop components smaller than this fraction of the image"
+        default=0.0005, ge=0, lt=1,
+        description="drop components smaller than this fraction of the image, unless the body lies just over or "
+        "under them (a foot cut off at the ankle, a head at the neck)",
     )
     keep_relative: float = Field(
         default=0.15, ge=0, le=1, description="components at least this fraction of the largest one are main parts"

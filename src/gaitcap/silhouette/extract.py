@@ -38,9 +38,11 @@ frame's global per-channel brightness ratio to it (lighting drift and jumps):
    which also accepts deeper ones (ratio down to ``floor_min_ratio``: the hard shadow of one strong
    light) where another camera confirms them; to one camera alone they look like dark clothes;
 3. clean-up: opening, closing; components smaller than ``min_component_fraction`` of the image
-   dropped, and smaller than ``keep_relative`` of the largest dropped unless near the main
-   parts (within ``keep_margin`` of their box's height: a head or a foot cut off at the neck or
-   ankle stays; below the box within ``keep_below`` of its height: a foot whose leg was lost);
+   dropped unless the main parts lie just over or under them (:func:`_attached_parts`: a foot
+   cut off at the ankle, a head at the neck), and smaller than ``keep_relative`` of the largest
+   dropped unless near the main parts (within ``keep_margin`` of their box's height: a head or a
+   foot cut off at the neck or ankle stays; below the box within ``keep_below`` of its height: a
+   foot whose leg was lost);
    holes up to ``max_hole_fraction`` of their component filled; then the outline matted
    (``matte_outline``, :func:`matte_outline`): its pixels are the person's where the person covers
    at least half of the pixel, judged from the background's colour and the person's colour just
@@ -163,6 +165,42 @@ def _body_components(stats: np.ndarray, min_area: float, relative: float, margin
     down = max(grow, down)
     near = (x + w >= x0 - grow) & (x <= x1 + grow) & (y + h >= y0 - grow) & (y <= y1 + down)
     return np.flatnonzero((main | near) & (area >= min_area)), np.flatnonzero(main), cut
+
+
+#: a component too small for ``cleanup.min_component_fraction`` is still kept when it is at least this
+#: fraction of that area and the main parts lie within ``_ATTACHED_REACH`` of their height directly
+#: over or under it, over at least ``_ATTACHED_COLUMNS`` of its columns: a foot cut off at the ankle
+#: (the ankle taken for shadow, the foot found), a head at the neck; not a piece of shadow beside a
+#: foot, nor a thin line of shadow that reaches under the leg at one end (docs/validation.md, "Feet
+#: cut off at the ankle")
+_ATTACHED_MIN = 0.125
+_ATTACHED_REACH = 0.1
+_ATTACHED_COLUMNS = 0.25
+
+
+def _attached_parts(stats: np.ndarray, labels: np.ndarray, main: np.ndarray, min_area: float) -> np.ndarray:
+    """Labels (k,) of the components (``stats`` (n, 5), row 0 the background; ``labels`` (h, w) their
+    label image) below ``min_area`` but at least :data:`_ATTACHED_MIN` of it, over or under which the
+    main parts (labels ``main``) have pixels within :data:`_ATTACHED_REACH` of the main parts'
+    height, in at least :data:`_ATTACHED_COLUMNS` of the component's columns."""
+    area = stats[:, 4]
+    small = np.flatnonzero((area >= _ATTACHED_MIN * min_area) & (area < min_area))
+    small = small[small > 0]
+    if not small.size:
+        return small
+    y0 = stats[main, 1].min()
+    y1 = (stats[main, 1] + stats[main, 3]).max()
+    reach = max(int(round(_ATTACHED_REACH * (y1 - y0))), 1)
+    lut = np.zeros(len(stats), bool)
+    lut[main] = True
+    out = []
+    for j in small:
+        x, y, w, h = (int(v) for v in stats[j, :4])
+        above = lut[labels[max(y - reach, 0) : y, x : x + w]].any(axis=0)
+        below = lut[labels[y + h : y + h + reach, x : x + w]].any(axis=0)
+        if max(above.mean(), below.mean()) >= _ATTACHED_COLUMNS:
+            out.append(j)
+    return np.array(out, int)
 
 
 def _channel_sum(image: np.ndarray) -> np.ndarray:
@@ -710,6 +748,11 @@ class SilhouetteExtractor:
         lut = np.zeros(n, np.uint8)
         lut[keep] = 255
         mask = np.take(lut, labels)
+        small = _attached_parts(stats, labels, main + 1, c.min_component_fraction * mask.size)
+        if small.size:
+            lut[small] = 255
+            mask = np.take(lut, labels)
+            keep = np.concatenate([keep, small])
         if cut is not None and cut < mask.shape[0]:  # past the floor: the main parts only
             lut[:] = 0
             lut[main + 1] = 255
