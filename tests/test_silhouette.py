@@ -271,6 +271,12 @@ def test_a_small_foot_cut_off_at_the_ankle_is_kept_a_small_shadow_piece_beside_i
     assert mask[172, 102] == 1  # the foot, under the leg it was cut from
     assert mask[172, 122] == 0  # the shadow piece: no body over or under it
     assert q.components == 2
+    line = plate.copy()
+    line[20:100, 80:120] = 30  # the same trunk and leg, no foot ...
+    line[100:160, 100:108] = 30
+    line[170:173, 107:114] = 30  # ... and a thin line of shadow (21 px) reaching under the leg by one column of 7
+    mask, q = ex.process(line)
+    assert mask[171, 110] == 0 and q.components == 1
 
 
 def test_the_floor_row_keeps_a_foot_whose_leg_was_lost_and_drops_a_shadow_piece_below_found_feet():
