@@ -421,3 +421,25 @@ def test_a_rejected_shape_calibration_is_named_and_doubtful(walk):
     v = judge(replace(signals, body_problems=(problem,)), cfg)
     assert v.verdict == "doubtful" and v.reasons == (
         f"the shape calibration gave a body outside anthropometric ranges ({problem}): tracked with body.yaml's proportions",)
+
+
+def test_legs_the_silhouettes_hold_little_of_in_many_frames_get_a_note_the_verdict_unchanged(walk):
+    points, names = walk
+    quality = np.zeros(len(points), np.uint8)
+    cfg = VerdictConfig()
+    held = np.full(T, 0.9)
+    lost = held.copy()
+    lost[: T // 2] = 0.2  # half the frames: over max_unsupported_fraction (0.25)
+    few = held.copy()
+    few[: T // 10] = 0.2  # a tenth of them: under it
+    unjudged = np.full(T, np.nan)
+    unjudged[:4] = 0.2  # the only frames judged (the segment out of view in the others) are all below
+    support = {"thigh_l": held, "shank_l": lost, "thigh_r": few, "shank_r": unjudged}
+    a = assess(points, names, np.full(T, 0.8), quality, HEIGHT, RATE, cfg, UncertaintyConfig(), leg_support=support)
+    assert a.verdict.verdict == "ok" and a.verdict.reasons == ()
+    (note,) = [n for n in a.verdict.notes if n.startswith("legs placed where")]
+    assert f"shank_l in {T // 2} of {T} frames" in note and "shank_r in 4 of 4 frames" in note
+    assert "thigh_l" not in note and "thigh_r" not in note
+    quiet = assess(points, names, np.full(T, 0.8), quality, HEIGHT, RATE, cfg, UncertaintyConfig(),
+                   leg_support={"shank_l": few})  # fmt: skip
+    assert not [n for n in quiet.verdict.notes if n.startswith("legs placed where")]

@@ -2,9 +2,10 @@
 
 session + videos -> silhouettes (gaitcap.silhouette, per camera, streamed; optionally saved to
 silhouettes.h5) -> observation (soft, undistorted, downscaled) -> initialisation -> the chosen
-tracker per frame -> trajectories.h5 (streamed) -> zero-lag filtering, the run's verdict and the
-calibrated uncertainty (gaitcap.quality) -> joints.csv, joints.trc -> track.json (written last: a
-session with it is finished).
+tracker per frame -> trajectories.h5 (streamed) -> the backward pass (its frames spooled) and the
+legs' support on the spooled silhouettes (gaitcap.tracking.support) -> zero-lag filtering, the
+run's verdict and the calibrated uncertainty (gaitcap.quality) -> joints.csv, joints.trc ->
+track.json (written last: a session with it is finished).
 """
 
 from __future__ import annotations
@@ -53,6 +54,7 @@ from gaitcap.tracking.init import estimate_height, initialise, settle_legs, subj
 from gaitcap.tracking.ipf import IntervalPF
 from gaitcap.tracking.likelihood import SilhouetteLikelihood
 from gaitcap.tracking.observation import Observation, tracking_views
+from gaitcap.tracking.support import LEG_SEGMENTS, segment_support
 from gaitcap.tracking.raster import warm_up
 from gaitcap.tracking.shape import ShapeResult, average_shapes, calibrate_shape
 from gaitcap.tracking.smoothing import lowpass
@@ -402,6 +404,7 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
              "shape": shape_note, **proportions_attrs(filt.model)}  # fmt: skip
     writer = TrackWriter(out / "trajectories.h5", model.point_names, model.dof_names, videos.fps, attrs)
     timing = FrameTiming()
+    support = None
     try:
         with FrameSpool() if cfg.backward.enabled else nullcontext() as spool:
             with stages.timed("tracking"):
@@ -414,7 +417,10 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
                     replaced = _backward_pass(_new_tracker(cfg, filt.model, likelihood), spool, writer, cfg,
                                               videos.fps, restart)  # fmt: skip
                 log.info("backward pass and leg order: %d of %d frames replaced", replaced, tracked)
+                with stages.timed("verdict"):  # the final poses against the spooled silhouettes
+                    support = _leg_support(filt.model, likelihood, spool, writer.read_poses())
         t_writing = time.perf_counter()
+        verdict_before = stages.get("verdict", 0.0)
         raw, quality = writer.read_back()
         if not np.any(tracked_frames(quality)):
             raise TrackingError(
@@ -424,7 +430,8 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
         points, note = _finish_points(raw, quality, videos.fps, cfg)
         with stages.timed("verdict"):
             judged = assess(raw, model.point_names, writer.read_fit(), quality, height, videos.fps, cfg.verdict,
-                            cfg.uncertainty, rig=videos.rig, body_problems=tuple(body_problems))  # fmt: skip
+                            cfg.uncertainty, rig=videos.rig, body_problems=tuple(body_problems),
+                            leg_support=support)  # fmt: skip
         writer.finish(points, note, uncertainty=judged.uncertainty)
     except BaseException as e:
         writer.abort(e)
@@ -436,7 +443,7 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
     write_joints_csv(out / "joints.csv", traj)
     write_trc(out / "joints.trc", traj, units="mm")
     n_flagged = int(np.sum(quality != QUALITY_OK))
-    stages["writing"] = time.perf_counter() - t_writing - stages.get("verdict", 0.0)
+    stages["writing"] = time.perf_counter() - t_writing - (stages.get("verdict", 0.0) - verdict_before)
     seconds = time.perf_counter() - t_start
     summary = TrackSummary(session=session, out=out, status="ok", n_frames=tracked, n_flagged=n_flagged,
                            seconds=seconds,
@@ -462,6 +469,16 @@ def _check_reused_height(ses: Session, reused: ReusedBody) -> None:
     if stated is not None and abs(stated - reused.model.height_m) > _HEIGHT_MISMATCH_M:
         log.warning("%s: session.yaml gives the subject %.2f m, the body of %s is %.2f m tall: another subject? "
                     "tracking with the body's", ses.root, stated, reused.path, reused.model.height_m)  # fmt: skip
+
+
+def _leg_support(model: BodyModel, likelihood, spool: FrameSpool, poses: np.ndarray) -> dict[str, np.ndarray]:
+    """Each leg segment's support (:func:`gaitcap.tracking.support.segment_support`) in every frame
+    of the spool at its pose (T, D): segment -> (T,), NaN where the frame has no pose."""
+    out = {name: np.full(len(poses), np.nan) for name in LEG_SEGMENTS}
+    for t in np.flatnonzero(np.all(np.isfinite(poses), axis=1)):
+        for name, share in zip(LEG_SEGMENTS, segment_support(model, likelihood, Observation(spool.read(t)), poses[t])):
+            out[name][t] = share
+    return out
 
 
 def _new_tracker(cfg: TrackingConfig, model, likelihood):

@@ -111,6 +111,9 @@ class RunSignals:
         moving_backwards: (frames moving against the way the hips face, frames moving, first
             and last frame) of the tracked frames' stretch between turns that does so most
             (:func:`moving_backwards`).
+        leg_support: segment -> (T,) its lowest share over the cameras of drawn pixels on the
+            silhouettes (:func:`gaitcap.tracking.support.segment_support`; NaN: not judged), empty
+            when not measured.
     """
 
     n_frames: int
@@ -125,6 +128,7 @@ class RunSignals:
     view_angles_deg: dict[str, float] = field(default_factory=dict)
     exchanged: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
     moving_backwards: tuple[int, int, int, int] = (0, 0, 0, 0)
+    leg_support: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def n_exchanged(self) -> int:
@@ -493,7 +497,8 @@ def judge(signals: RunSignals, cfg: VerdictConfig) -> RunVerdict:
     if small:
         listed = ", ".join(f"{v:.0f} px in {k}" for k, v in small.items())
         reasons.append(f"the subject is too small in the image ({listed})")
-    return RunVerdict("doubtful" if reasons else "ok", tuple(reasons), _layout_notes(s, cfg) + _direction_notes(s))
+    notes = _layout_notes(s, cfg) + _direction_notes(s) + _support_notes(s, cfg)
+    return RunVerdict("doubtful" if reasons else "ok", tuple(reasons), notes)
 
 
 def _layout_notes(s: RunSignals, cfg: VerdictConfig) -> tuple[str, ...]:
@@ -508,6 +513,24 @@ def _layout_notes(s: RunSignals, cfg: VerdictConfig) -> tuple[str, ...]:
             "from beside and in line with the walkway only, which leg is ahead is ambiguous; check the legs where "
             "they pass each other")  # fmt: skip
     return (note,)
+
+
+def _support_notes(s: RunSignals, cfg: VerdictConfig) -> tuple[str, ...]:
+    """A note (not a reason) naming the leg segments that some camera's silhouette holds less than
+    ``cfg.min_leg_support`` of in more than ``cfg.max_unsupported_fraction`` of the frames where
+    they were judged: there the other cameras and the priors placed them, right or wrong."""
+    low = {}
+    for name, share in s.leg_support.items():
+        judged = np.isfinite(share)
+        n = int(np.sum(share[judged] < cfg.min_leg_support))
+        if judged.any() and n > cfg.max_unsupported_fraction * np.sum(judged):
+            low[name] = (n, int(np.sum(judged)))
+    if not low:
+        return ()
+    listed = ", ".join(f"{k} in {n} of {m} frames" for k, (n, m) in low.items())
+    return (f"legs placed where a camera's silhouette has little of them ({listed}: less than "
+            f"{100 * cfg.min_leg_support:.0f} % of the segment on the masks): the masks lost them there and the other "
+            "cameras and the priors placed them; check the masks (gaitcap track --save-masks)",)
 
 
 def _backwards_frames(found: tuple[int, int, int, int]) -> int:
@@ -569,13 +592,14 @@ class Assessment:
 
 def assess(points: np.ndarray, names: tuple[str, ...], fit: np.ndarray, quality: np.ndarray, height_m: float,
            rate_hz: float, verdict_cfg: VerdictConfig, uncertainty_cfg: UncertaintyConfig,
-           rig: CameraRig | None = None, body_problems: tuple[str, ...] = ()) -> Assessment:  # fmt: skip
+           rig: CameraRig | None = None, body_problems: tuple[str, ...] = (),
+           leg_support: dict[str, np.ndarray] | None = None) -> Assessment:  # fmt: skip
     """Signals, verdict and calibrated uncertainty of one run from the tracker's raw points
     (T, P, 3), fit (T,) and quality (T,) (``points_unfiltered``, ``fit``, ``quality`` of
-    trajectories.h5); ``body_problems``: see :class:`RunSignals`."""
+    trajectories.h5); ``body_problems``, ``leg_support``: see :class:`RunSignals`."""
     signals = replace(run_signals(points, names, quality, height_m, rig, verdict_cfg.crossed_margin_m,
                                   rate_hz=rate_hz, exchanged_margin_m=verdict_cfg.exchanged_margin_m),
-                      body_problems=body_problems)  # fmt: skip
+                      body_problems=body_problems, leg_support=dict(leg_support or {}))  # fmt: skip
     verdict = judge(signals, verdict_cfg)
     u = calibrated_uncertainty(points, names, fit, signals, rate_hz, uncertainty_cfg)
     return Assessment(signals, verdict, u)

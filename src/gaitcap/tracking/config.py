@@ -91,6 +91,8 @@ class VerdictConfig(Strict):
     segment_ratio: tuple[float, float] = (0.75, 1.33)
     min_image_height_px: float = Field(default=60.0, ge=0)
     min_oblique_deg: float = Field(default=15.0, ge=0, le=45)
+    min_leg_support: float = Field(default=0.5, ge=0, le=1)
+    max_unsupported_fraction: float = Field(default=0.25, gt=0, le=1)
 
     @field_validator("segment_ratio")
     @classmethod
