@@ -15,13 +15,11 @@ behind the subject.
 from __future__ import annotations
 
 import argparse
-import sys
-from dataclasses import replace
 from pathlib import Path
 
+from make_turn_walk import write_walk  # scripts/ is on the path when run as a script
+
 from gaitcap.data import embedded_walk
-from gaitcap.errors import GaitcapError
-from gaitcap.io.trc import write_trc
 from gaitcap.markers.motion import read_motion
 
 
@@ -30,13 +28,7 @@ def main() -> None:
     ap.add_argument("-o", "--out", type=Path, required=True, help="the TRC to write")
     args = ap.parse_args()
     walk = read_motion(embedded_walk())
-    points = walk.points[::-1].copy()
-    try:
-        write_trc(args.out, replace(walk, points=points, events=()), units="mm")
-    except GaitcapError as e:
-        sys.exit(f"error: {e}")
-    print(f"{args.out}: {len(points)} samples at {walk.rate_hz:g} Hz ({len(points) / walk.rate_hz:.2f} s); "
-          f"synth it with --height {walk.meta.get('height_m', 1.639):g}")  # fmt: skip
+    write_walk(args.out, walk, walk.points[::-1].copy())
 
 
 if __name__ == "__main__":

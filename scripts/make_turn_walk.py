@@ -26,6 +26,7 @@ from gaitcap.data import embedded_walk
 from gaitcap.errors import GaitcapError
 from gaitcap.io.trc import write_trc
 from gaitcap.markers.motion import read_motion
+from gaitcap.trajectory import Trajectory
 
 #: the walk back starts at least this long before the walk's last frame
 MIN_BACK_S = 0.6
@@ -58,12 +59,18 @@ def main() -> None:
     if args.turn_seconds <= 0:
         ap.error("--turn-seconds must be > 0")
     walk = read_motion(embedded_walk())
-    points = turned_walk(walk.points, walk.names.index("pelvis"), walk.rate_hz, args.turn_seconds, args.degrees)
+    write_walk(args.out, walk, turned_walk(walk.points, walk.names.index("pelvis"), walk.rate_hz, args.turn_seconds,
+                                           args.degrees))  # fmt: skip
+
+
+def write_walk(out: Path, walk: Trajectory, points: np.ndarray) -> None:
+    """Write ``walk`` with its points replaced by ``points`` (T', P, 3) and no events as the TRC ``out``
+    (millimetres) and say how to synthesise it; an unwritable ``out`` ends the script in one line."""
     try:
-        write_trc(args.out, replace(walk, points=points, events=()), units="mm")
+        write_trc(out, replace(walk, points=points, events=()), units="mm")
     except GaitcapError as e:
         sys.exit(f"error: {e}")
-    print(f"{args.out}: {len(points)} samples at {walk.rate_hz:g} Hz ({len(points) / walk.rate_hz:.2f} s); "
+    print(f"{out}: {len(points)} samples at {walk.rate_hz:g} Hz ({len(points) / walk.rate_hz:.2f} s); "
           f"synth it with --height {walk.meta.get('height_m', 1.639):g}")  # fmt: skip
 
 
