@@ -6,11 +6,12 @@ RUN is a ``gaitcap track --save-masks`` output folder (``scripts/bench_suite.py`
 masks). For every tracked frame, each leg segment (thighs, shanks) is drawn as the tracker draws it
 (the run's own body, ``gaitcap.pipeline.read_body``; its poses; the session's calibration) into
 each camera, and its support is the fraction of its pixels that lie on the run's mask there; a
-frame's support of a segment is its lowest over the cameras. Prints, per run and segment, the 10th
+frame's support of a segment is its lowest over the cameras (``gaitcap.tracking.support``, as the
+verdict's note measures it on the tracker's own silhouettes). Prints, per run and segment, the 10th
 percentile of that support over the frames and the share of frames below ``--below``, with the
 run's verdict and, when ``RUN/eval.json`` exists, its lower-limb error and knee RMSE: a leg the
-masks lost in one camera is placed by the others and the priors alone, and the verdict does not
-read that (docs/validation.md, "Legs placed where the masks have none").
+masks lost in one camera is placed by the others and the priors alone, which the verdict notes
+(``verdict.min_leg_support``; docs/validation.md, "Legs placed where the masks have none").
 """
 
 from __future__ import annotations
@@ -27,17 +28,13 @@ from gaitcap.io.calibration_toml import read_calibration
 from gaitcap.io.silhouettes_h5 import read_masks
 from gaitcap.pipeline import read_body
 from gaitcap.tracking.likelihood import SilhouetteLikelihood
-from gaitcap.tracking.observation import tracking_views
-from gaitcap.tracking.raster import fill_capsules
-
-SEGMENTS = ("thigh_l", "shank_l", "thigh_r", "shank_r")
-#: a segment drawn over fewer pixels than this in a camera (out of view, end-on) is not judged there
-MIN_PIXELS = 50
+from gaitcap.tracking.observation import observe, tracking_views
+from gaitcap.tracking.support import LEG_SEGMENTS, segment_support
 
 
 def support(run: Path) -> dict[str, np.ndarray]:
-    """Per leg segment, each tracked frame's lowest support over the cameras: (T,) arrays (NaN: not
-    judged in any camera)."""
+    """Per leg segment, each tracked frame's support (:func:`segment_support`, at full resolution on
+    the run's saved masks): (T,) arrays (NaN: not judged in any camera)."""
     model = read_body(run).model
     with h5py.File(run / "trajectories.h5", "r") as f:
         poses = f["poses"][()]
@@ -45,25 +42,12 @@ def support(run: Path) -> dict[str, np.ndarray]:
     rig = read_calibration(session / "calibration.toml")
     views = tracking_views(rig, 1.0)
     likelihood = SilhouetteLikelihood(views, 1.0)
-    masks = {cam: read_masks(run / "silhouettes.h5", cam) for cam in rig.names}
-    index = {seg.name: i for i, seg in enumerate(model.segments)}
-    caps = {s: np.flatnonzero(model.capsule_segment == index[s]) for s in SEGMENTS}
-    out = {s: np.full(len(poses), np.nan) for s in SEGMENTS}
-    ok = np.all(np.isfinite(poses), axis=1)
-    A, B, radii = model.capsules(np.where(ok[:, None], poses, 0.0))
-    for t in np.flatnonzero(ok):
-        for s, k in caps.items():
-            shares = []
-            for c, cam in enumerate(rig.names):
-                mask = masks[cam][t] > 0
-                a, b, ra, rb = likelihood.project(views[c], A[t : t + 1, k], B[t : t + 1, k], radii[k])
-                drawn = np.zeros(mask.shape, np.float32)
-                fill_capsules(drawn, a[0], b[0], ra[0], rb[0], 1.0)
-                area = float(drawn.sum())
-                if area >= MIN_PIXELS:
-                    shares.append(float(drawn[mask].sum()) / area)
-            if shares:
-                out[s][t] = min(shares)
+    masks = [read_masks(run / "silhouettes.h5", cam) for cam in rig.names]
+    out = {s: np.full(len(poses), np.nan) for s in LEG_SEGMENTS}
+    for t in np.flatnonzero(np.all(np.isfinite(poses), axis=1)):
+        shares = segment_support(model, likelihood, observe(views, [m[t] for m in masks]), poses[t])
+        for s, share in zip(LEG_SEGMENTS, shares):
+            out[s][t] = share
     return out
 
 
@@ -77,8 +61,8 @@ def main(argv: list[str] | None = None) -> int:
             if not (run / need).is_file():
                 print(f"error: {run / need}: missing (a gaitcap track --save-masks output folder?)", file=sys.stderr)
                 return 1
-    print("| run | lower-limb mm | knee RMSE l, r (deg) | verdict | " + " | ".join(SEGMENTS) + " |")
-    print("|---|---|---|---|" + "---|" * len(SEGMENTS))
+    print("| run | lower-limb mm | knee RMSE l, r (deg) | verdict | " + " | ".join(LEG_SEGMENTS) + " |")
+    print("|---|---|---|---|" + "---|" * len(LEG_SEGMENTS))
     for run in args.runs:
         by_segment = support(run)
         verdict = json.loads((run / "track.json").read_text()).get("verdict", "?")
@@ -88,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
             mm = f"{e['positions_mm']['lower_limb']['mpjpe_mm']:.1f}"
             knees = f"{e['angles_rmse_deg']['knee_flexion_l']:.1f}, {e['angles_rmse_deg']['knee_flexion_r']:.1f}"
         cells = []
-        for s in SEGMENTS:
+        for s in LEG_SEGMENTS:
             v = by_segment[s][np.isfinite(by_segment[s])]
             cells.append(f"{np.percentile(v, 10):.2f} ({np.mean(v < args.below):.0%})" if len(v) else "-")
         print(f"| {run.name} | {mm} | {knees} | {verdict} | " + " | ".join(cells) + " |", flush=True)
