@@ -2,9 +2,9 @@
 
 session + videos -> silhouettes (gaitcap.silhouette, per camera, streamed; optionally saved to
 silhouettes.h5) -> observation (soft, undistorted, downscaled) -> initialisation -> the chosen
-tracker per frame -> trajectories.h5 (streamed) -> the backward pass (its frames spooled) and the
-legs' support on the spooled silhouettes (gaitcap.tracking.support) -> zero-lag filtering, the
-run's verdict and the calibrated uncertainty (gaitcap.quality) -> joints.csv, joints.trc ->
+tracker per frame -> trajectories.h5 (streamed) -> the backward pass (its frames spooled; tracked a
+stretch at a time, beside the forward pass and on every core after it) and the legs' support on the
+spooled silhouettes (gaitcap.tracking.support) -> zero-lag filtering, the run's verdict and the calibrated uncertainty (gaitcap.quality) -> joints.csv, joints.trc ->
 track.json (written last: a session with it is finished).
 """
 
@@ -17,7 +17,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
-from contextlib import contextmanager, nullcontext
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -406,16 +406,21 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
     timing = FrameTiming()
     support = None
     try:
-        with FrameSpool() if cfg.backward.enabled else nullcontext() as spool:
+        with ExitStack() as stack:
+            spool = stack.enter_context(FrameSpool()) if cfg.backward.enabled else None
+            ahead = None if spool is None else stack.enter_context(BackwardAhead(
+                partial(_stretch_tracker, cfg, filt.model, likelihood), filt.model, spool, cfg,
+                _concurrent_kernels("the backward pass")))  # fmt: skip
             with stages.timed("tracking"):
                 tracked = _track_frames(filt, likelihood, views, cfg, head.take(head.limit), stream, writer, n_frames,
-                                        progress, timing, on_frame, start, settled, spool, stages)  # fmt: skip
-            if spool is not None:
+                                        progress, timing, on_frame, start, settled, spool, stages, ahead)  # fmt: skip
+            if ahead is not None:
                 # the videos are read and the prefetch thread idle: the kernels take every core
                 with stages.timed("backward"), kernel_threads(None):
+                    backs = ahead.finish()
                     restart = partial(_restart_pass, filt.model, likelihood, views, cfg) if cfg.backward.restart else None
-                    replaced = _backward_pass(_new_tracker(cfg, filt.model, likelihood), spool, writer, cfg,
-                                              videos.fps, restart)  # fmt: skip
+                    replaced = _backward_pass(_new_tracker(cfg, filt.model, likelihood), spool, writer, cfg, videos.fps,
+                                              restart, backs)  # fmt: skip
                 log.info("backward pass and leg order: %d of %d frames replaced", replaced, tracked)
                 with stages.timed("verdict"):  # the final poses against the spooled silhouettes
                     support = _leg_support(filt.model, likelihood, spool, writer.read_poses())
@@ -484,6 +489,11 @@ def _leg_support(model: BodyModel, likelihood, spool: FrameSpool, poses: np.ndar
 def _new_tracker(cfg: TrackingConfig, model, likelihood):
     """A tracker of the configured kind for ``model``, its random stream seeded from ``cfg.seed``."""
     return TRACKERS[cfg.tracker](model, likelihood, cfg, np.random.default_rng(cfg.seed))
+
+
+def _stretch_tracker(cfg: TrackingConfig, model, likelihood, k: int):
+    """The tracker of the backward pass's k-th stretch (:class:`BackwardAhead`): a random stream of its own."""
+    return TRACKERS[cfg.tracker](model, likelihood, cfg, np.random.default_rng([cfg.seed, k]))
 
 
 #: the k-th of ``shape.repeats`` calibrations uses the random streams of tracker seed + k x this
@@ -587,23 +597,106 @@ def _search_shape(model, likelihood, refit_cfg: TrackingConfig, first: list[Obse
     return result
 
 
-def _concurrent_kernels() -> bool:
+def _concurrent_kernels(what: str = "shape calibration") -> bool:
     """Whether the compiled kernels may run from several threads at once: not with numba's workqueue
     threading layer (neither OpenMP nor TBB available), which is not thread-safe."""
     if numba.threading_layer() == "workqueue":
-        log.info("shape calibration on one thread: numba's workqueue threading layer is not thread-safe")
+        log.info("%s on one thread: numba's workqueue threading layer is not thread-safe", what)
         return False
     return True
+
+
+class BackwardAhead:
+    """The backward pass (:func:`_backward_pass`) tracked a stretch at a time: beside the forward
+    pass (one worker thread, on the core time the forward pass and the silhouettes leave), and the
+    stretches left once it has ended on every core (one thread per core).
+
+    A run of tracked frames is cut into stretches: a stretch ends at a frame where the forward pass
+    placed the legs clearly apart (hip flexions ``factored_ipf.swap_within_deg`` apart, fit at least
+    ``quality.min_fit``) once it holds ``backward.stretch_frames`` frames, and at the run's end. Each
+    stretch is tracked back from the forward pass's pose at its last frame, as a whole run is
+    without stretches, by a tracker of its own whose random stream is seeded by the tracker seed and
+    the stretch's place in the clip: the result does not depend on which thread tracks it, or when.
+    Without ``concurrent`` (numba's workqueue threading layer) every stretch is tracked by
+    :meth:`finish`, one after the other on the calling thread. Use as a context manager (inside the
+    spool's)."""
+
+    def __init__(self, make_tracker: Callable[[int], object], model: BodyModel, spool: FrameSpool,
+                 cfg: TrackingConfig, concurrent: bool) -> None:  # fmt: skip
+        """``make_tracker(k)``: the k-th stretch's tracker (of ``model``)."""
+        self._make, self._spool = make_tracker, spool
+        self._every = cfg.backward.stretch_frames
+        self._apart = np.radians(cfg.factored_ipf.swap_within_deg)
+        self._min_fit = cfg.quality.min_fit
+        self._hips = [model.dof_index(f"hip_flexion_{side}") for side in "lr"]
+        self._concurrent = concurrent
+        setup = partial(numba.set_num_threads, _thread_count(cfg.threads))  # the forward pass's share of the kernels
+        self._pool = ThreadPoolExecutor(1, "gaitcap-backward", initializer=setup) if concurrent else None
+        self._stretches: list[tuple[int, int, np.ndarray, object]] = []  # (s, e, pose at e - 1, future or None)
+        self._open: int | None = None  # first frame of the stretch the forward pass is in (None: none)
+        self._last: tuple[int, np.ndarray] | None = None  # the last tracked frame and its pose
+
+    def __enter__(self) -> BackwardAhead:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self._pool is not None:  # a stretch being tracked ends before the spool closes
+            self._pool.shutdown(wait=True, cancel_futures=True)
+
+    def add(self, t: int, q: np.ndarray | None, fit: float = float("nan")) -> None:
+        """The forward pass's frame t: its pose q (D,) and fit, q None where it tracked nothing."""
+        if q is None:
+            self._close()
+            return
+        if self._open is None:
+            self._open = t
+        self._last = (t, q)
+        apart = abs(q[self._hips[0]] - q[self._hips[1]]) >= self._apart
+        if self._every and t + 1 - self._open >= self._every and fit >= self._min_fit and apart:
+            self._close()
+
+    def _track(self, k: int, s: int, e: int, q: np.ndarray) -> list:
+        return _tracked_back(self._make(k), self._spool, q, s, e)
+
+    def _close(self, later: bool = False) -> None:
+        if self._open is None or self._last is None:
+            return
+        s, (t, q) = self._open, self._last
+        self._open = None
+        k = len(self._stretches)
+        job = self._pool.submit(self._track, k, s, t + 1, q) if self._pool is not None and not later else None
+        self._stretches.append((s, t + 1, q, job))
+
+    def finish(self) -> dict[tuple[int, int], list]:
+        """After the forward pass: the stretches not begun tracked on every core; every run of
+        tracked frames (first, end) -> its backward estimates, frame by frame."""
+        self._close(later=True)
+        left = [k for k, (_, _, _, job) in enumerate(self._stretches) if job is None or job.cancel()]
+        threads = _thread_count(None) if self._concurrent else 1
+        with ThreadPoolExecutor(threads, "gaitcap-backward", initializer=partial(numba.set_num_threads, 1)) as pool:
+            late = dict(zip(left, pool.map(lambda k: self._track(k, *self._stretches[k][:3]), left)))
+        runs: dict[tuple[int, int], list] = {}
+        first = None
+        for k, (s, e, _, job) in enumerate(self._stretches):
+            back = late[k] if k in late else job.result()
+            if first is not None and s == first[1]:  # the same run goes on
+                runs[(first[0], e)] = runs.pop(first) + back
+                first = (first[0], e)
+            else:
+                runs[(s, e)] = back
+                first = (s, e)
+        return runs
 
 
 def _track_frames(filt, likelihood, views, cfg: TrackingConfig, first, stream: Iterator[Observation],
                   writer: TrackWriter, n_frames: int, progress: bool, timing: FrameTiming, on_frame,
                   start=None, settled: bool = False, spool: FrameSpool | None = None,
-                  stages: Stages | None = None) -> int:  # fmt: skip
+                  stages: Stages | None = None, ahead: BackwardAhead | None = None) -> int:  # fmt: skip
     """The per-frame loop (streaming): observe, (re)initialise, track, flag, append. ``start``: the
     first frame's pose when already known (shape calibration); ``settled``: whether its leg
     assignment was settled over several frames (else the first frame weighs its mirror too);
-    ``spool``: every frame's observation is also stored there, for :func:`_backward_pass`.
+    ``spool``: every frame's observation is also stored there, for :func:`_backward_pass`, and
+    ``ahead`` told each frame's pose (:class:`BackwardAhead`).
     ``timing.total_s`` also counts the time spent waiting for the next observation; ``stages``: the
     initialisations are timed there (``initialisation``), apart from the tracking."""
     model = filt.model
@@ -628,7 +721,7 @@ def _track_frames(filt, likelihood, views, cfg: TrackingConfig, first, stream: I
         if spool is not None:
             spool.append(obs.silhouettes)
         in_view = bool(np.all(obs.fractions() >= cfg.quality.min_silhouette_fraction))
-        quality = QUALITY_OK
+        quality, pose = QUALITY_OK, None  # pose: this frame's estimate, if it was tracked
         if not in_view:
             quality, lost = QUALITY_OUT_OF_VIEW, True
             est_points = np.full((model.n_points, 3), np.nan)
@@ -659,6 +752,9 @@ def _track_frames(filt, likelihood, views, cfg: TrackingConfig, first, stream: I
                 est = filt.step(obs)
                 quality = _fit_quality(est.fit, cfg)
                 writer.append(est.points, est.uncertainty, est.q, est.log_likelihood, est.fit, quality)
+                pose = est
+        if ahead is not None:
+            ahead.add(count, None if pose is None else pose.q, np.nan if pose is None else pose.fit)
         dt = time.perf_counter() - t0
         timing.tracking_s += dt
         timing.total_s += dt
@@ -707,7 +803,8 @@ def _tracked_back(tracker, spool: FrameSpool, q0: np.ndarray, s: int, e: int, fr
 
 
 def _backward_pass(tracker, spool: FrameSpool, writer: TrackWriter, cfg: TrackingConfig, rate_hz: float,
-                   restart: Callable[[FrameSpool, np.ndarray, int, int], list | None] | None = None) -> int:  # fmt: skip
+                   restart: Callable[[FrameSpool, np.ndarray, int, int], list | None] | None = None,
+                   backs: dict[tuple[int, int], list] | None = None) -> int:  # fmt: skip
     """Track every run of tracked frames again from its last frame to its first (``tracker``, a
     fresh one, started from the forward pass's last pose of the run) and overwrite in ``writer``
     the frames :func:`~gaitcap.tracking.backward.choose_backward` gives to the backward pass; then,
@@ -717,14 +814,15 @@ def _backward_pass(tracker, spool: FrameSpool, writer: TrackWriter, cfg: Trackin
     against the way the body faces) is merged again with the backward pass
     ``restart`` gives (:func:`_restart_pass`), merged with the first
     (:func:`~gaitcap.tracking.backward.merge_passes`), if that leaves no more frames in doubt.
-    Returns how many frames were overwritten. Memory: one run's estimates (about a kilobyte a frame)."""
+    ``backs``: every run's backward estimates, tracked already (:meth:`BackwardAhead.finish`).
+    Returns how many frames were overwritten. Memory: the runs' estimates (about a kilobyte a frame)."""
     raw, quality = writer.read_back()
     poses, fit = writer.read_poses(), writer.read_fit()
     names = tracker.model.point_names
     legs = leg_points(names)
     replaced = 0
     for s, e in finite_runs(tracked_frames(quality)):
-        back = _tracked_back(tracker, spool, poses[e - 1], s, e)
+        back = backs[(s, e)] if backs is not None else _tracked_back(tracker, spool, poses[e - 1], s, e)
         chosen = _merge_run(tracker, spool, raw, poses, fit, back, s, e, cfg, rate_hz)
         doubt = 0
         if restart is not None:

@@ -3,11 +3,14 @@
 Each frame's arrays (one per camera, float32, any shapes) are compressed (zlib, losslessly) and
 appended to an anonymous temporary file; memory holds only each frame's offset. A tracker's soft
 silhouettes at half scale take about 0.6 MB a frame pair raw and a few tens of kB compressed.
+Frames may be read from one thread while another appends (the file's position is shared: each
+seek and its read or write are done under one lock).
 """
 
 from __future__ import annotations
 
 import tempfile
+import threading
 import zlib
 from typing import Self
 
@@ -15,13 +18,14 @@ import numpy as np
 
 
 class FrameSpool:
-    """Append frames, then read any of them back, bit for bit. Use as a context manager."""
+    """Append frames, then read any of them back, bit for bit (from any thread). Use as a context manager."""
 
     def __init__(self, level: int = 1) -> None:
         self._file = tempfile.TemporaryFile(prefix="gaitcap-spool-")  # noqa: SIM115 - open until close()
         self._level = level
         self._index: list[tuple[int, int]] = []  # (offset, length) per frame
         self._shapes: list[tuple[int, ...]] = []  # every frame's arrays, in order
+        self._lock = threading.Lock()  # over each seek and its read or write
 
     def __enter__(self) -> Self:
         return self
@@ -39,15 +43,18 @@ class FrameSpool:
             raise ValueError(f"frame {len(self)}: arrays of shapes {shapes}, the spool holds {self._shapes}")
         self._shapes = shapes
         blob = zlib.compress(b"".join(np.ascontiguousarray(a, np.float32).tobytes() for a in arrays), self._level)
-        offset = self._file.seek(0, 2)
-        self._file.write(blob)
-        self._index.append((offset, len(blob)))
+        with self._lock:
+            offset = self._file.seek(0, 2)
+            self._file.write(blob)
+            self._index.append((offset, len(blob)))
 
     def read(self, t: int) -> list[np.ndarray]:
         """Frame ``t``'s arrays, as appended."""
-        offset, length = self._index[t]
-        self._file.seek(offset)
-        flat = np.frombuffer(zlib.decompress(self._file.read(length)), np.float32)
+        with self._lock:
+            offset, length = self._index[t]
+            self._file.seek(offset)
+            blob = self._file.read(length)
+        flat = np.frombuffer(zlib.decompress(blob), np.float32)
         out, start = [], 0
         for shape in self._shapes:
             n = int(np.prod(shape))

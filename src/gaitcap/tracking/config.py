@@ -268,6 +268,7 @@ class BackwardConfig(Strict):
     crossing_m: float = Field(default=0.10, gt=0, le=0.5)
     order_fit_tolerance: float = Field(default=0.015, ge=0, le=1)
     restart: bool = True
+    stretch_frames: int | None = Field(default=25, ge=2)
 
 
 class LegGapConfig(Strict):
