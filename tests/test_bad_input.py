@@ -20,6 +20,7 @@ from gaitcap.io.atomic import write_text_atomic
 from gaitcap.io.trajectories_h5 import write_trajectory
 from gaitcap.session import Session
 from gaitcap.session_check import check_session_videos
+from gaitcap.tracking.config import load_tracking_config
 from gaitcap.trajectory import POINT_NAMES, Trajectory
 from gaitcap.video import VideoReader
 
@@ -119,6 +120,17 @@ def test_unknown_gait_option_suggests_the_key(tmp_path):
         f"{path}: refine: Input should be a valid boolean, unable to interpret input",
         f"{path}: min_promincence: unknown key (did you mean 'min_prominence'?)",
     ]
+
+
+def test_a_key_given_twice_is_refused(tmp_path):
+    """PyYAML keeps the last of two equal keys without a word: a key added to a file that already
+    has it further down would be ignored. The loader names the key and both lines."""
+    path = tmp_path / "tracking.yaml"
+    path.write_text("seed: 1\nbackward:\n  stretch_frames: 5\n  restart: true\n  stretch_frames: 25\n")
+    with pytest.raises(ConfigError) as e:
+        load_tracking_config(path)
+    assert message(e).startswith(f"{path}: not valid YAML: key 'stretch_frames' given twice (first on line 3)")
+    assert "line 5" in message(e)
 
 
 # ------------------------------------------------------------------------------ outputs

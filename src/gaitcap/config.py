@@ -26,9 +26,31 @@ CONFIG_DIR = Path(__file__).resolve().parent / "configs"
 _LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
 
+class _UniqueKeys(_LOADER):  # type: ignore[misc, valid-type]
+    """The safe loader, refusing a mapping that gives a key twice (PyYAML keeps the last silently:
+    a key added to a file that already had it further down would be ignored)."""
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
+        seen: dict[Any, yaml.Node] = {}
+        for key_node, _ in node.value:
+            if key_node.tag == "tag:yaml.org,2002:merge":
+                continue
+            key = self.construct_object(key_node, deep=deep)
+            try:
+                first = seen.setdefault(key, key_node)
+            except TypeError:  # an unhashable key: the base class says so
+                continue
+            if first is not key_node:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"key {key!r} given twice (first on line {first.start_mark.line + 1})",
+                    key_node.start_mark)  # fmt: skip
+        return super().construct_mapping(node, deep=deep)
+
+
 def parse_yaml(text: str) -> Any:
-    """``yaml.safe_load`` of ``text``, through libyaml when available (raises ``yaml.YAMLError``)."""
-    return yaml.load(text, Loader=_LOADER)
+    """``yaml.safe_load`` of ``text``, through libyaml when available, refusing a key given twice in
+    one mapping (raises ``yaml.YAMLError``)."""
+    return yaml.load(text, Loader=_UniqueKeys)
 
 
 class Strict(BaseModel):
