@@ -673,7 +673,9 @@ class BackwardAhead:
         self._close(later=True)
         left = [k for k, (_, _, _, job) in enumerate(self._stretches) if job is None or job.cancel()]
         threads = _thread_count(None) if self._concurrent else 1
-        with ThreadPoolExecutor(threads, "gaitcap-backward", initializer=partial(numba.set_num_threads, 1)) as pool:
+        workers = max(1, min(threads, len(left)))  # the cores left over go to each one's kernels
+        setup = partial(numba.set_num_threads, max(1, threads // workers))
+        with ThreadPoolExecutor(workers, "gaitcap-backward", initializer=setup) as pool:
             late = dict(zip(left, pool.map(lambda k: self._track(k, *self._stretches[k][:3]), left)))
         runs: dict[tuple[int, int], list] = {}
         first = None
