@@ -609,7 +609,8 @@ def _concurrent_kernels(what: str = "shape calibration") -> bool:
 class BackwardAhead:
     """The backward pass (:func:`_backward_pass`) tracked a stretch at a time: beside the forward
     pass (one worker thread, on the core time the forward pass and the silhouettes leave), and the
-    stretches left once it has ended on every core (one thread per core).
+    stretches left once it has ended on every core (a thread per stretch, up to one per core; the
+    cores left over go to each one's kernels).
 
     A run of tracked frames is cut into stretches: a stretch ends at a frame where the forward pass
     placed the legs clearly apart (hip flexions ``factored_ipf.swap_within_deg`` apart, fit at least
