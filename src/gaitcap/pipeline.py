@@ -4,8 +4,9 @@ session + videos -> silhouettes (gaitcap.silhouette, per camera, streamed; optio
 silhouettes.h5) -> observation (soft, undistorted, downscaled) -> initialisation -> the chosen
 tracker per frame -> trajectories.h5 (streamed) -> the backward pass (its frames spooled; tracked a
 stretch at a time, beside the forward pass and on every core after it) and the legs' support on the
-spooled silhouettes (gaitcap.tracking.support) -> zero-lag filtering, the run's verdict and the calibrated uncertainty (gaitcap.quality) -> joints.csv, joints.trc ->
-track.json (written last: a session with it is finished).
+spooled silhouettes (gaitcap.tracking.support) -> zero-lag filtering, the run's verdict and the
+calibrated uncertainty (gaitcap.quality) -> joints.csv, joints.trc -> track.json (written last: a
+session with it is finished).
 """
 
 from __future__ import annotations
@@ -409,7 +410,7 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
         with ExitStack() as stack:
             spool = stack.enter_context(FrameSpool()) if cfg.backward.enabled else None
             ahead = None if spool is None else stack.enter_context(BackwardAhead(
-                partial(_stretch_tracker, cfg, filt.model, likelihood), filt.model, spool, cfg,
+                partial(_new_tracker, cfg, filt.model, likelihood), filt.model, spool, cfg,
                 _concurrent_kernels("the backward pass")))  # fmt: skip
             with stages.timed("tracking"):
                 tracked = _track_frames(filt, likelihood, views, cfg, head.take(head.limit), stream, writer, n_frames,
@@ -486,14 +487,11 @@ def _leg_support(model: BodyModel, likelihood, spool: FrameSpool, poses: np.ndar
     return out
 
 
-def _new_tracker(cfg: TrackingConfig, model, likelihood):
-    """A tracker of the configured kind for ``model``, its random stream seeded from ``cfg.seed``."""
-    return TRACKERS[cfg.tracker](model, likelihood, cfg, np.random.default_rng(cfg.seed))
-
-
-def _stretch_tracker(cfg: TrackingConfig, model, likelihood, k: int):
-    """The tracker of the backward pass's k-th stretch (:class:`BackwardAhead`): a random stream of its own."""
-    return TRACKERS[cfg.tracker](model, likelihood, cfg, np.random.default_rng([cfg.seed, k]))
+def _new_tracker(cfg: TrackingConfig, model, likelihood, stretch: int | None = None):
+    """A tracker of the configured kind for ``model``, its random stream seeded from ``cfg.seed``
+    (and, for the backward pass's ``stretch``-th stretch, :class:`BackwardAhead`, from that index too)."""
+    seed = cfg.seed if stretch is None else [cfg.seed, stretch]
+    return TRACKERS[cfg.tracker](model, likelihood, cfg, np.random.default_rng(seed))
 
 
 #: the k-th of ``shape.repeats`` calibrations uses the random streams of tracker seed + k x this
