@@ -617,8 +617,8 @@ class BackwardAhead:
     without stretches, by a tracker of its own whose random stream is seeded by the tracker seed and
     the stretch's place in the clip: the result does not depend on which thread tracks it, or when.
     Without ``concurrent`` (numba's workqueue threading layer) every stretch is tracked by
-    :meth:`finish`, one after the other on the calling thread. Use as a context manager (inside the
-    spool's)."""
+    :meth:`finish`, one after the other, its kernels on every core. Use as a context manager (inside
+    the spool's)."""
 
     def __init__(self, make_tracker: Callable[[int], object], model: BodyModel, spool: FrameSpool,
                  cfg: TrackingConfig, concurrent: bool) -> None:  # fmt: skip
@@ -671,9 +671,9 @@ class BackwardAhead:
         tracked frames (first, end) -> its backward estimates, frame by frame."""
         self._close(later=True)
         left = [k for k, (_, _, _, job) in enumerate(self._stretches) if job is None or job.cancel()]
-        threads = _thread_count(None) if self._concurrent else 1
-        workers = max(1, min(threads, len(left)))  # the cores left over go to each one's kernels
-        setup = partial(numba.set_num_threads, max(1, threads // workers))
+        threads = _thread_count(None)
+        workers = max(1, min(threads if self._concurrent else 1, len(left)))
+        setup = partial(numba.set_num_threads, max(1, threads // workers))  # the cores left over: each one's kernels
         with ThreadPoolExecutor(workers, "gaitcap-backward", initializer=setup) as pool:
             late = dict(zip(left, pool.map(lambda k: self._track(k, *self._stretches[k][:3]), left)))
         runs: dict[tuple[int, int], list] = {}
