@@ -11,11 +11,12 @@ from silhouette_scene import grey_body_rig, iou, sway_in_place, walk_across
 from gaitcap.config import model_from_mapping
 from gaitcap.errors import ConfigError, InputError
 from gaitcap.silhouette import SilhouetteConfig, SilhouetteExtractor
-from gaitcap.silhouette.background import _channel_mean, _median
+from gaitcap.silhouette.background import _channel_mean, _median, global_gain, global_gains
 from gaitcap.silhouette.extract import BORDER, EMPTY, NO_BACKGROUND, TOO_LARGE, _label_type
 from gaitcap.camera import Camera
-from gaitcap.silhouette.floor import FloorShadowCheck, floor_map, floor_points, floor_rows, head_top
-from gaitcap.silhouette.joint import JointExtractor
+from gaitcap.silhouette.floor import (FloorShadowCheck, _floor_map_rows, _floor_points_rows, floor_map, floor_points,
+                                      floor_rows, head_top)  # fmt: skip
+from gaitcap.silhouette.joint import JointExtractor, floor_check
 
 
 @pytest.fixture(scope="module")
@@ -507,6 +508,46 @@ def test_median_equals_numpys_bit_for_bit(shape):
         assert got.dtype == want.dtype and got.tobytes() == want.tobytes()
     if shape[-1] == 3:
         assert _channel_mean(x).tobytes() == x.mean(axis=-1).tobytes()
+
+
+def test_the_gains_of_many_frames_at_once_equal_each_frames_gain():
+    rng = np.random.default_rng(3)
+    plate = rng.integers(0, 256, (48, 64, 3)).astype(np.float32)
+    plate[:, :20, 2] = 5  # too dark in one channel there: skipped
+    frames = np.clip(plate[None] * rng.uniform(0.7, 1.3, (6, 1, 1, 3)) + rng.normal(0, 4, (6, 48, 64, 3)), 0, 255)
+    frames = frames.astype(np.uint8)
+    each = np.stack([global_gain(f, plate) for f in frames])
+    assert global_gains(frames, plate).tobytes() == each.tobytes()
+    assert global_gains(frames[:, :8, :8], plate[:8, :8]).tolist() == [[1.0] * 3] * 6  # too few pixels: 1
+
+
+def test_the_floor_geometry_in_blocks_of_rows_equals_the_whole_image():
+    cams = [Camera.look_at(name, (x, -3.0, 1.4), (0.0, 0.0, 0.5), size=(160, 130), focal_px=120.0,
+                           dist=(-0.2, 0.05, 0, 0)) for name, x in (("a", -2.0), ("b", 1.5))]  # fmt: skip
+    size = (160, 130)  # more rows than one block, not a multiple of it
+    points = floor_points(cams[0], size)
+    whole = _floor_points_rows(cams[0], size, 0, size[1])
+    assert np.array_equal(points, whole, equal_nan=True) and np.isnan(points).any() and np.isfinite(points).any()
+    assert np.array_equal(floor_map(points, cams[1], size), _floor_map_rows(whole, cams[1], size))
+
+
+def test_a_floor_check_built_ahead_is_the_joint_extractors_own_and_must_fit_its_sizes():
+    cams = [Camera.look_at(name, pos, (0.0, 0.0, 0.9), size=(160, 120), focal_px=130.0)
+            for name, pos in (("side", (0.0, -4.0, 1.2)), ("front", (4.0, 0.5, 1.5)))]  # fmt: skip
+    config = SilhouetteConfig()
+    extractors = []
+    for _ in cams:
+        ex = SilhouetteExtractor(config)
+        ex.fit_background(plate=np.full((120, 160, 3), 128, np.uint8))
+        extractors.append(ex)
+    ahead = floor_check(cams, config)
+    own = JointExtractor(extractors, cams).floor
+    for a, b in zip(ahead.near + ahead.seen + ahead.on_floor, own.near + own.seen + own.on_floor):
+        assert np.array_equal(a, b)
+    assert JointExtractor(extractors, cams, floor=ahead).floor is ahead
+    with pytest.raises(ValueError, match="image sizes"):
+        JointExtractor(extractors, cams, floor=floor_check(cams, _config(scale=0.5)))
+    assert floor_check(cams, _config(shadow={"floor_check": False})) is None
 
 
 def test_the_16_bit_labels_give_way_to_32_bits_when_they_could_overflow():

@@ -14,6 +14,7 @@ from __future__ import annotations
 import csv
 import io
 import logging
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -43,7 +44,7 @@ from gaitcap.quality import assess, legs_in_doubt
 from gaitcap.session import CALIBRATION_FILE, Session
 from gaitcap.session_check import check_session_videos, check_silhouettes_meet
 from gaitcap.silhouette.config import SilhouetteConfig
-from gaitcap.silhouette.joint import JointExtractor
+from gaitcap.silhouette.joint import JointExtractor, floor_check
 from gaitcap.silhouette.run import Source, camera_attrs, file_attrs, prepare_extractor, quality_row
 from gaitcap.timeseries import finite_runs
 from gaitcap.track_summary import TrackSummary, is_finished, write_track_json
@@ -175,11 +176,12 @@ def run_track(
     head = Head(stream, buffered, on_read=lambda n: stream.set_depth(max(PREFETCH_FRAMES, buffered - n)))
     stages["setup"] = time.perf_counter() - t_start
     with stream, kernel_threads(cfg.threads):
-        with stages.timed("kernels"):  # while the prefetch thread fits the backgrounds
-            warm_up(len(views))
-            _import_late()
-        with stages.timed("first_frames"):
-            _first_observations(session, head, cfg)
+        with _switch_interval(START_SWITCH_S):
+            with stages.timed("kernels"):  # while the prefetch thread fits the backgrounds
+                warm_up(len(views))
+                _import_late()
+            with stages.timed("first_frames"):
+                _first_observations(session, head, cfg)
         check_silhouettes_meet(views, head, ses.root / CALIBRATION_FILE)
         _prepare_out(out, save_masks)  # only once the inputs are known good: bad input creates nothing
         if saver is not None:
@@ -239,6 +241,24 @@ def _first_observations(session: Path, head: Head[Observation], cfg: TrackingCon
     if not first:
         raise TrackingError(f"{session}: no frame could be read")
     return first
+
+
+#: the interpreter's switch interval (seconds) while the kernels are loaded and the late imports run
+#: beside the prefetch thread's background fitting: Python's default, 5 ms, is how long a thread back
+#: from a call that released the GIL (a decoded frame, a median) may wait for it while the other runs
+#: Python code, and the background's many short calls then spend most of their time waiting
+START_SWITCH_S = 0.0005
+
+
+@contextmanager
+def _switch_interval(seconds: float) -> Iterator[None]:
+    """``sys.setswitchinterval(seconds)`` inside the block, restored on exit."""
+    before = sys.getswitchinterval()
+    sys.setswitchinterval(seconds)
+    try:
+        yield
+    finally:
+        sys.setswitchinterval(before)
 
 
 def _import_late() -> None:
@@ -331,12 +351,14 @@ def _observations(ses: Session, cams: tuple[str, ...], views, sil_cfg: Silhouett
     ``soft`` the tracker sees each pixel's foreground confidence (:meth:`JointExtractor.process_soft`),
     otherwise the 0/1 masks."""
     sources = {cam: Source(cam, ses.videos[cam], ses.backgrounds.get(cam)) for cam in cams}
-    with stages.timed("background"):
-        prepared = {cam: prepare_extractor(sources[cam], sil_cfg) for cam in cams}
     error: BaseException | None = None
     try:
         with ThreadPoolExecutor(max_workers=len(cams), thread_name_prefix="gaitcap-camera") as pool:
-            joint = JointExtractor([prepared[c][0] for c in cams], [ses.rig[c] for c in cams], map_fn=pool.map)
+            floor = pool.submit(floor_check, [ses.rig[c] for c in cams], sil_cfg)  # beside the backgrounds
+            with stages.timed("background"):
+                prepared = {cam: prepare_extractor(sources[cam], sil_cfg) for cam in cams}
+            joint = JointExtractor([prepared[c][0] for c in cams], [ses.rig[c] for c in cams], map_fn=pool.map,
+                                   floor=floor.result())  # fmt: skip
             for t, images in iter_synchronised({c: ses.videos[c] for c in cams}, 0, n_frames):
                 frame = [images[c] for c in cams]
                 if soft:  # (mask, soft, quality) per camera

@@ -107,13 +107,20 @@ def global_gain(frame: np.ndarray, background: np.ndarray, stride: int = 4) -> n
     frame, background: (H, W, 3). Returns (3,) float32. Pixels where the background is very
     dark are skipped; a person covering a minority of the image does not move the median.
     """
-    f = frame[::stride, ::stride].reshape(-1, 3).astype(np.float32)
+    return global_gains(frame[None], background, stride)[0]
+
+
+def global_gains(frames: np.ndarray, background: np.ndarray, stride: int = 4) -> np.ndarray:
+    """:func:`global_gain` of each of ``frames`` (N, H, W, 3) against one ``background`` (H, W, 3):
+    (N, 3) float32, the same values, computed for all frames at once (three medians instead of
+    3 N: a background thread then waits for the interpreter far less often while others run)."""
+    f = frames[:, ::stride, ::stride].reshape(len(frames), -1, 3).astype(np.float32)
     b = background[::stride, ::stride].reshape(-1, 3).astype(np.float32)
-    gains = np.ones(3, np.float32)
+    gains = np.ones((len(frames), 3), np.float32)
     for c in range(3):
         ok = b[:, c] > 16.0
         if ok.sum() > 100:
-            gains[c] = _median(f[ok, c] / b[ok, c])
+            gains[:, c] = _median(f[:, ok, c] / b[ok, c], axis=1)
     return gains
 
 
@@ -222,7 +229,7 @@ def background_from_plate(
                 f"{frames.shape[2]}x{frames.shape[1]}"
             )
         n = frames.shape[0]
-        gains = np.stack([global_gain(f, image) for f in frames])
+        gains = global_gains(frames, image)
         noise = _robust_noise(frames, image, cfg.min_noise, gains, cfg.max_noise_factor)
     report = BackgroundReport("plate", n, float("nan"), True, f"{what}: background from the plate")
     log.info("%s", report.message)

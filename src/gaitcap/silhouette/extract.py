@@ -337,6 +337,11 @@ class FrameEvidence:
     sums: tuple[np.ndarray, np.ndarray]
 
 
+def working_size(full_size: tuple[int, int], scale: float) -> tuple[int, int]:
+    """(w, h) of the working-scale image of a (w, h) video at ``scale`` (``SilhouetteConfig.scale``)."""
+    return max(8, round(full_size[0] * scale)), max(8, round(full_size[1] * scale))
+
+
 class SilhouetteExtractor:
     """Background subtraction with shadow suppression for one camera.
 
@@ -389,7 +394,7 @@ class SilhouetteExtractor:
             )
         s = self.config.scale
         self._full_size = (w, h)
-        self._work_size = (max(8, round(w * s)), max(8, round(h * s)))
+        self._work_size = working_size((w, h), s)
         work_samples = None if samples is None else np.stack([self._work(f) for f in samples])
         cfg = self.config.background
         if plate is not None:

@@ -60,6 +60,11 @@ def _work_to_full(size_work: tuple[int, int], size_full: tuple[int, int]) -> tup
     return size_full[0] / size_work[0], size_full[1] / size_work[1]
 
 
+#: image rows computed at a time by :func:`floor_points` and :func:`floor_map` (each point's result
+#: is its own: the same values in blocks, a tenth of the temporary memory of a whole 640x480 image)
+_BLOCK_ROWS = 48
+
+
 def floor_points(camera: Camera, size_work: tuple[int, int]) -> np.ndarray:
     """Where each working-scale pixel's ray meets the floor z = 0.
 
@@ -72,8 +77,17 @@ def floor_points(camera: Camera, size_work: tuple[int, int]) -> np.ndarray:
         the camera (at or above the horizon) or meets it farther than 50 m.
     """
     w, h = size_work
+    out = np.empty((h, w, 3))
+    for r0 in range(0, h, _BLOCK_ROWS):
+        out[r0 : r0 + _BLOCK_ROWS] = _floor_points_rows(camera, size_work, r0, min(h, r0 + _BLOCK_ROWS))
+    return out
+
+
+def _floor_points_rows(camera: Camera, size_work: tuple[int, int], r0: int, r1: int) -> np.ndarray:
+    """:func:`floor_points` of the working-scale rows ``r0:r1``: (r1 - r0, w, 3)."""
+    w = size_work[0]
     fx, fy = _work_to_full(size_work, camera.size)
-    u, v = np.meshgrid((np.arange(w) + 0.5) * fx - 0.5, (np.arange(h) + 0.5) * fy - 0.5)
+    u, v = np.meshgrid((np.arange(w) + 0.5) * fx - 0.5, (np.arange(r0, r1) + 0.5) * fy - 0.5)
     ideal = camera.undistort_pixels(np.stack([u.ravel(), v.ravel()], axis=1))
     K = camera.matrix
     y = (ideal[:, 1] - K[1, 2]) / K[1, 1]
@@ -85,7 +99,7 @@ def floor_points(camera: Camera, size_work: tuple[int, int]) -> np.ndarray:
     points = c + t[:, None] * rays
     far = np.linalg.norm(points - c, axis=1) > _MAX_FLOOR_DISTANCE_M
     points[~(t > 0) | far] = np.nan
-    return points.reshape(h, w, 3)
+    return points.reshape(r1 - r0, w, 3)
 
 
 def floor_map(points: np.ndarray, other: Camera, other_work: tuple[int, int]) -> np.ndarray:
@@ -101,6 +115,14 @@ def floor_map(points: np.ndarray, other: Camera, other_work: tuple[int, int]) ->
         behind the camera or outside its view.
     """
     h, w = points.shape[:2]
+    out = np.empty((h, w, 2), np.float32)
+    for r0 in range(0, h, _BLOCK_ROWS):
+        out[r0 : r0 + _BLOCK_ROWS] = _floor_map_rows(points[r0 : r0 + _BLOCK_ROWS], other, other_work)
+    return out
+
+
+def _floor_map_rows(points: np.ndarray, other: Camera, other_work: tuple[int, int]) -> np.ndarray:
+    """:func:`floor_map` of a block of rows of floor points (r, w, 3) -> (r, w, 2) float32."""
     flat = points.reshape(-1, 3)
     full = other.project(flat)
     # the polynomial distortion folds back far outside the view: check the ideal projection too
@@ -108,7 +130,7 @@ def floor_map(points: np.ndarray, other: Camera, other_work: tuple[int, int]) ->
     fx, fy = _work_to_full(other_work, other.size)
     out = np.stack([(full[:, 0] + 0.5) / fx - 0.5, (full[:, 1] + 0.5) / fy - 0.5], axis=1)
     out[~inside] = -1.0
-    return out.reshape(h, w, 2).astype(np.float32)
+    return out.reshape(points.shape[:2] + (2,)).astype(np.float32)
 
 
 _GRID_M = 0.05  # cell of the floor grid that measures the distance to the capture area
@@ -126,27 +148,33 @@ def _near_shared_floor(points: Sequence[np.ndarray], seen: Sequence[np.ndarray],
     """Per camera, (h_i, w_i) bool: the pixel's floor point lies within ``reach`` metres of a floor
     point that two cameras see. With one camera (nothing shared) every floor point counts as near.
 
-    The shared floor is rasterised on a 5 cm grid and measured with a distance transform.
+    The shared floor is rasterised on a 5 cm grid and measured with a distance transform (each
+    camera's points a block of rows at a time: the temporary memory stays small).
     """
-    shared = np.concatenate([p[s][:, :2] for p, s in zip(points, seen)])
-    if len(shared) == 0:
+    shared = [p[..., :2][s] for p, s in zip(points, seen)]  # (n_i, 2) each
+    if not any(len(xy) for xy in shared):
         return [np.isfinite(p[..., 0]) for p in points]
-    lo = shared.min(axis=0) - reach - _GRID_M
-    hi = shared.max(axis=0) + reach + _GRID_M
+    lo = np.min([xy.min(axis=0) for xy in shared if len(xy)], axis=0) - reach - _GRID_M
+    hi = np.max([xy.max(axis=0) for xy in shared if len(xy)], axis=0) + reach + _GRID_M
     shape = tuple(np.ceil((hi - lo) / _GRID_M).astype(int)[::-1])  # (rows: y, cols: x)
     free = np.full(shape, 255, np.uint8)
-    cells = ((shared - lo) / _GRID_M).astype(int)
-    free[cells[:, 1], cells[:, 0]] = 0
+    for xy in shared:
+        cells = ((xy - lo) / _GRID_M).astype(int)
+        free[cells[:, 1], cells[:, 0]] = 0
+    del shared
     dist = cv2.distanceTransform(free, cv2.DIST_L2, 5) * _GRID_M
     near = []
     for p in points:
-        xy = p[..., :2]
-        ok = np.isfinite(xy[..., 0])
-        idx = np.where(ok[..., None], (xy - lo) / _GRID_M, -1).astype(int)
-        inside = ok & (idx[..., 0] >= 0) & (idx[..., 0] < shape[1]) & (idx[..., 1] >= 0) & (idx[..., 1] < shape[0])
-        d = np.full(ok.shape, np.inf, np.float32)
-        d[inside] = dist[idx[..., 1][inside], idx[..., 0][inside]]
-        near.append(d <= reach)
+        out = np.empty(p.shape[:2], bool)
+        for r0 in range(0, p.shape[0], _BLOCK_ROWS):
+            xy = p[r0 : r0 + _BLOCK_ROWS, :, :2]
+            ok = np.isfinite(xy[..., 0])
+            idx = np.where(ok[..., None], (xy - lo) / _GRID_M, -1).astype(int)
+            inside = ok & (idx[..., 0] >= 0) & (idx[..., 0] < shape[1]) & (idx[..., 1] >= 0) & (idx[..., 1] < shape[0])
+            d = np.full(ok.shape, np.inf, np.float32)
+            d[inside] = dist[idx[..., 1][inside], idx[..., 0][inside]]
+            out[r0 : r0 + _BLOCK_ROWS] = d <= reach
+        near.append(out)
     return near
 
 

@@ -13,10 +13,22 @@ import numpy as np
 
 from gaitcap.camera import Camera
 from gaitcap.errors import InputError
-from gaitcap.silhouette.extract import FrameEvidence, FrameQuality, SilhouetteExtractor
+from gaitcap.silhouette.config import SilhouetteConfig
+from gaitcap.silhouette.extract import FrameEvidence, FrameQuality, SilhouetteExtractor, working_size
 from gaitcap.silhouette.floor import FloorShadowCheck, floor_rows, person_floor_point
 
 MapFn = Callable[..., Iterable[Any]]
+
+
+def floor_check(cameras: Sequence[Camera], config: SilhouetteConfig) -> FloorShadowCheck | None:
+    """The floor geometry :class:`JointExtractor` re-labels shadows with, for calibrated ``cameras``
+    whose videos have the calibration's size; None when ``config`` has no floor check. Built from
+    the calibration alone, so it can be built while the backgrounds are fitted."""
+    s = config.shadow
+    if not (s.enabled and s.floor_check):
+        return None
+    sizes = [working_size(tuple(cam.size), config.scale) for cam in cameras]
+    return FloorShadowCheck(cameras, sizes, s.floor_tolerance, s.floor_reach, s.floor_footprint)
 
 
 class JointExtractor:
@@ -27,10 +39,12 @@ class JointExtractor:
         cameras: their calibrations in the same order, or None (no floor check: each camera alone).
         map_fn: how the per-camera steps are mapped over the cameras (``map``, or a thread
             pool's ``map`` to run them side by side).
+        floor: :func:`floor_check` of ``cameras`` with the extractors' configuration, built ahead;
+            None: built here (when there are cameras and the configuration checks the floor).
     """
 
     def __init__(self, extractors: Sequence[SilhouetteExtractor], cameras: Sequence[Camera] | None = None,
-                 map_fn: MapFn = map) -> None:  # fmt: skip
+                 map_fn: MapFn = map, floor: FloorShadowCheck | None = None) -> None:  # fmt: skip
         self.extractors = list(extractors)
         self._map = map_fn
         self.floor: FloorShadowCheck | None = None
@@ -49,10 +63,9 @@ class JointExtractor:
                     f"{ex.name}: the video is {ex.full_size[0]}x{ex.full_size[1]} but the calibration says "
                     f"{cam.size[0]}x{cam.size[1]}"
                 )
-        s = self.extractors[0].config.shadow
-        if s.enabled and s.floor_check:
-            self.floor = FloorShadowCheck(cameras, [ex.work_size for ex in self.extractors], s.floor_tolerance, s.floor_reach,
-                                          s.floor_footprint)  # fmt: skip
+        self.floor = floor if floor is not None else floor_check(cameras, self.extractors[0].config)
+        if self.floor is not None and [m.shape for m in self.floor.on_floor] != [ex.work_size[::-1] for ex in self.extractors]:
+            raise ValueError("the floor check was built for other image sizes than the extractors'")
 
     def process(self, images: Sequence[np.ndarray]) -> list[tuple[np.ndarray, FrameQuality]]:
         """Masks of one frame: ``images`` (H_c, W_c, 3) uint8 BGR per camera -> (mask, quality) per camera."""
