@@ -618,6 +618,29 @@ def test_a_camera_that_sees_the_person_in_front_of_the_floor_point_still_confirm
     assert not refuted[inner].any()  # without the body: b sees the floor at another ratio
 
 
+def test_a_third_camera_that_sees_the_floor_point_lit_refutes_the_shadow():
+    """Cameras a and b see a patch of floor darkened by the same ratio (a shadow to both); a third
+    camera c sees that floor lit (no darkening, nobody in front): a shadow darkens the floor in every
+    view, so the patch is no shadow. With c's view blocked by the person it cannot tell, and a and b
+    decide as two cameras do; without c, the two cameras' result is unchanged."""
+    cams = [Camera.look_at(name, pos, (0.0, 0.0, 0.0), size=(160, 120), focal_px=200.0)
+            for name, pos in (("a", (-2.0, -3.0, 1.4)), ("b", (2.0, -3.0, 1.4)), ("c", (0.0, 3.0, 1.4)))]  # fmt: skip
+    points = [floor_points(c, c.size) for c in cams]
+    patch = [_patch(p, -0.4, 0.4, -0.3, 0.3) for p in points]
+    ratio = [np.where(m, np.log(0.6), 0).astype(np.float32) for m in patch]
+    candidates = [patch[0], patch[1], np.zeros_like(patch[2])]
+    darkening = [patch[0], patch[1], np.zeros_like(patch[2])]  # c: the floor as bright as its plate
+    none = [np.zeros_like(m) for m in patch]
+    inner = cv2.erode(patch[0].view(np.uint8), np.ones((5, 5), np.uint8)) > 0
+    assert inner.sum() > 50
+    three = FloorShadowCheck(cams, [c.size for c in cams], tolerance=1)
+    two = FloorShadowCheck(cams[:2], [c.size for c in cams[:2]], tolerance=1)
+    assert two.relabel(candidates[:2], darkening[:2], None, ratio[:2], none[:2])[0][inner].all()
+    assert not three.relabel(candidates, darkening, None, ratio, none)[0][inner].any()
+    blocked = [none[0], none[1], patch[2]]  # c sees the person in front of the floor point
+    assert three.relabel(candidates, darkening, None, ratio, blocked)[0][inner].all()
+
+
 def test_an_unconfirmed_shadow_stays_one_only_where_confirmed_shadows_fell_around_the_person():
     """The person stands at the origin; both cameras confirm a shadow cast towards +x, frame after
     frame. Camera a alone then sees two more candidates, where b cannot look: one further along the

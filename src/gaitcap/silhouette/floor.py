@@ -10,10 +10,13 @@ cameras two geometric facts can:
   A point of the body above the floor, back-projected to z = 0 through camera i, lands on a
   floor point that camera j sees elsewhere than the body (parallax), as plain floor.
 
-So a shadow candidate of camera i stays a shadow only where its ray meets the floor and at least
-one other camera that sees that floor point finds it darkened (foreground or darker than its
-background) by the same brightness ratio, or cannot see it behind the person (its foreground there
-is no shadow candidate). The ratio is the check that tells an object on the floor from a shadow:
+So a shadow candidate of camera i stays a shadow only where its ray meets the floor, at least one
+other camera that sees that floor point finds it darkened (foreground or darker than its background)
+by the same brightness ratio, or cannot see it behind the person (its foreground there is no shadow
+candidate), and no other camera sees that floor point lit (not darkened within the tolerance, nobody
+in front): with three or four cameras, one that sees the person's foot where another's shadow
+candidate is (the foot is on the floor) no longer confirms it alone when a third sees plain floor
+there. The ratio is the check that tells an object on the floor from a shadow:
 
 * a shadow darkens a matte floor by the same factor for every camera (it is the light that
   changes, not the surface: brightness / background brightness does not depend on the view);
@@ -241,8 +244,10 @@ class FloorShadowCheck:
 
         Returns:
             (h_i, w_i) bool per camera: candidates on the floor near the capture area that another
-            camera seeing the floor point also finds darkened, or that no other camera sees; deep
-            candidates only where another camera confirms them.
+            camera seeing the floor point also finds darkened and none sees lit, or that no other
+            camera sees; deep candidates only where another camera confirms them and none sees the
+            floor point lit. With two cameras "and none sees lit" changes nothing (the other camera
+            either confirms or sees the floor lit).
         """
         dark = [d.view(np.uint8) for d in darkening]
         if self._grow is not None:
@@ -258,17 +263,21 @@ class FloorShadowCheck:
             if w and h:
                 box = np.s_[y : y + h, x : x + w]
                 confirmed = np.zeros((h, w), np.uint8)
+                refuted = np.zeros((h, w), np.uint8)
                 for j, m in self.maps[i]:
-                    seen_j = cv2.remap(dark[j], m[box], None, cv2.INTER_NEAREST,
+                    dark_j = cv2.remap(dark[j], m[box], None, cv2.INTER_NEAREST,
                                        borderMode=cv2.BORDER_CONSTANT, borderValue=0)  # fmt: skip
+                    seen_j = dark_j.copy()
                     if log_ratio is not None:
                         seen_j &= self._same_ratio(log_ratio[i][box], low[j], high[j], m[box], ratio_tolerance)
                         if body is not None:
                             seen_j |= cv2.remap(body[j].view(np.uint8), m[box], None, cv2.INTER_NEAREST,
                                                 borderMode=cv2.BORDER_CONSTANT, borderValue=0)  # fmt: skip
                     confirmed |= seen_j
+                    # camera j sees the floor point lit (no darkening within the tolerance, nobody in front)
+                    refuted |= (m[box][..., 0] >= 0).view(np.uint8) & (1 - dark_j) & (1 - seen_j)
                 floor = self.on_floor[i][box] & self.near[i][box]
-                confirmed = confirmed > 0
+                confirmed = (confirmed > 0) & (refuted == 0)
                 kept[box] = floor & ((shadow[box] & (confirmed | ~self.seen[i][box])) | (deep_i[box] & confirmed))
             out.append(kept)
         if centre is not None:
