@@ -347,9 +347,9 @@ def _observations(ses: Session, cams: tuple[str, ...], views, sil_cfg: Silhouett
     across the cameras in between (:class:`JointExtractor`); each camera's frames stay in order,
     and an error is raised for the first camera (rig order) that has one, as one after the other.
     The backgrounds are fitted one after the other: side by side, they raise the peak memory for
-    no measurable time; the floor check's geometry (calibration only) is built beside them. With ``saver`` the full-resolution masks are kept (:class:`MaskSaver`). With
-    ``soft`` the tracker sees each pixel's foreground confidence (:meth:`JointExtractor.process_soft`),
-    otherwise the 0/1 masks."""
+    no measurable time; the floor check's geometry (calibration only) is built beside them. With
+    ``saver`` the full-resolution masks are kept (:class:`MaskSaver`). With ``soft`` the tracker sees
+    each pixel's foreground confidence (:meth:`JointExtractor.process_soft`), otherwise the 0/1 masks."""
     sources = {cam: Source(cam, ses.videos[cam], ses.backgrounds.get(cam)) for cam in cams}
     error: BaseException | None = None
     try:

@@ -64,7 +64,8 @@ class JointExtractor:
                     f"{cam.size[0]}x{cam.size[1]}"
                 )
         self.floor = floor if floor is not None else floor_check(cameras, self.extractors[0].config)
-        if self.floor is not None and [m.shape for m in self.floor.on_floor] != [ex.work_size[::-1] for ex in self.extractors]:
+        sizes = [ex.work_size[::-1] for ex in self.extractors]  # (h, w) each
+        if self.floor is not None and [m.shape for m in self.floor.on_floor] != sizes:
             raise ValueError("the floor check was built for other image sizes than the extractors'")
 
     def process(self, images: Sequence[np.ndarray]) -> list[tuple[np.ndarray, FrameQuality]]:
