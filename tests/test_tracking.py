@@ -1067,6 +1067,41 @@ def test_kernel_threads_are_set_capped_and_restored(tmp_path):
         load_tracking_config(path)
 
 
+def test_start_switch_interval_of_overlapping_runs_is_restored_by_the_last_to_end():
+    """Two runs' start blocks overlapping on two threads, the first to enter ending first: the
+    interval stays short until both have ended, then it is the one in force before either began
+    (each block restoring what it found would leave the short interval behind)."""
+    import sys
+    import threading
+
+    from gaitcap.pipeline import START_SWITCH_S, _switch_interval
+
+    original = sys.getswitchinterval()
+    entered, release_second = threading.Event(), threading.Event()
+    seen: dict[str, float] = {}
+
+    def second_run() -> None:
+        with _switch_interval(START_SWITCH_S):
+            entered.set()
+            release_second.wait(5)
+
+    try:
+        with _switch_interval(START_SWITCH_S):
+            other = threading.Thread(target=second_run)
+            other.start()
+            assert entered.wait(5)
+        seen["after the first"] = sys.getswitchinterval()
+        release_second.set()
+        other.join(5)
+        seen["after both"] = sys.getswitchinterval()
+    finally:
+        release_second.set()
+        sys.setswitchinterval(original)
+    assert seen["after the first"] == pytest.approx(START_SWITCH_S)
+    assert seen["after both"] == pytest.approx(original)
+    assert START_SWITCH_S != pytest.approx(original)
+
+
 def test_root_refined_alone_keeps_the_trunk_and_thighs_still(embedded_session, rng):
     """Moving the root alone re-solves the lumbar and hip angles so that the trunk and thighs keep
     their world orientation: R_pelvis' R_child' = R_pelvis R_child (no thigh anchored at its knee)."""

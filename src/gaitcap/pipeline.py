@@ -250,15 +250,29 @@ def _first_observations(session: Path, head: Head[Observation], cfg: TrackingCon
 START_SWITCH_S = 0.0005
 
 
+#: the switch interval is the interpreter's, not a thread's: runs started from several threads share
+#: it. The first block to enter saves the interval in force and the last to leave restores it
+#: (blocks that overlap, in any order of exit, never leave a run's interval behind them)
+_switch_lock = threading.Lock()
+_switch_state: dict[str, float] = {"depth": 0, "saved": 0.0}
+
+
 @contextmanager
 def _switch_interval(seconds: float) -> Iterator[None]:
-    """``sys.setswitchinterval(seconds)`` inside the block, restored on exit."""
-    before = sys.getswitchinterval()
-    sys.setswitchinterval(seconds)
+    """``sys.setswitchinterval(seconds)`` inside the block; the interval in force before the first
+    of the overlapping blocks (one per thread running a session) is restored when the last one ends."""
+    with _switch_lock:
+        if _switch_state["depth"] == 0:
+            _switch_state["saved"] = sys.getswitchinterval()
+        _switch_state["depth"] += 1
+        sys.setswitchinterval(seconds)
     try:
         yield
     finally:
-        sys.setswitchinterval(before)
+        with _switch_lock:
+            _switch_state["depth"] -= 1
+            if _switch_state["depth"] == 0:
+                sys.setswitchinterval(_switch_state["saved"])
 
 
 def _import_late() -> None:
