@@ -135,6 +135,21 @@ def test_silhouettes_that_cannot_meet_refuse_the_calibration(wrong: str) -> None
         assert "the others agree without camera 'cam1'" in msg
 
 
+def test_someone_else_near_a_camera_is_named_as_a_possible_cause() -> None:
+    """The right calibration, but a second person stands between camera 0 and the subject: that
+    camera's silhouette holds both, the rays miss each other, and the error says to check for
+    someone else in view as well as the extrinsics."""
+    rig = _rig()
+    near = 0.6 * rig.cameras[0].center[:2] + np.array([0.4, -0.3])
+    masks = [np.maximum(a, b) for a, b in zip(_person_masks(rig), _person_masks(rig, tuple(near)))]
+    views = tracking_views(rig, 0.5)
+    check_silhouettes_meet(views, [observe(views, _person_masks(rig))] * 5, "SESSION/calibration.toml")  # alone: passes
+    with pytest.raises(CalibrationError) as e:
+        check_silhouettes_meet(views, [observe(views, masks)] * 5, "SESSION/calibration.toml")
+    msg = str(e.value)
+    assert "check the extrinsics" in msg and "no one but the subject is in a camera's view" in msg and "\n" not in msg
+
+
 def test_tracking_refuses_a_calibration_its_silhouettes_contradict(embedded_session, tmp_path) -> None:
     from gaitcap.pipeline import run_track
 

@@ -283,7 +283,9 @@ def check_silhouettes_meet(views: list[TrackingView], observations: list[Observa
 
     With a wrong calibration (a rotation transposed or tilted, an extrinsic of another session)
     the rays cross under the floor, behind a camera, or where one camera sees a floating or
-    giant subject. A near-symmetric mistake (two cameras' extrinsics swapped in a symmetric
+    giant subject. So do they when someone else is in a camera's view (a therapist beside the
+    subject, someone by the walkway): that camera's silhouette, and its centroid, hold both; the
+    error says so too. A near-symmetric mistake (two cameras' extrinsics swapped in a symmetric
     rig) can pass: this check refuses what cannot be right, it does not prove a calibration.
 
     Args:
@@ -305,5 +307,6 @@ def check_silhouettes_meet(views: list[TrackingView], observations: list[Observa
     raise CalibrationError(
         f"{source}: the cameras' silhouettes do not meet in 3D where the calibration puts them ({n_bad} of the "
         f"first {len(judged)} frames seen by two cameras or more{blame}): check the extrinsics "
-        "(the cameras' names and order, rotations, a calibration of another session)"
+        "(the cameras' names and order, rotations, a calibration of another session), and that no one but the "
+        "subject is in a camera's view (gaitcap tracks one person: someone else's silhouette moves the subject's)"
     )
