@@ -153,6 +153,11 @@ class CleanupConfig(Strict):
         description="and below the box within this fraction of its height (a foot whose leg the foreground lost; "
                     "calibrated cameras: not past the floor beneath the person)",
     )
+    keep_radius_m: float = Field(
+        default=0.6, ge=0, le=3,
+        description="calibrated cameras: a main part with less than a tenth of its pixels within this distance "
+                    "(metres) of the person's vertical axis (the previous frame's head top) is dropped; 0: off",
+    )
     matte_outline: bool = Field(
         default=True,
         description="re-decide the outline's pixels (1 outside, 1 inside) by the fraction of the pixel the person "

@@ -354,10 +354,10 @@ def head_top(mask: np.ndarray, rows: int = 3) -> np.ndarray | None:
     return np.array([float(cols.mean()), float(y)])
 
 
-def person_floor_point(cameras: Sequence[Camera], masks: Sequence[np.ndarray]) -> np.ndarray | None:
-    """(3,) the floor point (x, y, 0) straight below the person's head top, triangulated from the
-    masks' tops (:func:`head_top`, DLT on undistorted pixels, every camera that sees the top); None
-    when fewer than two see it or it is no person's head (height outside 0.7-2.5 m)."""
+def person_head_top(cameras: Sequence[Camera], masks: Sequence[np.ndarray]) -> np.ndarray | None:
+    """(3,) the person's head top, triangulated from the masks' tops (:func:`head_top`, DLT on
+    undistorted pixels, every camera that sees the top); None when fewer than two see it or it is
+    no person's head (height outside 0.7-2.5 m)."""
     tops = [head_top(m) for m in masks]
     seen = [i for i, t in enumerate(tops) if t is not None]
     if len(seen) < 2:
@@ -366,7 +366,14 @@ def person_floor_point(cameras: Sequence[Camera], masks: Sequence[np.ndarray]) -
     top = dlt_point([cameras[i].projection_matrix() for i in seen], ideal)
     if top is None or not _HEAD_TOP_M[0] <= top[2] <= _HEAD_TOP_M[1]:
         return None
-    return np.array([top[0], top[1], 0.0])
+    return top
+
+
+def person_floor_point(cameras: Sequence[Camera], masks: Sequence[np.ndarray]) -> np.ndarray | None:
+    """(3,) the floor point (x, y, 0) straight below the person's head top (:func:`person_head_top`),
+    or None."""
+    top = person_head_top(cameras, masks)
+    return None if top is None else np.array([top[0], top[1], 0.0])
 
 
 def floor_rows(cameras: Sequence[Camera], masks: Sequence[np.ndarray],

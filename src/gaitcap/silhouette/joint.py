@@ -2,20 +2,24 @@
 check across cameras (:mod:`gaitcap.silhouette.floor`), then each camera's clean-up, which keeps
 small components below the body down to the floor beneath the person (a foot whose leg the
 foreground lost), that floor's row in each camera found from the previous frame's masks
-(:func:`~gaitcap.silhouette.floor.floor_rows`: their head tops triangulated)."""
+(:func:`~gaitcap.silhouette.floor.floor_rows`: their head tops triangulated); with that head top,
+each mask's main parts that lie on the floor away from the person's vertical axis are dropped
+(:func:`off_axis_parts`)."""
 
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Sequence
+from dataclasses import replace
 from typing import Any
 
+import cv2
 import numpy as np
 
 from gaitcap.camera import Camera
 from gaitcap.errors import InputError
 from gaitcap.silhouette.config import SilhouetteConfig
 from gaitcap.silhouette.extract import FrameEvidence, FrameQuality, SilhouetteExtractor, working_size
-from gaitcap.silhouette.floor import FloorShadowCheck, floor_rows, person_floor_point
+from gaitcap.silhouette.floor import FloorShadowCheck, floor_rows, person_head_top
 
 MapFn = Callable[..., Iterable[Any]]
 
@@ -53,6 +57,8 @@ class JointExtractor:
         self._floor_rows: list[float | None] = [None] * len(self.extractors)
         #: the floor point (x, y) beneath the person in the previous frame (None: not known)
         self._centre: np.ndarray | None = None
+        #: the person's head top (3,) in the previous frame (None: not known)
+        self._top: np.ndarray | None = None
         if cameras is None or not self.extractors:
             return
         if len(cameras) != len(self.extractors):
@@ -82,6 +88,11 @@ class JointExtractor:
         clean-up of its :meth:`observe` evidence and shadows, then the floor rows for the next frame."""
         step = SilhouetteExtractor.finish_soft if soft else SilhouetteExtractor.finish
         out = list(self._map(step, self.extractors, evidence, shadows, self._floor_rows))
+        radius = self.extractors[0].config.cleanup.keep_radius_m if self.extractors else 0.0
+        if self._top is not None and radius > 0 and self._cameras is not None and len(self._cameras) > 1:
+            relative = self.extractors[0].config.cleanup.keep_relative
+            out = [r if r[-1].components < 2 else _without(r, off_axis_parts(r[0], cam, self._top, radius, relative))
+                   for r, cam in zip(out, self._cameras)]  # fmt: skip (one component kept: nothing to drop)
         self._follow([r[0] for r in out])
         return out
 
@@ -89,7 +100,8 @@ class JointExtractor:
         """The floor's row beneath the person in each camera, from this frame's masks, for the next
         frame (the person moves a few centimetres from frame to frame)."""
         if self._cameras is not None and len(self._cameras) > 1:
-            foot = person_floor_point(self._cameras, masks)
+            self._top = person_head_top(self._cameras, masks)
+            foot = None if self._top is None else np.array([self._top[0], self._top[1], 0.0])
             self._floor_rows = floor_rows(self._cameras, masks, foot)
             self._centre = None if foot is None else foot[:2]
 
@@ -110,3 +122,68 @@ class JointExtractor:
             shadows = self.floor.relabel(shadows, [e.darkening for e in evidence], deep, ratio, body,
                                          cfg.floor_ratio_tolerance, centre)  # fmt: skip
         return evidence, shadows
+
+
+#: a main part with less than this fraction of its pixels within reach of the person's axis is not the person
+_ON_AXIS = 0.1
+#: a part whose top is lower in the image than a point this high (metres) above the floor beneath the
+#: person lies on the floor (a shadow's end, a reflection); someone else in view stands higher
+_FLOOR_LEVEL_M = 0.3
+#: points on each circle of the person's cylinder drawn into a camera
+_CIRCLE_POINTS = 24
+
+
+def person_region(camera: Camera, top: np.ndarray, radius: float) -> np.ndarray:
+    """(H, W) bool: the vertical cylinder of ``radius`` metres from the floor below the head top
+    ``top`` (3,) up to it, drawn into ``camera`` (the convex hull of its two circles; points behind
+    the camera left out)."""
+    a = np.linspace(0.0, 2.0 * np.pi, _CIRCLE_POINTS, endpoint=False)
+    ring = np.stack([top[0] + radius * np.cos(a), top[1] + radius * np.sin(a)], axis=1)
+    pts = np.vstack([np.c_[ring, np.zeros(len(a))], np.c_[ring, np.full(len(a), top[2])]])
+    pts = pts[camera.to_camera(pts)[:, 2] > 0.05]
+    region = np.zeros((camera.height, camera.width), np.uint8)
+    if len(pts) >= 3:
+        hull = cv2.convexHull(np.clip(camera.project(pts), -1e5, 1e5).astype(np.float32)).astype(np.int32)
+        cv2.fillConvexPoly(region, hull, 1)
+    return region.astype(bool)
+
+
+def off_axis_parts(mask: np.ndarray, camera: Camera, top: np.ndarray, radius: float,
+                   relative: float) -> np.ndarray | None:  # fmt: skip
+    """(H, W) bool: the pixels of the main parts of ``mask`` (connected components of at least
+    ``relative`` of the largest one's area) that lie on the floor away from the person: less than a
+    tenth of their pixels in the person's cylinder (:func:`person_region`, ``top`` the person's head
+    top in the previous frame) and their top lower in the image than a point 0.3 m above the floor
+    beneath it (the far end of a long shadow that the floor check could not confirm). Such a part
+    lies where no part of the person can be (the person moves a few centimetres from frame to frame).
+    Upright parts away from the axis are left alone: someone else in view, whose head may be the
+    one triangulated. None when there is none (or none of the main parts is in the cylinder: the
+    person is not found there, nothing is dropped)."""
+    n, labels, stats, _ = cv2.connectedComponentsWithStats((mask > 0).astype(np.uint8), connectivity=8)
+    if n <= 2:
+        return None
+    area = stats[1:, cv2.CC_STAT_AREA]
+    main = np.flatnonzero(area >= relative * area.max()) + 1
+    if len(main) < 2:
+        return None
+    low = camera.project(np.array([[top[0], top[1], _FLOOR_LEVEL_M]]))[0, 1]  # image row of knee height there
+    inside = np.bincount(labels[person_region(camera, top, radius)], minlength=n)
+    off = main[(inside[main] < _ON_AXIS * stats[main, cv2.CC_STAT_AREA]) & (stats[main, cv2.CC_STAT_TOP] >= low)]
+    if not len(off) or len(off) == len(main):
+        return None
+    lut = np.zeros(n, bool)
+    lut[off] = True
+    return lut[labels]
+
+
+def _without(result: tuple, drop: np.ndarray | None) -> tuple:
+    """One camera's :meth:`JointExtractor.finish` result, ``(mask, quality)`` or ``(mask, soft,
+    quality)``, without the pixels ``drop`` (H, W) bool (None: unchanged); the quality's area, box
+    and count of components are those of what is left."""
+    if drop is None:
+        return result
+    *images, quality = result
+    images = [np.where(drop, 0, im).astype(im.dtype, copy=False) for im in images]
+    left = (images[0] > 0).astype(np.uint8)
+    n = cv2.connectedComponents(left, connectivity=8)[0] - 1
+    return (*images, replace(quality, fraction=float(left.mean()), components=n, bbox=cv2.boundingRect(left) if n else None))
