@@ -155,8 +155,9 @@ class CleanupConfig(Strict):
     )
     keep_radius_m: float = Field(
         default=0.6, ge=0, le=3,
-        description="calibrated cameras: a main part with less than a tenth of its pixels within this distance "
-                    "(metres) of the person's vertical axis (the previous frame's head top) is dropped; 0: off",
+        description="calibrated cameras: a main part lying on the floor with less than a tenth of its pixels within "
+                    "this distance (metres) of the person's vertical axis (the previous frame's head top) is dropped; "
+                    "0: off",
     )
     matte_outline: bool = Field(
         default=True,

@@ -168,8 +168,9 @@ def off_axis_parts(mask: np.ndarray, camera: Camera, top: np.ndarray, radius: fl
         return None
     low = camera.project(np.array([[top[0], top[1], _FLOOR_LEVEL_M]]))[0, 1]  # image row of knee height there
     inside = np.bincount(labels[person_region(camera, top, radius)], minlength=n)
-    off = main[(inside[main] < _ON_AXIS * stats[main, cv2.CC_STAT_AREA]) & (stats[main, cv2.CC_STAT_TOP] >= low)]
-    if not len(off) or len(off) == len(main):
+    on = inside[main] >= _ON_AXIS * stats[main, cv2.CC_STAT_AREA]
+    off = main[~on & (stats[main, cv2.CC_STAT_TOP] >= low)]
+    if not on.any() or not len(off):
         return None
     lut = np.zeros(n, bool)
     lut[off] = True
@@ -186,4 +187,5 @@ def _without(result: tuple, drop: np.ndarray | None) -> tuple:
     images = [np.where(drop, 0, im).astype(im.dtype, copy=False) for im in images]
     left = (images[0] > 0).astype(np.uint8)
     n = cv2.connectedComponents(left, connectivity=8)[0] - 1
-    return (*images, replace(quality, fraction=float(left.mean()), components=n, bbox=cv2.boundingRect(left) if n else None))
+    box = cv2.boundingRect(left) if n else None
+    return (*images, replace(quality, fraction=float(left.mean()), components=n, bbox=box))
