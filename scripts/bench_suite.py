@@ -284,7 +284,7 @@ def own_sessions(args: argparse.Namespace) -> list[dict]:
             print(f"# sessions of the {w} walk skipped: {reason}", file=sys.stderr)
     rows = []
     for p in plan(args.sessions, list(WALKS)):
-        if why[p["walk"]]:
+        if why[p["walk"]] or (args.only and p["name"] not in args.only):  # --only: the others are not drawn
             continue
         session = args.work / "sessions" / p["name"]
         if not (session / "truth.h5").exists():
