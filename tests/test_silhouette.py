@@ -346,7 +346,7 @@ def test_joint_extractor_follows_the_floor_beneath_the_person_from_frame_to_fram
     joint.process(frames)
     truth = [cam.project(np.array([[*at, 0.0]]))[0, 1] for cam in cams]
     assert np.max(np.abs(np.array(joint._floor_rows) - truth)) < 0.03 * 240
-    assert np.hypot(*(joint._centre - at)) < 0.1  # the person's floor point, for shadow.floor_footprint
+    assert np.hypot(*(joint._top[:2] - at)) < 0.1  # the person's floor point, for shadow.floor_footprint
     alone = JointExtractor(extractors[:1], None)  # no calibration: no floor row
     alone.process(frames[:1])
     assert alone._floor_rows == [None]

@@ -55,9 +55,8 @@ class JointExtractor:
         self._cameras = list(cameras) if cameras is not None else None
         #: per camera, the floor's row beneath the person in the previous frame (None: not known)
         self._floor_rows: list[float | None] = [None] * len(self.extractors)
-        #: the floor point (x, y) beneath the person in the previous frame (None: not known)
-        self._centre: np.ndarray | None = None
-        #: the person's head top (3,) in the previous frame (None: not known)
+        #: the person's head top (3,) in the previous frame (None: not known); the floor beneath it is
+        #: where the person stands
         self._top: np.ndarray | None = None
         if cameras is None or not self.extractors:
             return
@@ -89,7 +88,7 @@ class JointExtractor:
         step = SilhouetteExtractor.finish_soft if soft else SilhouetteExtractor.finish
         out = list(self._map(step, self.extractors, evidence, shadows, self._floor_rows))
         radius = self.extractors[0].config.cleanup.keep_radius_m if self.extractors else 0.0
-        if self._top is not None and radius > 0 and self._cameras is not None and len(self._cameras) > 1:
+        if self._top is not None and radius > 0 and self._cameras is not None:  # a head top: two cameras or more
             relative = self.extractors[0].config.cleanup.keep_relative
             out = [r if r[-1].components < 2 else _without(r, off_axis_parts(r[0], cam, self._top, radius, relative))
                    for r, cam in zip(out, self._cameras)]  # fmt: skip (one component kept: nothing to drop)
@@ -103,7 +102,6 @@ class JointExtractor:
             self._top = person_head_top(self._cameras, masks)
             foot = None if self._top is None else np.array([self._top[0], self._top[1], 0.0])
             self._floor_rows = floor_rows(self._cameras, masks, foot)
-            self._centre = None if foot is None else foot[:2]
 
     def observe(self, images: Sequence[np.ndarray]) -> tuple[list[FrameEvidence], list[np.ndarray]]:
         """The first half of :meth:`process`: every camera's per-pixel evidence
@@ -118,7 +116,7 @@ class JointExtractor:
             if cfg.floor_same_ratio:
                 ratio = list(self._map(lambda ex, e: ex.log_brightness(e), self.extractors, evidence))
                 body = [e.candidate & ~(s | d) for e, s, d in zip(evidence, shadows, deep)]
-            centre = self._centre if cfg.floor_footprint else None
+            centre = self._top[:2] if cfg.floor_footprint and self._top is not None else None
             shadows = self.floor.relabel(shadows, [e.darkening for e in evidence], deep, ratio, body,
                                          cfg.floor_ratio_tolerance, centre)  # fmt: skip
         return evidence, shadows
