@@ -21,13 +21,16 @@ import shutil
 import subprocess
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from gaitcap.data import embedded_walk
 from gaitcap.errors import GaitcapError
+from gaitcap.io.trc import write_trc
 from gaitcap.io.video_write import AtomicVideoWriter
+from gaitcap.markers.motion import read_motion
 from gaitcap.session import BACKGROUND_DIR, CALIBRATION_FILE, SESSION_FILE, VIDEOS_DIR, Session
 from gaitcap.synth.session import TRUTH_FILE, SynthOptions, synthesize
 from gaitcap.video import VideoReader, probe_video
@@ -40,6 +43,35 @@ def base_session(work: Path, fps: float) -> Path:
     root = work / f"embedded-walk-{fps:g}fps"
     if not (root / TRUTH_FILE).is_file():
         synthesize(embedded_walk(), root, SynthOptions(fps=fps), force=True, progress=False)
+    return root
+
+
+def turn_session(work: Path, n_frames: int, fps: float, turn_s: float = 1.0) -> Path:
+    """The embedded walk up and down a walkway, as a lab records a longer clip: the walk, a standing
+    pivot of 180 degrees over ``turn_s`` seconds, the walk back, and so on
+    (``make_turn_walk.turned_walk``), cut to ``n_frames`` at ``fps`` and rendered by ``gaitcap synth``
+    with the defaults the embedded walk's session has (cached in ``work``)."""
+    from make_turn_walk import turned_walk  # scripts/, beside this file
+
+    root = work / f"turn-walk-{fps:g}fps-{n_frames}frames"
+    if (root / TRUTH_FILE).is_file() and _has_frames(root, n_frames):
+        return root
+    walk = read_motion(embedded_walk())
+    samples = round((n_frames - 1) / fps * walk.rate_hz) + 1  # frames 0 .. n_frames - 1
+    def up_and_down(turns: int) -> np.ndarray:
+        return turned_walk(walk.points, walk.names.index("pelvis"), walk.rate_hz, turn_s, 180.0, turns)
+
+    turns, points = 1, up_and_down(1)
+    while len(points) < samples:
+        turns += 1
+        points = up_and_down(turns)
+    points = points[:samples]
+    work.mkdir(parents=True, exist_ok=True)
+    trc = work / f"{root.name}.trc"
+    write_trc(trc, replace(walk, points=points, events=()), units="mm")
+    synthesize(trc, root, SynthOptions(fps=fps, height_m=walk.meta.get("height_m", 1.639)), force=True, progress=False)
+    if not _has_frames(root, n_frames):
+        raise SystemExit(f"{root}: the turning walk did not render to {n_frames} frames")
     return root
 
 

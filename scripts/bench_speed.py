@@ -1,11 +1,20 @@
 """End-to-end speed of ``gaitcap track`` on short and long clips, stage by stage, against its floor.
 
     PYTHONPATH=src python scripts/bench_speed.py [--runs 3] [--seconds 2.5 5 20] [--fps 25] [--reuse-body]
-        [--work /tmp/gaitcap-bench] [-- extra gaitcap track options]
+        [--walk turns|ping-pong] [--work /tmp/gaitcap-bench] [-- extra gaitcap track options]
 
-The sessions are those of scripts/bench_memory.py: the embedded walk rendered once (2 cameras,
-640x480, ``gaitcap synth``'s defaults) and its videos looped forwards and backwards to each clip
-length. Each clip is tracked ``--runs`` times by ``python -m gaitcap -q track`` in a child process;
+The clips (2 cameras, 640x480, ``gaitcap synth``'s defaults, rendered once into --work):
+
+- ``--walk turns`` (the default): the embedded walk up and down a walkway, as a lab records a longer
+  clip: the walk (2.2 s), a standing pivot of 180 degrees (1 s), the walk back, and so on, rendered
+  to each clip length (``bench_memory.turn_session``);
+- ``--walk ping-pong``: the sessions of scripts/bench_memory.py, the embedded walk's videos played
+  forwards and backwards to each clip length (the figures quoted before 2026-11-30). Played
+  backwards, the subject walks backwards: a run whose body moves against the way it faces is one
+  the verdict would doubt, so the backward pass is tracked a second time from a fresh start
+  (``backward.restart``), a cost a subject walking forwards does not have.
+
+Each clip is tracked ``--runs`` times by ``python -m gaitcap -q track`` in a child process;
 the table gives the medians of:
 
 - wall: the child's wall time, start to exit; fps: frames / wall;
@@ -43,7 +52,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from bench_memory import base_session, long_session, track_in_child  # noqa: E402
+from bench_memory import base_session, long_session, track_in_child, turn_session  # noqa: E402
 
 from gaitcap.pipeline import Stages, _observations  # noqa: E402
 from gaitcap.session import Session  # noqa: E402
@@ -91,15 +100,20 @@ def main() -> None:
     ap.add_argument("--work", type=Path, default=Path("/tmp/gaitcap-bench"))
     ap.add_argument("--reuse-body", action="store_true",
                     help="also time each clip tracked with the body its first run calibrated (gaitcap track --body)")
+    ap.add_argument("--walk", choices=["turns", "ping-pong"], default="turns",
+                    help="the clips: the walk up and down a walkway, or its videos played forwards and backwards")
     ap.add_argument("extra", nargs="*", help="options passed on to gaitcap track (after --)")
     args = ap.parse_args()
-    source = base_session(args.work, args.fps)
+    source = base_session(args.work, args.fps) if args.walk == "ping-pong" else None
     cols = ["wall", "start-up", *STAGES.values(), "background", "floor"]
     print(f"| clip s | frames | fps | {' | '.join(c + ' s' for c in cols)} | wall / floor | floor CPU ms/frame |")
     print("|" + "---|" * (len(cols) + 5))
     for seconds in args.seconds:
         n = int(round(seconds * args.fps))
-        session = long_session(source, args.work / f"{source.name}-{n}frames", n, args.fps)
+        if source is None:
+            session = turn_session(args.work, n, args.fps)
+        else:
+            session = long_session(source, args.work / f"{source.name}-{n}frames", n, args.fps)
         out = args.work / f"{session.name}-speed-out"
         body = args.work / f"{session.name}-body"
         variants = [("", args.extra)] + ([(" (--body)", [*args.extra, "--body", str(body)])] if args.reuse_body else [])
