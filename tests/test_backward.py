@@ -453,3 +453,49 @@ def test_a_second_hypothesis_only_for_a_run_in_doubt_and_kept_if_no_worse(monkey
     assert merges == (["first", "second"] if restarted and second else ["first"])
     np.testing.assert_array_equal(writer.replaced[0], marker[kept])
 
+
+
+@pytest.mark.parametrize(
+    "facing, doubts, begun, used",
+    [(30, [4, 3], True, True), (30, [0], True, False), (0, [4, 3], False, True), (0, [0], False, False)],
+)  # fmt: skip
+def test_a_fresh_start_begun_beside_the_merge_is_used_only_if_the_merged_run_is_in_doubt(monkeypatch, facing, doubts,
+                                                                                         begun, used):  # fmt: skip
+    """``early``: the fresh start is begun in a worker thread before the merge when the forward pass
+    moves against the way it faces (facing_in_doubt > 0), with the arguments a call after the merge
+    gets; its result is taken when the merged run is in doubt (legs_in_doubt), and it is told to stop
+    otherwise; any other run gets it after the merge, as without ``early``."""
+    import threading
+
+    from gaitcap import pipeline
+    from gaitcap.tracking.base import Estimate
+
+    T, P = 6, 4
+    cfg = load_tracking_config()
+    doubt = iter(doubts)
+    monkeypatch.setattr(pipeline, "legs_in_doubt", lambda points, names, rate, vcfg: next(doubt))
+    monkeypatch.setattr(pipeline, "facing_in_doubt", lambda points, names, rate: facing)
+    monkeypatch.setattr(pipeline, "_merge_run", lambda *a: {0: Estimate(np.zeros(3), np.zeros((P, 3)), np.zeros(P), 0.0,
+                                                                        0.8, 1)})  # fmt: skip
+    calls, stops = [], []
+
+    def restart(spool, q_last, s, e, stop=None):
+        calls.append((q_last.copy(), s, e, threading.current_thread() is threading.main_thread()))
+        if stop is not None:
+            stops.append(stop)
+        return [_FakeTracker(P).step(None) for _ in range(e - s)]
+
+    merged = []
+    monkeypatch.setattr(pipeline, "merge_passes", lambda back, second, legs, agree: merged.append(second) or back)
+    writer = _FakeWriter(T, P)
+    spool = type("Spool", (), {"read": lambda self, t: [np.zeros((2, 2), np.float32)]})()
+    pipeline._backward_pass(_FakeTracker(P), spool, writer, cfg, 25.0, restart, early=True)
+    assert len(calls) == (1 if begun or used else 0)
+    if calls:
+        np.testing.assert_array_equal(calls[0][0], writer.read_poses()[T - 1])
+        assert calls[0][1:3] == (0, T)
+        assert calls[0][3] == (not begun)  # begun early: in the worker thread
+    assert len(merged) == used
+    if begun:
+        assert len(stops) == 1 and stops[0].is_set()  # told to stop once the run is merged, used or not
+    assert next(doubt, None) is None  # every legs_in_doubt answer asked for

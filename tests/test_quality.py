@@ -209,9 +209,12 @@ def test_a_turn_the_model_did_not_follow_is_noted_after_it(walk):
     against, moving, first, last = quality.moving_backwards(both, names, RATE)
     assert (first, last) == (turn, 2 * T - 1) and against == moving > RATE
     assert len(v.notes) == 1 and f"in frames {turn}-{2 * T - 1}" in v.notes[0], v.notes
-    # the backward pass's gate for a fresh start counts those frames: the walk alone, none
+    # the backward pass's gate for a fresh start counts those frames: the walk alone, none; and begins
+    # the fresh start beside the merge for them (facing_in_doubt), on them alone
     assert legs_in_doubt(both, names, RATE, VerdictConfig()) == against
     assert legs_in_doubt(points, names, RATE, VerdictConfig()) == 0
+    assert quality.facing_in_doubt(both, names, RATE) == against
+    assert quality.facing_in_doubt(points, names, RATE) == 0
 
 
 def test_legs_exchanged_fore_and_aft_are_doubtful():

@@ -19,7 +19,7 @@ import threading
 import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
-from contextlib import ExitStack, contextmanager
+from contextlib import ExitStack, contextmanager, nullcontext
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -40,7 +40,7 @@ from gaitcap.io.track_h5 import (QUALITY_NOT_INITIALISED, QUALITY_OK, QUALITY_OU
                                  TrackWriter, proportions_attrs, read_track_record, tracked_frames)  # fmt: skip
 from gaitcap.io.trc import write_trc
 from gaitcap.prefetch import Head, Prefetched
-from gaitcap.quality import assess, legs_in_doubt
+from gaitcap.quality import assess, facing_in_doubt, legs_in_doubt
 from gaitcap.session import CALIBRATION_FILE, Session
 from gaitcap.session_check import check_session_videos, check_silhouettes_meet
 from gaitcap.silhouette.config import SilhouetteConfig
@@ -457,7 +457,8 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
                     backs = ahead.finish()
                     restart = partial(_restart_pass, filt.model, likelihood, views, cfg) if cfg.backward.restart else None
                     replaced = _backward_pass(_new_tracker(cfg, filt.model, likelihood), spool, writer, cfg, videos.fps,
-                                              restart, backs)  # fmt: skip
+                                              restart, backs, restart is not None and _concurrent_kernels(
+                                                  "the backward pass's fresh start"))  # fmt: skip
                 log.info("backward pass and leg order: %d of %d frames replaced", replaced, tracked)
                 with stages.timed("verdict"):  # the final poses against the spooled silhouettes
                     support = _leg_support(filt.model, likelihood, spool, writer.read_poses())
@@ -811,11 +812,11 @@ def _fit_quality(fit: float, cfg: TrackingConfig) -> int:
 
 
 def _restart_pass(model: BodyModel, likelihood, views, cfg: TrackingConfig, spool: FrameSpool, q_last: np.ndarray,
-                  s: int, e: int) -> list | None:  # fmt: skip
+                  s: int, e: int, stop: threading.Event | None = None) -> list | None:  # fmt: skip
     """A second backward hypothesis for the run of frames s..e-1 (a fresh tracker of ``model``): the
     subject initialised afresh on the run's last frames (taken backwards, the heading the forward
     pass's last pose ``q_last`` has, or the opposite one if it fits decisively better), then tracked
-    back to s; None when that pose's legs agree with ``q_last``'s."""
+    back to s; None when that pose's legs agree with ``q_last``'s. ``stop``: see :func:`_tracked_back`."""
     tracker = _new_tracker(cfg, model, likelihood)
     frames = [Observation(spool.read(t)) for t in range(e - 1, max(s, e - cfg.init.frames) - 1, -1)]
     try:
@@ -830,18 +831,41 @@ def _restart_pass(model: BodyModel, likelihood, views, cfg: TrackingConfig, spoo
     log.info("backward pass: a fresh start at frame %d, its legs %.0f mm from the forward pass's", e - 1, 1000 * gap)
     if gap < cfg.backward.agree_m:
         return None
-    return _tracked_back(tracker, spool, init.q, s, e, fresh=not init.legs_settled)
+    return _tracked_back(tracker, spool, init.q, s, e, fresh=not init.legs_settled, stop=stop)
 
 
-def _tracked_back(tracker, spool: FrameSpool, q0: np.ndarray, s: int, e: int, fresh: bool = False) -> list:
-    """The estimates of frames s..e-1 (in that order), tracked from pose ``q0`` (D,) at frame e - 1 back to s."""
+def _tracked_back(tracker, spool: FrameSpool, q0: np.ndarray, s: int, e: int, fresh: bool = False,
+                  stop: threading.Event | None = None) -> list:  # fmt: skip
+    """The estimates of frames s..e-1 (in that order), tracked from pose ``q0`` (D,) at frame e - 1 back
+    to s. ``stop``: once set, no further frame is tracked (the list is then short: its caller has no
+    more use for it)."""
     tracker.start(q0, fresh=fresh)
-    return [tracker.step(Observation(spool.read(t))) for t in range(e - 1, s - 1, -1)][::-1]
+    estimates = []
+    for t in range(e - 1, s - 1, -1):
+        if stop is not None and stop.is_set():
+            break
+        estimates.append(tracker.step(Observation(spool.read(t))))
+    return estimates[::-1]
+
+
+class _Begun:
+    """A call begun in ``pool``'s worker thread, ``fn(*args, stop=event)``: its result when wanted
+    (:meth:`result`), else told to stop (:meth:`stop`)."""
+
+    def __init__(self, pool: ThreadPoolExecutor, fn: Callable[..., object], *args: object) -> None:
+        self._stop = threading.Event()
+        self._future = pool.submit(fn, *args, stop=self._stop)
+
+    def result(self) -> object:
+        return self._future.result()
+
+    def stop(self) -> None:
+        self._stop.set()
 
 
 def _backward_pass(tracker, spool: FrameSpool, writer: TrackWriter, cfg: TrackingConfig, rate_hz: float,
-                   restart: Callable[[FrameSpool, np.ndarray, int, int], list | None] | None = None,
-                   backs: dict[tuple[int, int], list] | None = None) -> int:  # fmt: skip
+                   restart: Callable[..., list | None] | None = None, backs: dict[tuple[int, int], list] | None = None,
+                   early: bool = False) -> int:  # fmt: skip
     """Track every run of tracked frames again from its last frame to its first (``tracker``, a
     fresh one, started from the forward pass's last pose of the run) and overwrite in ``writer``
     the frames :func:`~gaitcap.tracking.backward.choose_backward` gives to the backward pass; then,
@@ -852,32 +876,67 @@ def _backward_pass(tracker, spool: FrameSpool, writer: TrackWriter, cfg: Trackin
     ``restart`` gives (:func:`_restart_pass`), merged with the first
     (:func:`~gaitcap.tracking.backward.merge_passes`), if that leaves no more frames in doubt.
     ``backs``: every run's backward estimates, tracked already (:meth:`BackwardAhead.finish`).
+    ``early``: a run whose forward pass moves against the way it faces for a stretch
+    (:func:`~gaitcap.quality.facing_in_doubt`: a turn the model did not follow, or a subject walking
+    backwards; the merge, which exchanges legs, does not clear it) has its fresh start begun in a
+    worker thread while it is merged, on the core the merge leaves idle (called as
+    ``restart(..., stop=event)``), and stopped if the merged run is not in doubt: the same
+    estimates as a fresh start begun after the merge.
     Returns how many frames were overwritten. Memory: the runs' estimates (about a kilobyte a frame)."""
     raw, quality = writer.read_back()
     poses, fit = writer.read_poses(), writer.read_fit()
     names = tracker.model.point_names
-    legs = leg_points(names)
     replaced = 0
-    for s, e in finite_runs(tracked_frames(quality)):
-        back = backs[(s, e)] if backs is not None else _tracked_back(tracker, spool, poses[e - 1], s, e)
-        chosen = _merge_run(tracker, spool, raw, poses, fit, back, s, e, cfg, rate_hz)
-        doubt = 0
-        if restart is not None:
-            doubt = legs_in_doubt(_merged_points(raw[s:e], chosen), names, rate_hz, cfg.verdict)
-        second = restart(spool, poses[e - 1], s, e) if doubt else None
-        if second is not None:
-            back = merge_passes(back, second, legs, cfg.backward.agree_m)
-            again = _merge_run(tracker, spool, raw, poses, fit, back, s, e, cfg, rate_hz)
-            doubt_again = legs_in_doubt(_merged_points(raw[s:e], again), names, rate_hz, cfg.verdict)
-            log.info("frames %d-%d: legs in doubt in %d frames; the backward pass from a fresh start at the end "
-                     "(%d of %d frames) leaves %d: %s", s, e - 1, doubt, sum(b is c for b, c in zip(back, second)),
-                     e - s, doubt_again, "kept" if doubt_again <= doubt else "not kept")  # fmt: skip
-            if doubt_again <= doubt:
-                chosen = again
-        for i, b in chosen.items():
-            writer.replace(s + i, b.points, b.uncertainty, b.q, b.log_likelihood, b.fit, _fit_quality(b.fit, cfg))
-        replaced += len(chosen)
+    with ExitStack() as stack:
+        pool = None
+        if early and restart is not None:  # one core's share of the kernels; the merge keeps its own
+            pool = stack.enter_context(ThreadPoolExecutor(1, "gaitcap-restart", partial(numba.set_num_threads, 1)))
+        for s, e in finite_runs(tracked_frames(quality)):
+            begun = None
+            if pool is not None and facing_in_doubt(raw[s:e], names, rate_hz):
+                log.debug("frames %d-%d: the forward pass moves against the way it faces; the fresh start begun "
+                          "beside the merge", s, e - 1)  # fmt: skip
+                begun = _Begun(pool, restart, spool, poses[e - 1], s, e)
+            try:
+                replaced += _merge_back(tracker, spool, writer, raw, poses, fit, backs, s, e, cfg, rate_hz, restart,
+                                        begun)  # fmt: skip
+            finally:
+                if begun is not None:
+                    begun.stop()
     return replaced
+
+
+def _merge_back(tracker, spool: FrameSpool, writer: TrackWriter, raw: np.ndarray, poses: np.ndarray, fit: np.ndarray,
+                backs: dict[tuple[int, int], list] | None, s: int, e: int, cfg: TrackingConfig, rate_hz: float,
+                restart: Callable[..., list | None] | None, begun: _Begun | None) -> int:  # fmt: skip
+    """:func:`_backward_pass` for the run of frames s..e-1 (``begun``: its fresh start, begun already);
+    returns how many frames were overwritten."""
+    names = tracker.model.point_names
+    legs = leg_points(names)
+    back = backs[(s, e)] if backs is not None else _tracked_back(tracker, spool, poses[e - 1], s, e)
+    with kernel_threads(1) if begun is not None else nullcontext():  # a core each, beside the fresh start
+        chosen = _merge_run(tracker, spool, raw, poses, fit, back, s, e, cfg, rate_hz)
+    doubt = 0
+    if restart is not None:
+        doubt = legs_in_doubt(_merged_points(raw[s:e], chosen), names, rate_hz, cfg.verdict)
+    second = None
+    if doubt:
+        second = begun.result() if begun is not None else restart(spool, poses[e - 1], s, e)
+    elif begun is not None:
+        log.debug("frames %d-%d: no legs in doubt once merged; the fresh start begun beside the merge is not used", s,
+                  e - 1)  # fmt: skip
+    if second is not None:
+        back = merge_passes(back, second, legs, cfg.backward.agree_m)
+        again = _merge_run(tracker, spool, raw, poses, fit, back, s, e, cfg, rate_hz)
+        doubt_again = legs_in_doubt(_merged_points(raw[s:e], again), names, rate_hz, cfg.verdict)
+        log.info("frames %d-%d: legs in doubt in %d frames; the backward pass from a fresh start at the end "
+                 "(%d of %d frames) leaves %d: %s", s, e - 1, doubt, sum(b is c for b, c in zip(back, second)),
+                 e - s, doubt_again, "kept" if doubt_again <= doubt else "not kept")  # fmt: skip
+        if doubt_again <= doubt:
+            chosen = again
+    for i, b in chosen.items():
+        writer.replace(s + i, b.points, b.uncertainty, b.q, b.log_likelihood, b.fit, _fit_quality(b.fit, cfg))
+    return len(chosen)
 
 
 def _merge_run(tracker, spool: FrameSpool, raw: np.ndarray, poses: np.ndarray, fit: np.ndarray, back: list, s: int,

@@ -460,8 +460,15 @@ def legs_in_doubt(points: np.ndarray, names: tuple[str, ...], rate_hz: float, cf
     signals = RunSignals(n_frames=T, n_tracked=T, n_ok=T, n_crossed=int(crossed.sum()), floor_m=float("nan"),
                          crossed=crossed, exchanged=exchanged)  # fmt: skip
     doubt_crossed, doubt_exchanged = _leg_doubts(signals, cfg)
-    backwards = _backwards_frames(moving_backwards(points, names, rate_hz))
+    backwards = facing_in_doubt(points, names, rate_hz)
     return doubt_crossed * signals.n_crossed + doubt_exchanged * signals.n_exchanged + backwards
+
+
+def facing_in_doubt(points: np.ndarray, names: tuple[str, ...], rate_hz: float) -> int:
+    """The frames of :func:`legs_in_doubt` that a body moving against the way it faces puts in doubt
+    (points (T, P, 3) sampled at ``rate_hz``; :func:`moving_backwards`: the stretch between turns
+    moving so most, when they are most of its moving frames); 0 when none."""
+    return _backwards_frames(moving_backwards(np.asarray(points, float), names, rate_hz))
 
 
 def judge(signals: RunSignals, cfg: VerdictConfig) -> RunVerdict:
