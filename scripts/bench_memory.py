@@ -58,6 +58,7 @@ def turn_session(work: Path, n_frames: int, fps: float, turn_s: float = 1.0) -> 
         return root
     walk = read_motion(embedded_walk())
     samples = round((n_frames - 1) / fps * walk.rate_hz) + 1  # frames 0 .. n_frames - 1
+
     def up_and_down(turns: int) -> np.ndarray:
         return turned_walk(walk.points, walk.names.index("pelvis"), walk.rate_hz, turn_s, 180.0, turns)
 
