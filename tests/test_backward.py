@@ -499,3 +499,30 @@ def test_a_fresh_start_begun_beside_the_merge_is_used_only_if_the_merged_run_is_
     if begun:
         assert len(stops) == 1 and stops[0].is_set()  # told to stop once the run is merged, used or not
     assert next(doubt, None) is None  # every legs_in_doubt answer asked for
+
+
+def test_tracked_back_ends_once_told_to_stop():
+    """_tracked_back tracks frames e-1 down to s and returns them in frame order; once its stop event
+    is set no further frame is tracked (a fresh start begun beside the merge and not needed)."""
+    import threading
+
+    from gaitcap import pipeline
+
+    class Counting(_FakeTracker):
+        def __init__(self, n_points, stop=None, after=None):
+            super().__init__(n_points)
+            self.steps, self.stop, self.after = 0, stop, after
+
+        def step(self, obs):
+            self.steps += 1
+            if self.stop is not None and self.steps == self.after:
+                self.stop.set()
+            return super().step(obs)
+
+    spool = type("Spool", (), {"read": lambda self, t: [np.zeros((2, 2), np.float32)]})()
+    whole = Counting(4)
+    assert len(pipeline._tracked_back(whole, spool, np.zeros(3), 2, 9)) == 7 and whole.steps == 7
+    stop = threading.Event()
+    stopped = Counting(4, stop, after=3)
+    assert len(pipeline._tracked_back(stopped, spool, np.zeros(3), 2, 9, stop=stop)) == 3 and stopped.steps == 3
+    assert pipeline._tracked_back(Counting(4), spool, np.zeros(3), 2, 9, stop=stop) == []  # stopped before the start
