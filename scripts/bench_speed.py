@@ -37,22 +37,28 @@ the table gives the medians of:
   observation stream: background fitting, decoding, extraction and preparation of every frame of
   both cameras, side by side as in a run), and wall / floor; floor CPU ms/frame: the process's
   CPU time over the floor (``time.process_time``, all threads) per frame, a figure that other jobs
-  on the machine disturb far less than wall times.
+  on the machine disturb far less than wall times;
+- where the clip has a truth (``--walk turns``: ``truth.h5``), each run scored by ``gaitcap eval``
+  (not timed): lower-limb mm (the median over the runs) and the runs' verdicts (track.json), so
+  that a faster run is also seen to be as accurate.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import math
+import os
 import shutil
 import statistics
+import subprocess
 import sys
 import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from bench_memory import base_session, long_session, track_in_child, turn_session  # noqa: E402
+from bench_memory import REPO, base_session, long_session, track_in_child, turn_session  # noqa: E402
 
 from gaitcap.pipeline import Stages, _observations  # noqa: E402
 from gaitcap.session import Session  # noqa: E402
@@ -80,11 +86,27 @@ def floor_seconds(session: Path) -> tuple[float, float, int]:
     return time.perf_counter() - t0, time.process_time() - c0, frames
 
 
+def lower_limb_mm(session: Path, out: Path) -> float:
+    """``gaitcap eval`` of the run ``out`` against ``session``'s truth: its lower-limb MPJPE in mm
+    (NaN: the session has no truth.h5, or eval failed)."""
+    truth = session / "truth.h5"
+    if not truth.is_file():
+        return math.nan
+    env = dict(os.environ, PYTHONPATH=str(REPO / "src") + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    cmd = [sys.executable, "-m", "gaitcap", "-q", "eval", str(out), "--truth", str(truth), "-o", str(out / "eval.json"),
+           "--force"]  # fmt: skip
+    if subprocess.run(cmd, env=env, capture_output=True).returncode != 0:
+        return math.nan
+    lower = json.loads((out / "eval.json").read_text())["positions_mm"].get("lower_limb") or {}
+    return float(lower.get("mpjpe_mm", math.nan))
+
+
 def measure(session: Path, out: Path, extra: list[str]) -> dict[str, float]:
     """One tracking run and one floor measurement of ``session``: the table's quantities."""
     _, wall, summary = track_in_child(session, out, extra)
     stages = summary.get("stages_s", {})
-    row = {"frames": summary["n_frames"], "wall": wall, "start-up": wall - summary["seconds"]}
+    row = {"frames": summary["n_frames"], "wall": wall, "start-up": wall - summary["seconds"],
+           "lower mm": lower_limb_mm(session, out), "run verdict": summary.get("verdict", "?")}  # fmt: skip
     row |= {name: stages.get(key, float("nan")) for key, name in STAGES.items()}
     row["background"] = stages.get("background", float("nan"))
     row["floor"], cpu, frames = floor_seconds(session)
@@ -106,8 +128,9 @@ def main() -> None:
     args = ap.parse_args()
     source = base_session(args.work, args.fps) if args.walk == "ping-pong" else None
     cols = ["wall", "start-up", *STAGES.values(), "background", "floor"]
-    print(f"| clip s | frames | fps | {' | '.join(c + ' s' for c in cols)} | wall / floor | floor CPU ms/frame |")
-    print("|" + "---|" * (len(cols) + 5))
+    print(f"| clip s | frames | fps | {' | '.join(c + ' s' for c in cols)} | wall / floor | floor CPU ms/frame "
+          "| lower-limb mm | verdicts |")  # fmt: skip
+    print("|" + "---|" * (len(cols) + 7))
     for seconds in args.seconds:
         n = int(round(seconds * args.fps))
         if source is None:
@@ -133,9 +156,13 @@ def print_row(label: str, runs: list[dict[str, float]], cols: list[str]) -> None
     """The table's row of ``runs``: the medians of each column (a stage a run skipped counts 0)."""
     keys = ["frames", *cols, "floor CPU ms/frame"]
     med = {c: statistics.median(0.0 if math.isnan(r[c]) else r[c] for r in runs) for c in keys}
+    scored = [r["lower mm"] for r in runs if not math.isnan(r["lower mm"])]
+    lower = f"{statistics.median(scored):.1f}" if scored else "-"
+    verdicts = ", ".join(sorted({str(r["run verdict"]) for r in runs}))
     print(f"| {label} | {med['frames']:.0f} | {med['frames'] / med['wall']:.1f} | "
           + " | ".join(f"{med[c]:.2f}" for c in cols)
-          + f" | {med['wall'] / med['floor']:.0f} | {med['floor CPU ms/frame']:.1f} |", flush=True)  # fmt: skip
+          + f" | {med['wall'] / med['floor']:.0f} | {med['floor CPU ms/frame']:.1f} | {lower} | {verdicts} |",
+          flush=True)  # fmt: skip
 
 
 if __name__ == "__main__":
