@@ -47,20 +47,21 @@ def base_session(work: Path, fps: float) -> Path:
 
 
 def turn_session(work: Path, n_frames: int, fps: float, turn_s: float = 1.0) -> Path:
-    """The embedded walk up and down a walkway, as a lab records a longer clip: the walk, a standing
-    pivot of 180 degrees over ``turn_s`` seconds, the walk back, and so on
-    (``make_turn_walk.turned_walk``), cut to ``n_frames`` at ``fps`` and rendered by ``gaitcap synth``
-    with the defaults the embedded walk's session has (cached in ``work``)."""
+    """The embedded walk up and down a walkway, as a lab records a longer clip: the walk (2.2 s), a
+    standing pivot of 180 degrees over ``turn_s`` seconds, the walk back over the same ground (its
+    last stride twice, 2.3 s), and so on (``make_turn_walk.turned_walk``), cut to ``n_frames`` at
+    ``fps`` and rendered by ``gaitcap synth`` with the defaults the embedded walk's session has
+    (cached in ``work``)."""
     from make_turn_walk import turned_walk  # scripts/, beside this file
 
-    root = work / f"turn-walk-{fps:g}fps-{n_frames}frames"
+    root = work / f"walkway-{fps:g}fps-{n_frames}frames"
     if (root / TRUTH_FILE).is_file() and _has_frames(root, n_frames):
         return root
     walk = read_motion(embedded_walk())
     samples = round((n_frames - 1) / fps * walk.rate_hz) + 1  # frames 0 .. n_frames - 1
 
     def up_and_down(turns: int) -> np.ndarray:
-        return turned_walk(walk.points, walk.names.index("pelvis"), walk.rate_hz, turn_s, 180.0, turns)
+        return turned_walk(walk.points, walk.names.index("pelvis"), walk.rate_hz, turn_s, 180.0, turns, strides=2)
 
     turns, points = 1, up_and_down(1)
     while len(points) < samples:

@@ -6,8 +6,8 @@
 The clips (2 cameras, 640x480, ``gaitcap synth``'s defaults, rendered once into --work):
 
 - ``--walk turns`` (the default): the embedded walk up and down a walkway, as a lab records a longer
-  clip: the walk (2.2 s), a standing pivot of 180 degrees (1 s), the walk back, and so on, rendered
-  to each clip length (``bench_memory.turn_session``);
+  clip: the walk (2.2 s), a standing pivot of 180 degrees (1 s), the walk back over the same ground
+  (2.3 s), and so on, rendered to each clip length (``bench_memory.turn_session``);
 - ``--walk ping-pong``: the sessions of scripts/bench_memory.py, the embedded walk's videos played
   forwards and backwards to each clip length (the figures quoted before 2026-11-30). Played
   backwards, the subject walks backwards: a run whose body moves against the way it faces is one

@@ -1,7 +1,7 @@
 """A walk that turns back, as a TRC of joint centres for ``gaitcap synth``: the embedded walk, a standing
 pivot about the pelvis, then the walk again, turned round, from the frame whose legs match the last one's.
 
-    python scripts/make_turn_walk.py -o turn_walk.trc [--turn-seconds 1.0] [--degrees 180] [--turns 1]
+    python scripts/make_turn_walk.py -o turn_walk.trc [--turn-seconds 1.0] [--degrees 180] [--turns 1] [--strides 1]
     gaitcap synth turn_walk.trc -o SESSION --seed 3 --height 1.639
     gaitcap track SESSION -o OUT && gaitcap eval OUT --truth SESSION/truth.h5
 
@@ -33,24 +33,28 @@ MIN_BACK_S = 0.6
 
 
 def turned_walk(points: np.ndarray, pelvis: int, rate_hz: float, turn_s: float, degrees: float,
-                turns: int = 1) -> np.ndarray:  # fmt: skip
+                turns: int = 1, strides: int = 1) -> np.ndarray:  # fmt: skip
     """Points (T, P, 3) of a walk (z up) -> the walk, a pivot of ``degrees`` over ``turn_s`` seconds about
-    the pelvis, and the walk again from a stride before its end, turned by the same angle; ``turns``
-    times, each pivot turning the same way (180 degrees: up and down a walkway): (T', P, 3)."""
+    the pelvis, and the walk again from a stride before its end (that stride ``strides`` times, each
+    from where the last ended), turned by the same angle; ``turns`` times, each pivot turning the same
+    way (180 degrees: up and down a walkway): (T', P, 3)."""
     n_turn = max(1, round(turn_s * rate_hz))
     total = np.radians(degrees)
     angles = total * (1 - np.cos(np.linspace(0, np.pi, n_turn + 1)[1:])) / 2
     relative = points - points[:, pelvis : pelvis + 1]
     earliest = len(points) - max(1, round(MIN_BACK_S * rate_hz))
     k = int(np.argmin(np.linalg.norm(relative[:earliest] - relative[-1], axis=-1).mean(axis=1)))
+    stride = points[k:] - points[k, pelvis] * [1.0, 1.0, 0.0]  # its pelvis starts above the origin
+    step = (points[-1, pelvis] - points[k, pelvis]) * [1.0, 1.0, 0.0]
+    leg = np.concatenate([stride] + [stride[1:] + j * step for j in range(1, strides)])
     pieces = [points]
     for turn in range(1, turns + 1):
         end = pieces[-1][-1]
         centre = end[pelvis] * [1.0, 1.0, 0.0]
         pivot = (end - centre) @ Rotation.from_euler("z", angles[:, None]).as_matrix().transpose(0, 2, 1) + centre
         turn_round = Rotation.from_euler("z", turn * total).as_matrix()
-        back = (points[k:] - points[k, pelvis] * [1.0, 1.0, 0.0]) @ turn_round.T + pivot[-1][pelvis] * [1.0, 1.0, 0.0]
-        back[..., 2] = points[k:, :, 2]
+        back = leg @ turn_round.T + pivot[-1][pelvis] * [1.0, 1.0, 0.0]
+        back[..., 2] = leg[..., 2]
         pieces += [pivot, back[1:]]
     return np.concatenate(pieces)
 
@@ -61,14 +65,15 @@ def main() -> None:
     ap.add_argument("--turn-seconds", type=float, default=1.0, help="the pivot's duration (s, > 0)")
     ap.add_argument("--degrees", type=float, default=180.0, help="the pivot's angle (degrees)")
     ap.add_argument("--turns", type=int, default=1, help="pivots, each followed by the walk again (>= 1)")
+    ap.add_argument("--strides", type=int, default=1, help="strides walked after each pivot (>= 1)")
     args = ap.parse_args()
     if args.turn_seconds <= 0:
         ap.error("--turn-seconds must be > 0")
-    if args.turns < 1:
-        ap.error("--turns must be >= 1")
+    if args.turns < 1 or args.strides < 1:
+        ap.error("--turns and --strides must be >= 1")
     walk = read_motion(embedded_walk())
     write_walk(args.out, walk, turned_walk(walk.points, walk.names.index("pelvis"), walk.rate_hz, args.turn_seconds,
-                                           args.degrees, args.turns))  # fmt: skip
+                                           args.degrees, args.turns, args.strides))  # fmt: skip
 
 
 def write_walk(out: Path, walk: Trajectory, points: np.ndarray) -> None:
