@@ -369,35 +369,30 @@ def person_head_top(cameras: Sequence[Camera], masks: Sequence[np.ndarray]) -> n
     return top
 
 
-def person_floor_point(cameras: Sequence[Camera], masks: Sequence[np.ndarray]) -> np.ndarray | None:
-    """(3,) the floor point (x, y, 0) straight below the person's head top (:func:`person_head_top`),
-    or None."""
-    top = person_head_top(cameras, masks)
-    return None if top is None else np.array([top[0], top[1], 0.0])
-
-
-def floor_rows(cameras: Sequence[Camera], masks: Sequence[np.ndarray],
-               foot: np.ndarray | None = None) -> list[float | None]:  # fmt: skip
+def floor_rows(cameras: Sequence[Camera], masks: Sequence[np.ndarray]) -> list[float | None]:
     """The image row of the floor beneath the person, per camera, from the masks of one frame.
 
-    The masks' tops (:func:`head_top`) are triangulated (DLT, undistorted pixels, every camera
-    that sees the top); the floor point straight below, (X, Y, 0), is projected into each camera.
-    None for every camera when fewer than two see the top or the point is no person's head
-    (height outside 0.7-2.5 m); None for a camera that the floor point is behind.
+    The masks' tops (:func:`head_top`) are triangulated (:func:`person_head_top`: DLT, undistorted
+    pixels, every camera that sees the top); the floor point straight below, (X, Y, 0), is projected
+    into each camera (:func:`rows_below`).
 
     Args:
         cameras: the calibrated cameras (world z up, floor z = 0).
         masks: (H_c, W_c) full-resolution masks, one per camera.
-        foot: the floor point :func:`person_floor_point` of those masks, when already known.
 
     Returns:
         Per camera, the row (full-resolution pixels) or None.
     """
-    if foot is None:
-        foot = person_floor_point(cameras, masks)
-    if foot is None:
+    return rows_below(cameras, person_head_top(cameras, masks))
+
+
+def rows_below(cameras: Sequence[Camera], top: np.ndarray | None) -> list[float | None]:
+    """Per camera, the image row (full-resolution pixels) of the floor point (X, Y, 0) straight
+    below the head top ``top`` (3,): None for every camera when ``top`` is None (fewer than two
+    cameras saw it, or it is no person's head), None for a camera that the point is behind."""
+    if top is None:
         return [None] * len(cameras)
-    foot = foot[None]
+    foot = np.array([[top[0], top[1], 0.0]])
     rows: list[float | None] = []
     for cam in cameras:
         in_front = cam.to_camera(foot)[0, 2] > 0

@@ -19,7 +19,7 @@ from gaitcap.camera import Camera
 from gaitcap.errors import InputError
 from gaitcap.silhouette.config import SilhouetteConfig
 from gaitcap.silhouette.extract import FrameEvidence, FrameQuality, SilhouetteExtractor, working_size
-from gaitcap.silhouette.floor import FloorShadowCheck, floor_rows, person_head_top
+from gaitcap.silhouette.floor import FloorShadowCheck, person_head_top, rows_below
 
 MapFn = Callable[..., Iterable[Any]]
 
@@ -87,11 +87,11 @@ class JointExtractor:
         clean-up of its :meth:`observe` evidence and shadows, then the floor rows for the next frame."""
         step = SilhouetteExtractor.finish_soft if soft else SilhouetteExtractor.finish
         out = list(self._map(step, self.extractors, evidence, shadows, self._floor_rows))
-        radius = self.extractors[0].config.cleanup.keep_radius_m if self.extractors else 0.0
-        if self._top is not None and radius > 0 and self._cameras is not None:  # a head top: two cameras or more
-            relative = self.extractors[0].config.cleanup.keep_relative
-            out = [r if r[-1].components < 2 else _without(r, off_axis_parts(r[0], cam, self._top, radius, relative))
-                   for r, cam in zip(out, self._cameras)]  # fmt: skip (one component kept: nothing to drop)
+        cleanup = self.extractors[0].config.cleanup if self.extractors else None
+        if self._top is not None and cleanup is not None and cleanup.keep_radius_m > 0 and self._cameras is not None:
+            out = [r if r[-1].components < 2 else  # one component kept: nothing to drop
+                   _without(r, off_axis_parts(r[0], cam, self._top, cleanup.keep_radius_m, cleanup.keep_relative))
+                   for r, cam in zip(out, self._cameras)]  # fmt: skip (a head top: two cameras or more)
         self._follow([r[0] for r in out])
         return out
 
@@ -100,8 +100,7 @@ class JointExtractor:
         frame (the person moves a few centimetres from frame to frame)."""
         if self._cameras is not None and len(self._cameras) > 1:
             self._top = person_head_top(self._cameras, masks)
-            foot = None if self._top is None else np.array([self._top[0], self._top[1], 0.0])
-            self._floor_rows = floor_rows(self._cameras, masks, foot)
+            self._floor_rows = rows_below(self._cameras, self._top)
 
     def observe(self, images: Sequence[np.ndarray]) -> tuple[list[FrameEvidence], list[np.ndarray]]:
         """The first half of :meth:`process`: every camera's per-pixel evidence
