@@ -800,6 +800,53 @@ def test_settle_legs_cuts_the_mirror_short_once_one_start_clearly_leads(embedded
     np.testing.assert_array_equal(q, start if margin else tracker.mirrored(start))
 
 
+@pytest.mark.parametrize("swapped", [False, True])
+def test_settled_frames_are_taken_as_tracked_not_tracked_again(embedded_session, monkeypatch, swapped):
+    """settle_legs leaves the tracker remembering the kept start's track: started there again, settled,
+    its steps over the same observations take those estimates and states without searching (the
+    shape window and the run's first frames, tracked from that start, are not tracked a second
+    time); the frame after them is searched from the last one's state. A start elsewhere, a fresh
+    start, another observation or widened intervals forget them."""
+    import gaitcap.tracking.init as init_module
+
+    truth, rig, views, tracker, hips, apart = _swap_setup(embedded_session.session, swap_fit_drop=None)
+    t = next(i for i in range(len(apart) - 6) if min(apart[i : i + 6]) > tracker.config.factored_ipf.swap_within_deg + 5)
+    start = tracker.mirrored(truth.poses[t]) if swapped else truth.poses[t].copy()
+    frames = [observe(views, [truth.mask(c, f) for c in rig.names]) for f in range(t, t + 6)]
+    q = init_module.settle_legs(tracker, frames[:5], start)
+    assert np.array_equal(q, tracker.mirrored(start) if swapped else start)
+    track = tracker._remembered
+    assert track is not None and np.array_equal(track.start, tracker.q)
+    n = len(track.estimates)  # the mirror's track stops once one start clearly leads
+    assert n == (init_module.LEAST_FRAMES if swapped else 5)
+    searched = []
+    inner = tracker._step
+    monkeypatch.setattr(tracker, "_step", lambda obs, *a: searched.append(obs) or inner(obs, *a))
+    tracker.start(q, fresh=False)
+    taken = [tracker.step(o) for o in frames[:n]]
+    assert searched == []
+    for a, b in zip(taken, track.estimates, strict=True):
+        assert np.array_equal(a.q, b.q) and a.fit == b.fit and np.array_equal(a.points, b.points)
+    assert np.array_equal(tracker.q, track.states[-1]["q"]) and list(tracker._fits) == list(track.states[-1]["_fits"])
+    tracker.step(frames[n])
+    assert [id(o) for o in searched] == [id(frames[n])]
+    tracker.start(q, fresh=False)  # the track was used up: forgotten
+    tracker.step(frames[0])
+    assert len(searched) == 2
+    for forget in ("elsewhere", "fresh", "other frame", "widened"):
+        searched.clear()
+        tracker.start(q, fresh=False)
+        tracker.remember(track)
+        if forget == "elsewhere":
+            tracker.start(tracker.mirrored(q), fresh=False)
+        elif forget == "fresh":
+            tracker.start(q, fresh=True)
+        obs = observe(views, [truth.mask(c, t) for c in rig.names]) if forget == "other frame" else frames[0]
+        tracker.step(obs, widen=2.0 if forget == "widened" else 1.0)
+        tracker.step(frames[1])
+        assert len(searched) == 2, forget
+
+
 @pytest.mark.parametrize("mirror", [False, True])
 def test_initialise_reports_the_fit_of_the_pose_it_returns(embedded_session, monkeypatch, mirror):
     """InitResult.fit is the fit of InitResult.q on the first frame, also when settling the legs
@@ -883,7 +930,8 @@ def test_a_start_facing_backwards_is_turned_round_over_the_first_frames(embedded
     assert fit2 == fit and np.array_equal(q2, q)
     after = tracker.rng.bit_generator.state
     tracker.rng.bit_generator.state = stream
-    assert own == init_module._fits(tracker, frames, q)
+    again = init_module._tracked(tracker, frames, q)
+    assert np.array_equal(init_module._fits(own), init_module._fits(again))
     assert tracker.rng.bit_generator.state == after
 
 

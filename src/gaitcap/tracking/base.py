@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import copy
+from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -26,6 +28,18 @@ class Estimate:
     evaluations: int  # particles scored this frame
 
 
+@dataclass(frozen=True)
+class Track:
+    """Frames tracked once from a settled start (:func:`gaitcap.tracking.init.settle_legs`): the
+    start (D,) as the tracker holds it, and per frame its observation, its estimate and the
+    tracker's state after it (:meth:`Tracker.snapshot`)."""
+
+    start: np.ndarray
+    observations: tuple[Observation, ...]
+    estimates: tuple[Estimate, ...]
+    states: tuple[dict[str, Any], ...]
+
+
 def weighted_spread(points: np.ndarray, W: np.ndarray) -> np.ndarray:
     """Per-point variance (sum over x, y, z) of weighted samples: points (N, P, 3), W (N,) -> (P,)."""
     mean = np.einsum("n,npi->pi", W, points)
@@ -37,6 +51,8 @@ class Tracker:
     """Base class: holds the estimate of the previous frame (there is no dynamic model)."""
 
     name = "tracker"
+    #: what a step reads and changes besides the random stream (:meth:`snapshot`)
+    STATE: tuple[str, ...] = ("q",)
 
     def __init__(self, model: BodyModel, likelihood: SilhouetteLikelihood, config: TrackingConfig,
                  rng: np.random.Generator) -> None:  # fmt: skip
@@ -60,22 +76,59 @@ class Tracker:
         gap = config.leg_gap
         self._gap_min, self._gap_sigma = gap.min * model.height_m, gap.sigma * model.height_m
         self._grids: dict[tuple, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}  # grid_offsets' cache
+        self._remembered: Track | None = None  # frames tracked once from a settled start (remember)
+        self._replayed = 0  # how many of them the steps since that start have taken
 
     def start(self, q0: np.ndarray, fresh: bool = True) -> None:
         """Set the previous estimate (after initialisation or recovery). ``fresh``: q0 is a guess
         whose leg assignment nothing has confirmed yet, so a tracker may weigh the other one on
         the next frame (factored IPF); False when it was chosen over several frames
-        (:func:`gaitcap.tracking.init.settle_legs`)."""
+        (:func:`gaitcap.tracking.init.settle_legs`). A start elsewhere, or fresh, forgets the
+        frames :meth:`remember` kept."""
         self.q = self.model.clip(np.asarray(q0, float)[None])[0]
+        self._replayed = 0
+        if self._remembered is not None and (fresh or not np.array_equal(self._remembered.start, self.q)):
+            self._remembered = None
+
+    def snapshot(self) -> dict[str, Any]:
+        """The tracker's state between two frames (copies of :attr:`STATE`), for :meth:`restore`."""
+        return {k: copy.deepcopy(getattr(self, k)) for k in self.STATE if hasattr(self, k)}
+
+    def restore(self, state: dict[str, Any]) -> None:
+        """Put back a state :meth:`snapshot` took."""
+        for k, v in state.items():
+            setattr(self, k, copy.deepcopy(v))
+
+    def remember(self, track: Track) -> None:
+        """Keep frames already tracked from the settled start the tracker stands at (``track.start``;
+        :func:`~gaitcap.tracking.init.settle_legs` picks that start by tracking them): the next steps
+        on the same observations, from there, take those estimates and states instead of tracking
+        the frames again. The first frames of a run are tracked that way three times otherwise
+        (the facing and leg checks, the shape window, the run itself). The random stream goes on
+        from where it is: the frames after them are a draw as good as the one they save."""
+        self._remembered = track if np.array_equal(track.start, self.q) and track.observations else None
+        self._replayed = 0
+
+    def step(self, obs: Observation, widen: float = 1.0) -> Estimate:
+        """Track one frame from the previous estimate (``widen`` > 1: wider search intervals), or take it
+        as :meth:`remember` kept it when it is the next of those frames."""
+        track, k = self._remembered, self._replayed
+        if track is not None and widen == 1.0 and k < len(track.observations) and track.observations[k] is obs:
+            self.restore(track.states[k])
+            self._replayed = k + 1
+            self._remembered = track if k + 1 < len(track.observations) else None
+            return replace(track.estimates[k])
+        self._remembered = None
+        return self._step(obs, widen)
+
+    def _step(self, obs: Observation, widen: float = 1.0) -> Estimate:
+        raise NotImplementedError
 
     def mirrored(self, q: np.ndarray) -> np.ndarray:
         """Pose q (D,) with the left and right legs' angles exchanged."""
         out = np.array(q, float, copy=True)
         out[self.left_leg], out[self.right_leg] = q[self.right_leg], q[self.left_leg]
         return out
-
-    def step(self, obs: Observation) -> Estimate:
-        raise NotImplementedError
 
     def refine(self, obs: Observation, q: np.ndarray) -> Estimate:
         """Frame ``obs`` searched from pose q (D,) alone, as a pose chosen elsewhere (another pass, the

@@ -19,13 +19,14 @@ from gaitcap.tracking.resampling import normalise_log_weights, systematic
 
 class Condensation(Tracker):
     name = "condensation"
+    STATE = ("q", "X", "W")
 
     def start(self, q0: np.ndarray, fresh: bool = True) -> None:
         super().start(q0, fresh)
         self.X = np.repeat(self.q[None], self.config.condensation.particles, axis=0)
         self.W = np.full(len(self.X), 1.0 / len(self.X))
 
-    def step(self, obs: Observation, widen: float = 1.0) -> Estimate:
+    def _step(self, obs: Observation, widen: float = 1.0) -> Estimate:
         model, cfg = self.model, self.config.condensation
         if not hasattr(self, "X"):
             self.start(self.q)

@@ -53,6 +53,7 @@ from gaitcap.tracking.resampling import ess, normalise_log_weights, systematic
 
 class FactoredIPF(Tracker):
     name = "factored-ipf"
+    STATE = ("q", "_fits", "_before", "_fresh")
 
     def __init__(self, *args, uncertainty: bool = True, **kwargs) -> None:  # type: ignore[no-untyped-def]
         """``uncertainty`` False: the estimates' ``uncertainty`` is NaN, the particles' points are not
@@ -99,7 +100,7 @@ class FactoredIPF(Tracker):
         self._before = None
         self._fresh = fresh  # the next frame weighs both leg assignments of q0 on equal terms
 
-    def step(self, obs: Observation, widen: float = 1.0) -> Estimate:
+    def _step(self, obs: Observation, widen: float = 1.0) -> Estimate:
         """Track one frame from the previous estimate and, with ``swap_hypothesis``, also from its
         leg-swapped mirror; the better fit wins.
 

@@ -23,6 +23,7 @@
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,7 +31,7 @@ import numpy as np
 from gaitcap.body.model import BodyModel
 from gaitcap.camera import dlt_point
 from gaitcap.errors import TrackingError
-from gaitcap.tracking.base import Tracker
+from gaitcap.tracking.base import Track, Tracker
 from gaitcap.tracking.likelihood import SilhouetteLikelihood
 from gaitcap.tracking.observation import Observation, TrackingView
 
@@ -164,7 +165,7 @@ def initialise(
     obs = observations[0]
     fit, q = _refined(tracker, likelihood, obs, _candidate_poses(model, start, headings), keep, refine_passes, widen)
     settled = leg_frames > 1 and len(observations) > 1
-    own = None  # the fits of q's track over the first frames, when already tracked
+    own = None  # q's track over the first frames, when already tracked
     if settled:
         fit, q, own = _facing(tracker, likelihood, observations[:leg_frames], start, (fit, q), keep, refine_passes,
                               widen, decisive=DECISIVE_FIT if known else None)  # fmt: skip
@@ -207,21 +208,39 @@ def _refined(tracker: Tracker, likelihood: SilhouetteLikelihood, obs: Observatio
     return best
 
 
-def _fits(tracker: Tracker, observations: list[Observation], q: np.ndarray) -> list[float]:
-    """The fit of each frame of ``observations`` tracked from pose q (D,), started as settled (as
-    :func:`settle_legs` tracks its first start)."""
+def _tracked(tracker: Tracker, observations: list[Observation], q: np.ndarray,
+             stop: Callable[[int, float], bool] | None = None) -> Track:  # fmt: skip
+    """``observations`` tracked from pose q (D,), started as settled (as :func:`settle_legs` tracks its
+    starts), until ``stop(n, sum of the n fits)`` is true after n frames."""
     tracker.start(np.array(q, float, copy=True), fresh=False)
-    return [tracker.step(o).fit for o in observations]
+    start = tracker.q.copy()
+    done: list[Observation] = []
+    estimates, states = [], []
+    total = 0.0
+    for o in observations:
+        est = tracker.step(o)
+        done.append(o)
+        estimates.append(est)
+        states.append(tracker.snapshot())
+        total += est.fit
+        if stop is not None and stop(len(done), total):
+            break
+    return Track(start, tuple(done), tuple(estimates), tuple(states))
+
+
+def _fits(track: Track) -> np.ndarray:
+    """The fit of each frame of a track (T,)."""
+    return np.array([e.fit for e in track.estimates])
 
 
 def _facing(tracker: Tracker, likelihood: SilhouetteLikelihood, observations: list[Observation],
             position: np.ndarray, found: tuple[float, np.ndarray], keep: int, refine_passes: int, widen: float,
-            decisive: float | None = None) -> tuple[float, np.ndarray, list[float] | None]:  # fmt: skip
+            decisive: float | None = None) -> tuple[float, np.ndarray, Track | None]:  # fmt: skip
     """Which way the subject faces: the pose ``found`` (fit on the first frame, pose (D,)) and the
     best refined pose facing the other way (headings within 20 degrees of the opposite one) are
     each tracked over ``observations``, and the one with the better mean fit is returned: (fit on
-    the first frame, pose, and for ``found`` the fits of its track, :func:`settle_legs`'s first
-    track, else None). One frame cannot tell: a silhouette seen from the front or the back is
+    the first frame, pose, and for ``found`` its track, :func:`settle_legs`'s first track, else
+    None). One frame cannot tell: a silhouette seen from the front or the back is
     nearly the same either way, and from the side a body facing backwards bends its knees to mimic
     the stride (on a walk on the spot, with the legs half lost over a floor of their colour, a start
     facing backwards was tracked so through the whole clip: 300 mm off, its fit 0.60 against 0.67
@@ -240,12 +259,12 @@ def _facing(tracker: Tracker, likelihood: SilhouetteLikelihood, observations: li
     as it would have without the check."""
     model = tracker.model
     stream = tracker.rng.bit_generator.state
-    own = _fits(tracker, observations, found[1])
+    own = _tracked(tracker, observations, found[1])
     after = tracker.rng.bit_generator.state
     back = _headings_around(float(found[1][model.dof_index("pelvis_rotation")]) + np.pi)
     other = _refined(tracker, likelihood, observations[0], _candidate_poses(model, position, back),
                      keep if decisive is None else 1, refine_passes, widen)  # fmt: skip
-    fits, n = _race(tracker, observations, other[1], np.cumsum(own), decisive)
+    fits, n, _ = _race(tracker, observations, other[1], np.cumsum(_fits(own)), decisive)
     if fits[1] > fits[0] + (decisive or 0.0):
         log.info("first pose: facing the other way fits the first %d frames better (%.3f against %.3f)",
                  n, fits[1], fits[0])  # fmt: skip
@@ -264,23 +283,23 @@ LEAST_FRAMES = 3
 
 
 def _race(tracker: Tracker, observations: list[Observation], q: np.ndarray, totals: np.ndarray,
-          decisive: float | None) -> tuple[tuple[float, float], int]:  # fmt: skip
+          decisive: float | None) -> tuple[tuple[float, float], int, Track]:  # fmt: skip
     """A track from pose q (D,) over ``observations`` (started as settled) against one already made,
     whose cumulative fits are ``totals`` (T,); it stops once, over its first :data:`LEAST_FRAMES`
     frames or more, one leads the other by ``decisive`` per frame (None: never). Returns both mean
-    fits over the frames tracked (the earlier track's, q's) and their number."""
-    tracker.start(np.array(q, float, copy=True), fresh=False)
-    mine, n = 0.0, 0
-    for o in observations:
-        mine += tracker.step(o).fit
-        n += 1
-        if decisive is not None and n >= LEAST_FRAMES and abs(mine - totals[n - 1]) > n * decisive:
-            break
-    return ((float(totals[n - 1]) / n, mine / n) if n else (0.0, 0.0)), n
+    fits over the frames tracked (the earlier track's, q's), their number and q's track."""
+
+    def decided(n: int, mine: float) -> bool:
+        return decisive is not None and n >= LEAST_FRAMES and abs(mine - totals[n - 1]) > n * decisive
+
+    track = _tracked(tracker, observations, q, decided)
+    n = len(track.estimates)
+    mine = float(np.cumsum(_fits(track))[-1]) if n else 0.0  # summed in order, as totals
+    return ((float(totals[n - 1]) / n, mine / n) if n else (0.0, 0.0)), n, track
 
 
 def settle_legs(tracker: Tracker, observations: list[Observation], q: np.ndarray, margin: float = 0.0,
-                own: list[float] | None = None) -> np.ndarray:  # fmt: skip
+                own: Track | None = None) -> np.ndarray:  # fmt: skip
     """The leg assignment of a first pose q (D,) that the frames ``observations`` support: they are
     tracked from q and from its leg-swapped mirror, each started as settled (no mirror weighed
     on the first frame, which would make both tracks the same), and the mirror is returned when its
@@ -288,14 +307,17 @@ def settle_legs(tracker: Tracker, observations: list[Observation], q: np.ndarray
     margin when q's assignment is one already chosen, which a tie should not overturn), else q.
     The mirror's track stops early, both compared over the frames it covered, once one start leads
     by :data:`DECISIVE_FIT` (and ``margin``) after :data:`LEAST_FRAMES` frames or more. The tracker is
-    left started there, settled. ``own``: the fits of q's track over ``observations`` when it was
-    tracked already, the tracker's random stream left where that track left it (:func:`_facing`)."""
+    left started there, settled, remembering the kept start's track (:meth:`Tracker.remember`: the
+    caller's next steps over the same frames take it). ``own``: q's track over ``observations``
+    when it was tracked already, the tracker's random stream left where that track left it
+    (:func:`_facing`)."""
     starts = (np.array(q, float, copy=True), tracker.mirrored(q))
-    totals = np.cumsum(own if own is not None else _fits(tracker, observations, starts[0]))
-    fits, n = _race(tracker, observations, starts[1], totals, max(DECISIVE_FIT, margin))
+    mine = own if own is not None else _tracked(tracker, observations, starts[0])
+    fits, n, mirror = _race(tracker, observations, starts[1], np.cumsum(_fits(mine)), max(DECISIVE_FIT, margin))
     kept = int(fits[1] > fits[0] + margin)
     if kept:
         log.info("first pose: the leg-swapped start fits the first %d frames better (%.3f against %.3f)", n, fits[1],
                  fits[0])  # fmt: skip
     tracker.start(starts[kept], fresh=False)
+    tracker.remember((mine, mirror)[kept])
     return starts[kept]

@@ -19,7 +19,7 @@ from gaitcap.tracking.resampling import normalise_log_weights, systematic
 class IntervalPF(Tracker):
     name = "ipf"
 
-    def step(self, obs: Observation, widen: float = 1.0) -> Estimate:
+    def _step(self, obs: Observation, widen: float = 1.0) -> Estimate:
         model, cfg = self.model, self.config.ipf
         n = cfg.particles
         all_dofs = np.arange(model.n_dofs)
