@@ -526,3 +526,23 @@ def test_tracked_back_ends_once_told_to_stop():
     stopped = Counting(4, stop, after=3)
     assert len(pipeline._tracked_back(stopped, spool, np.zeros(3), 2, 9, stop=stop)) == 3 and stopped.steps == 3
     assert pipeline._tracked_back(Counting(4), spool, np.zeros(3), 2, 9, stop=stop) == []  # stopped before the start
+
+
+def test_tracked_back_steps_on_the_observations_already_read():
+    """The frames the fresh start's initialisation read (e - 1, e - 2, ...) are stepped on as those same
+    objects, so that the frames its leg check tracked are taken as tracked (Tracker.remember); the
+    others are read from the spool."""
+    from gaitcap import pipeline
+
+    seen = []
+
+    class Seeing(_FakeTracker):
+        def step(self, obs):
+            seen.append(obs)
+            return super().step(obs)
+
+    spool = type("Spool", (), {"read": lambda self, t: [np.full((2, 2), t, np.float32)]})()
+    read = [object(), object(), object()]
+    assert len(pipeline._tracked_back(Seeing(4), spool, np.zeros(3), 2, 9, read=read)) == 7
+    assert seen[:3] == read
+    assert [float(o.silhouettes[0][0, 0]) for o in seen[3:]] == [5.0, 4.0, 3.0, 2.0]

@@ -831,20 +831,22 @@ def _restart_pass(model: BodyModel, likelihood, views, cfg: TrackingConfig, spoo
     log.info("backward pass: a fresh start at frame %d, its legs %.0f mm from the forward pass's", e - 1, 1000 * gap)
     if gap < cfg.backward.agree_m:
         return None
-    return _tracked_back(tracker, spool, init.q, s, e, fresh=not init.legs_settled, stop=stop)
+    return _tracked_back(tracker, spool, init.q, s, e, fresh=not init.legs_settled, stop=stop, read=frames)
 
 
 def _tracked_back(tracker, spool: FrameSpool, q0: np.ndarray, s: int, e: int, fresh: bool = False,
-                  stop: threading.Event | None = None) -> list:  # fmt: skip
+                  stop: threading.Event | None = None, read: list[Observation] | None = None) -> list:  # fmt: skip
     """The estimates of frames s..e-1 (in that order), tracked from pose ``q0`` (D,) at frame e - 1 back
     to s. ``stop``: once set, no further frame is tracked (the list is then short: its caller has no
-    more use for it)."""
+    more use for it). ``read``: the observations of frames e - 1, e - 2, ... already read (those the
+    initialisation looked at: the frames its leg check tracked are taken as tracked, Tracker.remember)."""
     tracker.start(q0, fresh=fresh)
+    read = read or []
     estimates = []
-    for t in range(e - 1, s - 1, -1):
+    for i, t in enumerate(range(e - 1, s - 1, -1)):
         if stop is not None and stop.is_set():
             break
-        estimates.append(tracker.step(Observation(spool.read(t))))
+        estimates.append(tracker.step(read[i] if i < len(read) else Observation(spool.read(t))))
     return estimates[::-1]
 
 
