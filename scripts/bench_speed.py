@@ -46,19 +46,17 @@ the table gives the medians of:
 from __future__ import annotations
 
 import argparse
-import json
 import math
-import os
 import shutil
 import statistics
-import subprocess
 import sys
 import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from bench_memory import REPO, base_session, long_session, track_in_child, turn_session  # noqa: E402
+from bench_memory import base_session, long_session, track_in_child, turn_session  # noqa: E402
+from bench_suite import evaluate_run  # noqa: E402
 
 from gaitcap.pipeline import Stages, _observations  # noqa: E402
 from gaitcap.session import Session  # noqa: E402
@@ -87,18 +85,13 @@ def floor_seconds(session: Path) -> tuple[float, float, int]:
 
 
 def lower_limb_mm(session: Path, out: Path) -> float:
-    """``gaitcap eval`` of the run ``out`` against ``session``'s truth: its lower-limb MPJPE in mm
-    (NaN: the session has no truth.h5, or eval failed)."""
+    """``gaitcap eval`` of the run ``out`` against ``session``'s truth (``bench_suite.evaluate_run``): its
+    lower-limb MPJPE in mm (NaN: the session has no truth.h5, or eval failed)."""
     truth = session / "truth.h5"
     if not truth.is_file():
         return math.nan
-    env = dict(os.environ, PYTHONPATH=str(REPO / "src") + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    cmd = [sys.executable, "-m", "gaitcap", "-q", "eval", str(out), "--truth", str(truth), "-o", str(out / "eval.json"),
-           "--force"]  # fmt: skip
-    if subprocess.run(cmd, env=env, capture_output=True).returncode != 0:
-        return math.nan
-    lower = json.loads((out / "eval.json").read_text())["positions_mm"].get("lower_limb") or {}
-    return float(lower.get("mpjpe_mm", math.nan))
+    lower = evaluate_run(out, truth).get("lower_mm")
+    return math.nan if lower is None else float(lower)
 
 
 def measure(session: Path, out: Path, extra: list[str]) -> dict[str, float]:

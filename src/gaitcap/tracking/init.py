@@ -214,18 +214,15 @@ def _tracked(tracker: Tracker, observations: list[Observation], q: np.ndarray,
     starts), until ``stop(n, sum of the n fits)`` is true after n frames."""
     tracker.start(np.array(q, float, copy=True), fresh=False)
     start = tracker.q.copy()
-    done: list[Observation] = []
     estimates, states = [], []
     total = 0.0
     for o in observations:
-        est = tracker.step(o)
-        done.append(o)
-        estimates.append(est)
+        estimates.append(tracker.step(o))
         states.append(tracker.snapshot())
-        total += est.fit
-        if stop is not None and stop(len(done), total):
+        total += estimates[-1].fit
+        if stop is not None and stop(len(estimates), total):
             break
-    return Track(start, tuple(done), tuple(estimates), tuple(states))
+    return Track(start, tuple(observations[: len(estimates)]), tuple(estimates), tuple(states))
 
 
 def _fits(track: Track) -> np.ndarray:
