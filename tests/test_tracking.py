@@ -823,13 +823,16 @@ def test_settled_frames_are_taken_as_tracked_not_tracked_again(embedded_session,
     inner = tracker._step
     monkeypatch.setattr(tracker, "_step", lambda obs, *a: searched.append(obs) or inner(obs, *a))
     tracker.start(q, fresh=False)
-    taken = [tracker.step(o) for o in frames[:n]]
+    taken = []
+    for o in frames[:n]:
+        taken.append(tracker.step(o))
+        assert tracker.last_step_remembered
     assert searched == []
     for a, b in zip(taken, track.estimates, strict=True):
         assert np.array_equal(a.q, b.q) and a.fit == b.fit and np.array_equal(a.points, b.points)
     assert np.array_equal(tracker.q, track.states[-1]["q"]) and list(tracker._fits) == list(track.states[-1]["_fits"])
     tracker.step(frames[n])
-    assert [id(o) for o in searched] == [id(frames[n])]
+    assert [id(o) for o in searched] == [id(frames[n])] and not tracker.last_step_remembered
     tracker.start(q, fresh=False)  # the track was used up: forgotten
     tracker.step(frames[0])
     assert len(searched) == 2

@@ -74,8 +74,12 @@ __all__ = ["TrackSummary", "run_track", "TRACKERS"]
 
 @dataclass
 class FrameTiming:
+    """The per-frame loop's time (seconds) and how many frames the tracker searched (``searched``:
+    not out of view and not taken from the frames the initialisation had tracked already)."""
+
     tracking_s: float = 0.0
     total_s: float = 0.0
+    searched: int = 0
 
 
 class Stages(dict[str, float]):
@@ -491,7 +495,8 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
     summary = TrackSummary(session=session, out=out, status="ok", n_frames=tracked, n_flagged=n_flagged,
                            seconds=seconds,
                            message=f"{cfg.tracker}: {tracked} frames, {n_flagged} flagged, "
-                                   f"{1000 * timing.tracking_s / max(tracked, 1):.0f} ms/frame tracking, "
+                                   f"{1000 * timing.tracking_s / max(timing.searched, 1):.0f} ms/frame tracking "
+                                   f"({timing.searched} frames searched), "
                                    f"{tracked / seconds:.1f} frames/s end to end", stages=stages,
                            verdict=judged.verdict.verdict, verdict_reasons=list(judged.verdict.reasons),
                            verdict_notes=list(judged.verdict.notes),
@@ -788,6 +793,7 @@ def _track_frames(filt, likelihood, views, cfg: TrackingConfig, first, stream: I
                               np.full(model.n_dofs, np.nan), np.nan, 0.0, quality)  # fmt: skip
             else:
                 est = filt.step(obs)
+                timing.searched += not filt.last_step_remembered
                 quality = _fit_quality(est.fit, cfg)
                 writer.append(est.points, est.uncertainty, est.q, est.log_likelihood, est.fit, quality)
                 pose = est

@@ -78,6 +78,8 @@ class Tracker:
         self._grids: dict[tuple, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}  # grid_offsets' cache
         self._remembered: Track | None = None  # frames tracked once from a settled start (remember)
         self._replayed = 0  # how many of them the steps since that start have taken
+        #: whether the last :meth:`step` took a remembered frame instead of searching it
+        self.last_step_remembered = False
 
     def start(self, q0: np.ndarray, fresh: bool = True) -> None:
         """Set the previous estimate (after initialisation or recovery). ``fresh``: q0 is a guess
@@ -117,8 +119,10 @@ class Tracker:
             self.restore(track.states[k])
             self._replayed = k + 1
             self._remembered = track if k + 1 < len(track.observations) else None
+            self.last_step_remembered = True
             return replace(track.estimates[k])
         self._remembered = None
+        self.last_step_remembered = False
         return self._step(obs, widen)
 
     def _step(self, obs: Observation, widen: float = 1.0) -> Estimate:
