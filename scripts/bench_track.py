@@ -10,10 +10,11 @@ of the grid, each budget written into a temporary copy of the shipped configs/tr
 Prints one markdown table, a row per tracker x budget x session:
 
 - tracking ms/frame: the per-frame loop alone (FrameTiming.tracking_s / the frames it searched,
-  not those taken as the initialisation's leg check tracked them; includes the
-  initialisation search on the first frame, shown apart as "first frame s" since it weighs on
-  short runs), end-to-end ms/frame: wall time of run_track / frames (silhouettes, observation,
-  tracking, outputs);
+  not those taken as the initialisation's leg check tracked them); "first frame s": the loop's time
+  on the first frame, which holds the initialisation's search when the loop finds the first pose
+  (with the shape calibration on, the first pose is found before the loop and the first frames
+  are taken as already tracked: about 0); end-to-end ms/frame: wall time of run_track / frames
+  (silhouettes, observation, tracking, outputs);
 - lower-limb MPJPE (hips, knees, ankles) and heel/toe error in mm, on the frames not flagged;
 - knee flexion RMSE in degrees (gaitcap.gait.angles on both, left and right pooled) and its bias,
   the mean of estimate - truth (RMSE^2 = bias^2 + the difference's variance: a systematic error,
