@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from gaitcap.camera import Camera
-from gaitcap.tracking.observation import TrackingView
+from gaitcap.tracking.observation import Observation, TrackingView
 
 
 def _view(scale: float = 0.5) -> TrackingView:
@@ -28,3 +28,22 @@ def test_a_float_mask_keeps_its_confidence_and_is_clipped_to_0_1():
     s = _view().prepare(soft)
     assert np.allclose(s[5:15, 10:20], 0.5) and np.allclose(s[20:25, 10:20], 1.0)
     assert s.min() == 0.0
+
+
+def test_given_areas_are_the_areas_and_survive_a_spool_round_trip():
+    """Soft silhouettes with doubt outside the masks count |S_c| as the masks' areas (``given_areas``):
+    what a spool stores (:meth:`Observation.arrays`) reads back to the same silhouettes and areas."""
+    a = np.zeros((30, 40), np.float32)
+    a[5:15, 10:20] = 1.0
+    a[15:20, 10:20] = 0.25  # doubt outside the mask
+    b = np.ones((30, 40), np.float32)
+    plain = Observation([a, b])
+    assert plain.arrays() == [a, b] and np.allclose(plain.areas, [a.sum(), b.sum()])
+    again = Observation.from_arrays(plain.arrays())
+    assert again.given_areas is None and np.allclose(again.areas, plain.areas)
+    given = Observation([a, b], given_areas=np.array([100.0, 1200.0]))
+    stored = given.arrays()
+    assert len(stored) == 3 and stored[-1].dtype == np.float32
+    back = Observation.from_arrays(stored)
+    assert len(back.silhouettes) == 2 and np.array_equal(back.silhouettes[0], a)
+    assert np.allclose(back.areas, [100.0, 1200.0]) and np.allclose(given.areas, [100.0, 1200.0])

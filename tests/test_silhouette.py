@@ -432,6 +432,33 @@ def test_soft_silhouette_is_sure_on_the_body_doubtful_on_faint_parts_and_zero_ou
     assert m <= np.median(soft[70:100, 70:90]) < 1 - 0.2 * (1 - m)  # the faint legs: doubtful
 
 
+def test_doubt_outside_the_mask_is_at_most_half_never_on_shadow_nor_far_from_the_body():
+    """``foreground.doubt_min`` (the run ``lost_legs`` tracks again): outside the mask, a pixel no
+    shadow whose difference reaches doubt_min x threshold scores up to 0.5, up to the weak level;
+    inside the mask nothing changes; far from the body, on shadow, and on the plain floor: 0."""
+    plate, frame, _ = _low_contrast_legs()
+    frame[110:116, 64:96] += 7  # the feet under the legs: 7 grey levels, under the weak level (9 of 18)
+    frame[5:11, 5:25] += 7  # as faint, far above and beside the body
+    shadow = np.zeros((120, 160), bool)
+    shadow[110:116, 80:96] = True  # the right half of the feet taken for a shadow
+    outs = {}
+    for doubt_min in (0.3, 1.0):
+        ex = SilhouetteExtractor(_config(foreground={"soft_min": 1.0, "doubt_min": doubt_min}))
+        ex.fit_background(plate=plate)
+        outs[doubt_min] = ex.finish_soft(ex.observe(frame), shadow)
+    (mask, soft, _), (mask_off, soft_off, _) = outs[0.3], outs[1.0]
+    assert np.array_equal(mask, mask_off)  # the masks do not depend on the doubt
+    assert np.all(soft[mask == 1] == 1.0) and np.array_equal(soft[mask == 1], soft_off[mask == 1])
+    outside = soft[mask == 0]
+    assert outside.min() >= 0.0 and outside.max() <= 0.5
+    assert np.all(soft_off[mask == 0] == 0)  # doubt_min at or above the weak level: no doubt
+    feet = soft[111:115, 66:78]
+    assert (mask[111:115, 66:78] == 0).all() and 0.05 < np.median(feet) <= 0.5  # doubtful, not sure
+    assert np.all(soft[110:116, 80:96][mask[110:116, 80:96] == 0] == 0)  # shadow: no doubt
+    assert np.all(soft[5:11, 5:25] == 0)  # as faint, but far from the body's box
+    assert np.median(soft[mask == 0]) == 0.0  # the plain floor: noise under doubt_min x threshold
+
+
 def test_joint_soft_silhouettes_agree_with_the_masks():
     rig = grey_body_rig(seed=5)
     extractors = []

@@ -13,6 +13,7 @@ import yaml
 from gaitcap.body.measures import model_lengths
 from gaitcap.body.model import load_body_model
 from gaitcap.errors import ConfigError, OutputError
+from gaitcap.io.silhouettes_h5 import read_masks
 from gaitcap.io.trajectories_h5 import read_trajectory
 from gaitcap.markers.motion import read_markers
 from gaitcap.pipeline import Stages, run_track
@@ -1076,6 +1077,36 @@ def test_track_with_shape_calibration_records_it(embedded_session, tmp_path, mon
     assert body["segment_lengths_m"]["thigh"] == pytest.approx(shipped["thigh"] * factor,
                                                                abs=shipped["thigh"] * 5e-4 + 5e-5)  # fmt: skip
     assert body["segment_lengths_m"]["shank"] == pytest.approx(shipped["shank"], abs=1e-4)
+
+
+def test_a_run_whose_legs_lie_off_the_masks_is_tracked_again_with_doubt(embedded_session, tmp_path, caplog):
+    """``lost_legs``: a run whose legs the masks hold little of (here forced: every leg segment below
+    a support of 1 in more than 1 % of the frames counts) is not written; the session is tracked again with the faint
+    pixels outside the masks counted as doubtful, and that run is kept and says so. The masks saved
+    are the first run's (the same); no temporary file is left. With ``retrack: false``, tracked once."""
+    data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
+    data["shape"]["enabled"] = False
+    data["factored_ipf"].update(particles=40, root_particles=80)
+    data["verdict"].update(min_leg_support=1.0, max_unsupported_fraction=0.01)
+    config = tmp_path / "tracking.yaml"
+    config.write_text(yaml.safe_dump(data))
+    out = tmp_path / "out"
+    summary = run_track(embedded_session.session, out, config=config, progress=False, max_frames=5, save_masks=True)
+    assert summary.status == "ok" and summary.n_frames == 5
+    assert summary.verdict_notes[0].startswith("tracked twice: the first run's legs lay off a camera's masks (")
+    assert "tracking again with the faint pixels" in caplog.text
+    with h5py.File(out / "trajectories.h5") as f:
+        assert yaml.safe_load(f.attrs["config"])["soft_silhouettes"] is True
+    assert json.loads((out / "track.json").read_text())["verdict_notes"] == summary.verdict_notes
+    assert read_masks(out / "silhouettes.h5", "cam1").shape[0] == 5
+    assert not list(out.glob(".*.part*"))
+    data["lost_legs"] = {"retrack": False}
+    config.write_text(yaml.safe_dump(data))
+    once = run_track(embedded_session.session, out, config=config, progress=False, max_frames=5, force=True)
+    assert not any(n.startswith("tracked twice") for n in once.verdict_notes)
+    assert any(n.startswith("legs placed where") for n in once.verdict_notes)  # the note stays
+    with h5py.File(out / "trajectories.h5") as f:
+        assert yaml.safe_load(f.attrs["config"])["soft_silhouettes"] is False
 
 
 def test_calibrated_body_outside_the_ranges_is_rejected(embedded_session, tmp_path, caplog):

@@ -6,7 +6,9 @@ tracker per frame -> trajectories.h5 (streamed) -> the backward pass (its frames
 stretch at a time, beside the forward pass and on every core after it) and the legs' support on the
 spooled silhouettes (gaitcap.tracking.support) -> zero-lag filtering, the run's verdict and the
 calibrated uncertainty (gaitcap.quality) -> joints.csv, joints.trc -> track.json (written last: a
-session with it is finished).
+session with it is finished). A run whose legs lie off a camera's masks (the masks lost them) is
+not written: the session is tracked again with the faint pixels outside the masks counted as
+doubtful (``lost_legs``), and that run is.
 """
 
 from __future__ import annotations
@@ -40,7 +42,7 @@ from gaitcap.io.track_h5 import (QUALITY_NOT_INITIALISED, QUALITY_OK, QUALITY_OU
                                  TrackWriter, proportions_attrs, read_track_record, tracked_frames)  # fmt: skip
 from gaitcap.io.trc import write_trc
 from gaitcap.prefetch import Head, Prefetched
-from gaitcap.quality import assess, facing_in_doubt, legs_in_doubt
+from gaitcap.quality import assess, facing_in_doubt, legs_in_doubt, unsupported_legs, unsupported_listing
 from gaitcap.session import CALIBRATION_FILE, Session
 from gaitcap.session_check import check_session_videos, check_silhouettes_meet
 from gaitcap.silhouette.config import SilhouetteConfig
@@ -170,15 +172,51 @@ def run_track(
     sil_cfg = SilhouetteConfig.load()
     views = tracking_views(rig, cfg.scale)
     likelihood = SilhouetteLikelihood(views, cfg.beta)
-    # the videos are read and the silhouettes extracted in a worker thread, a few frames ahead
     saver = MaskSaver(out / SILHOUETTES_FILE, file_attrs(sil_cfg)) if save_masks else None
-    # the first frames (initialisation, shape calibration) are read ahead without waiting for the
+    stages["setup"] = time.perf_counter() - t_start
+    attempt = partial(_attempt, session, out, ses, videos, views, likelihood, save_masks, height_m, n_frames, progress,
+                      on_frame, t_start, stages, reused)  # fmt: skip
+    try:
+        summary = attempt(cfg, sil_cfg, saver, lost_legs=cfg.lost_legs.retrack and not cfg.soft_silhouettes)
+    except LegsLost as lost:
+        if saver is not None:  # the masks, all read: the run tracked again extracts the same ones
+            saver.finish()
+        log.warning("%s: the masks lost the legs in some camera (%s): tracking again with the faint pixels outside "
+                    "them counted as doubtful (lost_legs)", session, lost.listing)  # fmt: skip
+        doubt = sil_cfg.foreground.model_copy(update={"soft_min": 1.0, "doubt_min": cfg.lost_legs.doubt_min})
+        summary = attempt(cfg.model_copy(update={"soft_silhouettes": True}),
+                          sil_cfg.model_copy(update={"foreground": doubt}), None, lost_legs=False,
+                          notes=(f"tracked twice: the first run's legs lay off a camera's masks ({lost.listing}); this "
+                                 "run counted the faint pixels outside the masks as doubtful (tracking.yaml lost_legs)",))
+        return summary
+    if saver is not None:
+        saver.finish()
+    return summary
+
+
+class LegsLost(Exception):
+    """A run's legs lie off a camera's masks (:func:`gaitcap.quality.unsupported_legs`): raised before
+    anything of that run is written, so that it is tracked again (``lost_legs``)."""
+
+    def __init__(self, low: dict[str, tuple[int, int]]) -> None:
+        self.listing = unsupported_listing(low)  # "thigh_l in 38 of 56 frames, ..."
+        super().__init__(self.listing)
+
+
+def _attempt(session: Path, out: Path, ses: Session, videos, views, likelihood, save_masks: bool,
+             height_m: float | None, n_frames: int, progress: bool, on_frame, t_start: float, stages: Stages,
+             reused, cfg: TrackingConfig, sil_cfg: SilhouetteConfig, saver: MaskSaver | None, lost_legs: bool,
+             notes: tuple[str, ...] = ()) -> TrackSummary:  # fmt: skip
+    """One run of :func:`run_track` with these configurations, from the videos to the outputs (the
+    stages' times add up over the runs). ``lost_legs``: raise :class:`LegsLost` instead of writing a
+    run whose legs lie off the masks; ``notes``: prepended to the verdict's notes."""
+    # the videos are read and the silhouettes extracted in a worker thread, a few frames ahead; the
+    # first frames (initialisation, shape calibration) are read ahead without waiting for the
     # tracker; once they are in the head, the queue shrinks back to PREFETCH_FRAMES
     buffered = _buffered_frames(cfg)
-    stream = Prefetched(_observations(ses, rig.names, views, sil_cfg, n_frames, stages, saver, cfg.soft_silhouettes),
-                        depth=max(PREFETCH_FRAMES, buffered))  # fmt: skip
+    stream = Prefetched(_observations(ses, videos.rig.names, views, sil_cfg, n_frames, stages, saver,
+                                      cfg.soft_silhouettes), depth=max(PREFETCH_FRAMES, buffered))  # fmt: skip
     head = Head(stream, buffered, on_read=lambda n: stream.set_depth(max(PREFETCH_FRAMES, buffered - n)))
-    stages["setup"] = time.perf_counter() - t_start
     with stream, kernel_threads(cfg.threads):
         with _switch_interval(START_SWITCH_S):
             with stages.timed("kernels"):  # while the prefetch thread fits the backgrounds
@@ -190,11 +228,8 @@ def run_track(
         _prepare_out(out, save_masks)  # only once the inputs are known good: bad input creates nothing
         if saver is not None:
             saver.open()
-        summary = _track_session(session, out, ses, videos, cfg, views, likelihood, head, stream, height_m, n_frames,
-                                 progress, on_frame, t_start, stages, reused)  # fmt: skip
-    if saver is not None:
-        saver.finish()
-    return summary
+        return _track_session(session, out, ses, videos, cfg, views, likelihood, head, stream, height_m, n_frames,
+                              progress, on_frame, t_start, stages, reused, lost_legs, notes)  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -387,6 +422,9 @@ def _observations(ses: Session, cams: tuple[str, ...], views, sil_cfg: Silhouett
                 if saver is not None:
                     saver.add(t, sources, prepared, list(done))
                 obs = Observation(list(pool.map(lambda c: views[c].prepare(seen[c]), range(len(cams)))))
+                if soft and sil_cfg.foreground.doubt_min < sil_cfg.foreground.hysteresis:  # the mask's area only
+                    inside = pool.map(lambda c: views[c].prepare(seen[c] * (done[c][0] > 0)), range(len(cams)))
+                    obs.given_areas = np.array([np.float32(a.sum()) for a in inside], float)
                 for c in range(len(cams)):
                     obs.prefix(c)
                 obs.areas  # noqa: B018 - cached here, off the tracking thread
@@ -415,9 +453,11 @@ def _save_masks(writer: SilhouetteWriter, t: int, sources: dict[str, Source], pr
 def _track_session(session: Path, out: Path, ses: Session, videos, cfg: TrackingConfig, views, likelihood,
                    head: Head[Observation], stream: Iterator[Observation], height_m: float | None, n_frames: int,
                    progress: bool, on_frame, t_start: float, stages: Stages,
-                   reused: ReusedBody | None = None) -> TrackSummary:  # fmt: skip
+                   reused: ReusedBody | None = None, lost_legs: bool = False,
+                   notes: tuple[str, ...] = ()) -> TrackSummary:  # fmt: skip
     """:func:`run_track` once the output folder is ready: ``head`` the buffered first frames, the
-    others read from ``stream``; ``reused``: the body to track (no shape calibration)."""
+    others read from ``stream``; ``reused``: the body to track (no shape calibration); ``lost_legs``,
+    ``notes``: see :func:`_attempt`."""
     if reused is not None:
         height, height_source = reused.model.height_m, "--body"
         _check_reused_height(ses, reused)
@@ -466,6 +506,8 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
                 log.info("backward pass and leg order: %d of %d frames replaced", replaced, tracked)
                 with stages.timed("verdict"):  # the final poses against the spooled silhouettes
                     support = _leg_support(filt.model, likelihood, spool, writer.read_poses())
+                if lost_legs and (low := unsupported_legs(support, cfg.verdict)):
+                    raise LegsLost(low)  # nothing written yet: the writer's file is removed below
         t_writing = time.perf_counter()
         verdict_before = stages.get("verdict", 0.0)
         raw, quality = writer.read_back()
@@ -486,6 +528,7 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
     log.info("verdict: %s%s", judged.verdict.verdict, "".join(f"; {r}" for r in judged.verdict.reasons))
     for note in judged.verdict.notes:
         log.info("note: %s", note)
+    verdict_notes = [*notes, *judged.verdict.notes]
     traj = Trajectory(model.point_names, points, videos.fps)
     write_joints_csv(out / "joints.csv", traj)
     write_trc(out / "joints.trc", traj, units="mm")
@@ -499,7 +542,7 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
                                    f"({timing.searched} frames searched), "
                                    f"{tracked / seconds:.1f} frames/s end to end", stages=stages,
                            verdict=judged.verdict.verdict, verdict_reasons=list(judged.verdict.reasons),
-                           verdict_notes=list(judged.verdict.notes),
+                           verdict_notes=verdict_notes,
                            body={"height_m": round(float(height), 4), "height_source": height_source,
                                  "shape": shape_note,
                                  "segment_lengths_m": {k: round(v, 4) for k, v in model_lengths(filt.model).items()}})  # fmt: skip
@@ -524,7 +567,8 @@ def _leg_support(model: BodyModel, likelihood, spool: FrameSpool, poses: np.ndar
     of the spool at its pose (T, D): segment -> (T,), NaN where the frame has no pose."""
     out = {name: np.full(len(poses), np.nan) for name in LEG_SEGMENTS}
     for t in np.flatnonzero(np.all(np.isfinite(poses), axis=1)):
-        for name, share in zip(LEG_SEGMENTS, segment_support(model, likelihood, Observation(spool.read(t)), poses[t])):
+        obs = Observation.from_arrays(spool.read(t))
+        for name, share in zip(LEG_SEGMENTS, segment_support(model, likelihood, obs, poses[t])):
             out[name][t] = share
     return out
 
@@ -762,7 +806,7 @@ def _track_frames(filt, likelihood, views, cfg: TrackingConfig, first, stream: I
     for obs in observations():
         t0 = time.perf_counter()
         if spool is not None:
-            spool.append(obs.silhouettes)
+            spool.append(obs.arrays())
         in_view = bool(np.all(obs.fractions() >= cfg.quality.min_silhouette_fraction))
         quality, pose = QUALITY_OK, None  # pose: this frame's estimate, if it was tracked
         if not in_view:
@@ -824,7 +868,7 @@ def _restart_pass(model: BodyModel, likelihood, views, cfg: TrackingConfig, spoo
     pass's last pose ``q_last`` has, or the opposite one if it fits decisively better), then tracked
     back to s; None when that pose's legs agree with ``q_last``'s. ``stop``: see :func:`_tracked_back`."""
     tracker = _new_tracker(cfg, model, likelihood)
-    frames = [Observation(spool.read(t)) for t in range(e - 1, max(s, e - cfg.init.frames) - 1, -1)]
+    frames = [Observation.from_arrays(spool.read(t)) for t in range(e - 1, max(s, e - cfg.init.frames) - 1, -1)]
     try:
         init = initialise(tracker, likelihood, views, frames, cfg.init.heading_step_deg, cfg.init.refine_passes,
                           cfg.init.widen, leg_frames=cfg.init.leg_frames,
@@ -852,7 +896,7 @@ def _tracked_back(tracker, spool: FrameSpool, q0: np.ndarray, s: int, e: int, fr
     for i, t in enumerate(range(e - 1, s - 1, -1)):
         if stop is not None and stop.is_set():
             break
-        estimates.append(tracker.step(read[i] if i < len(read) else Observation(spool.read(t))))
+        estimates.append(tracker.step(read[i] if i < len(read) else Observation.from_arrays(spool.read(t))))
     return estimates[::-1]
 
 
@@ -962,10 +1006,10 @@ def _merge_run(tracker, spool: FrameSpool, raw: np.ndarray, poses: np.ndarray, f
             if backwards:
                 return _tracked_back(tracker, spool, q0, s + a, s + b)
             tracker.start(q0, fresh=False)
-            return [tracker.step(Observation(spool.read(s + t))) for t in range(a, b)]
+            return [tracker.step(Observation.from_arrays(spool.read(s + t))) for t in range(a, b)]
 
         def refine(q0: np.ndarray, t: int):  # frame t searched from q0 alone
-            return tracker.refine(Observation(spool.read(s + t)), q0)
+            return tracker.refine(Observation.from_arrays(spool.read(s + t)), q0)
 
         order_legs(chosen, raw[s:e], fit[s:e], poses[s:e], back, tracker.model.point_names, rate_hz, again,
                    tracker.mirrored, cfg.backward, cfg.verdict.exchanged_margin_m, refine)  # fmt: skip

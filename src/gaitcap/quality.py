@@ -522,19 +522,31 @@ def _layout_notes(s: RunSignals, cfg: VerdictConfig) -> tuple[str, ...]:
     return (note,)
 
 
-def _support_notes(s: RunSignals, cfg: VerdictConfig) -> tuple[str, ...]:
-    """A note (not a reason) naming the leg segments that some camera's silhouette holds less than
-    ``cfg.min_leg_support`` of in more than ``cfg.max_unsupported_fraction`` of the frames where
-    they were judged: there the other cameras and the priors placed them, right or wrong."""
+def unsupported_legs(leg_support: dict[str, np.ndarray], cfg: VerdictConfig) -> dict[str, tuple[int, int]]:
+    """The leg segments that some camera's silhouette holds less than ``cfg.min_leg_support`` of in
+    more than ``cfg.max_unsupported_fraction`` of the frames where they were judged: segment ->
+    (such frames, frames judged). ``leg_support``: segment -> (T,), as :class:`RunSignals` holds it."""
     low = {}
-    for name, share in s.leg_support.items():
+    for name, share in leg_support.items():
         judged = np.isfinite(share)
         n = int(np.sum(share[judged] < cfg.min_leg_support))
         if judged.any() and n > cfg.max_unsupported_fraction * np.sum(judged):
             low[name] = (n, int(np.sum(judged)))
+    return low
+
+
+def unsupported_listing(low: dict[str, tuple[int, int]]) -> str:
+    """:func:`unsupported_legs`' result in words: "thigh_l in 38 of 56 frames, ..."."""
+    return ", ".join(f"{k} in {n} of {m} frames" for k, (n, m) in low.items())
+
+
+def _support_notes(s: RunSignals, cfg: VerdictConfig) -> tuple[str, ...]:
+    """A note (not a reason) naming the :func:`unsupported_legs`: there the other cameras and the
+    priors placed them, right or wrong."""
+    low = unsupported_legs(s.leg_support, cfg)
     if not low:
         return ()
-    listed = ", ".join(f"{k} in {n} of {m} frames" for k, (n, m) in low.items())
+    listed = unsupported_listing(low)
     return (f"legs placed where a camera's silhouette has little of them ({listed}: less than "
             f"{100 * cfg.min_leg_support:.0f} % of the segment on the masks): the masks lost them there and the other "
             "cameras and the priors placed them; check the masks (gaitcap track --save-masks)",)

@@ -69,6 +69,11 @@ class ForegroundConfig(Strict):
         default=0.75, ge=0, le=1,
         description="soft silhouette (tracking.soft_silhouettes): value of the least confident pixel inside the mask",
     )  # fmt: skip
+    doubt_min: float = Field(
+        default=1.0, ge=0, le=1,
+        description="soft silhouette: outside the mask, a pixel no shadow whose difference passes this fraction of the "
+        "threshold is doubtful, 0 here up to 0.5 at the weak level (hysteresis); at or above hysteresis: off",
+    )  # fmt: skip
 
 
 class ShadowConfig(Strict):

@@ -530,7 +530,7 @@ class SilhouetteExtractor:
         self._count += 1
         if not soft:
             return mask, None, quality
-        return mask, self._soft(evidence.strength, mask_small, mask), quality
+        return mask, self._soft(evidence.strength, mask_small, mask, shadow), quality
 
     def _matte(self, evidence: FrameEvidence, mask: np.ndarray, shadow: np.ndarray) -> np.ndarray:
         """:func:`matte_outline` of ``mask`` (h, w) uint8 0/255 in its bounding box (plus the window)."""
@@ -543,7 +543,8 @@ class SilhouetteExtractor:
         out[box] = matte_outline(evidence.image[box], evidence.background[box], mask[box], shadow[box], self.config.foreground.min_diff)
         return out
 
-    def _soft(self, strength: np.ndarray, mask_small: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    def _soft(self, strength: np.ndarray, mask_small: np.ndarray, mask: np.ndarray,
+              shadow: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
         """(H, W) float32 soft silhouette of :meth:`finish_soft` from the working-scale strength
         (h, w) float32, the working-scale mask (h, w) uint8 0/255 and the full-resolution one (H, W)
         uint8 0/1. At full resolution it is computed in the mask's bounding box only (0 elsewhere)."""
@@ -553,8 +554,30 @@ class SilhouetteExtractor:
             if w and h:
                 box = np.s_[y : y + h, x : x + w]
                 soft[box] = self._soft_at_scale(strength[box], mask_small[box], mask[box])
+        else:
+            soft = self._soft_at_scale(strength, mask_small, mask)
+        return soft if shadow is None else self._with_doubt(soft, strength, mask_small, mask, shadow)
+
+    def _with_doubt(self, soft: np.ndarray, strength: np.ndarray, mask_small: np.ndarray, mask: np.ndarray,
+                    shadow: np.ndarray) -> np.ndarray:  # fmt: skip
+        """``soft`` (H, W) with ``foreground.doubt_min``'s doubtful pixels outside ``mask`` (H, W): in the
+        working-scale mask's bounding box, grown by an eighth of its height, pixels no shadow whose
+        difference d / t lies between doubt_min and the weak level get 0.5 (d / t - doubt_min) /
+        (hysteresis - doubt_min), at most 0.5: a model pixel there is penalised less, never rewarded."""
+        lo, hi = self.config.foreground.doubt_min, self.config.foreground.hysteresis
+        x, y, w, h = cv2.boundingRect(mask_small)
+        if lo >= hi or not w or not h:
             return soft
-        return self._soft_at_scale(strength, mask_small, mask)
+        pad = max(h // 8, 1)
+        box = np.s_[max(y - pad, 0) : y + h + pad, max(x - pad, 0) : x + w + pad]
+        doubt = np.zeros(strength.shape, np.float32)
+        d = (cv2.sqrt(strength[box]) - np.float32(lo)) * np.float32(0.5 / (hi - lo))
+        np.clip(d, 0.0, 0.5, out=d)
+        d[(mask_small[box] > 0) | shadow[box]] = 0.0
+        doubt[box] = d
+        if doubt.shape != mask.shape:
+            doubt = cv2.resize(doubt, (mask.shape[1], mask.shape[0]), interpolation=cv2.INTER_LINEAR)
+        return np.where(mask > 0, soft, np.minimum(doubt, np.float32(0.5)))
 
     def _soft_at_scale(self, strength: np.ndarray, mask_small: np.ndarray, mask: np.ndarray) -> np.ndarray:
         """:meth:`_soft` over whole arrays: (h, w) ``strength`` and ``mask_small`` -> (H, W), resized to

@@ -279,6 +279,14 @@ class LegGapConfig(Strict):
     sigma: float = Field(default=0.005, gt=0, le=0.2)
 
 
+class LostLegsConfig(Strict):
+    """A run whose legs lie off a camera's masks (``verdict.min_leg_support``: the masks lost them) is
+    tracked again with the faint pixels outside the masks counted as doubtful (gaitcap.pipeline)."""
+
+    retrack: bool = True
+    doubt_min: float = Field(default=0.3, ge=0, lt=1)
+
+
 class TrackingConfig(Strict):
     tracker: TrackerName = "factored-ipf"
     scale: float = Field(default=0.5, gt=0.05, le=1)
@@ -297,6 +305,7 @@ class TrackingConfig(Strict):
     smoothing: SmoothingConfig = Field(default_factory=SmoothingConfig)
     shape: ShapeConfig = Field(default_factory=ShapeConfig)
     backward: BackwardConfig = Field(default_factory=BackwardConfig)
+    lost_legs: LostLegsConfig = Field(default_factory=LostLegsConfig)
     threads: int | None = Field(default=None, ge=1)
     seed: int = 0
 

@@ -87,7 +87,24 @@ class Observation:
     """One frame: the soft silhouettes (h, w) float32 of every camera, and their areas."""
 
     silhouettes: list[np.ndarray]
+    #: |S_c| per camera when it is not the silhouettes' sum: soft silhouettes with doubtful pixels
+    #: outside the mask (silhouette.yaml's ``foreground.doubt_min``) count the mask's area only
+    given_areas: np.ndarray | None = None
     _prefix: dict[int, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict, repr=False)
+
+    def arrays(self) -> list[np.ndarray]:
+        """What a spool stores of this frame (:meth:`from_arrays` reads it back): the silhouettes, and
+        the given areas (float32, so that both passes read the same values) when there are any."""
+        if self.given_areas is None:
+            return list(self.silhouettes)
+        return [*self.silhouettes, np.asarray(self.given_areas, np.float32)]
+
+    @classmethod
+    def from_arrays(cls, arrays: list[np.ndarray]) -> Observation:
+        """An observation from :meth:`arrays`' output (the areas, if any: the last array, (C,))."""
+        if arrays and arrays[-1].ndim == 1:
+            return cls(list(arrays[:-1]), given_areas=np.asarray(arrays[-1], np.float64))
+        return cls(list(arrays))
 
     def prefix(self, c: int) -> tuple[np.ndarray, np.ndarray]:
         """Row prefix sums of camera c's silhouette and of ones (cached)."""
@@ -99,6 +116,8 @@ class Observation:
     @cached_property
     def areas(self) -> np.ndarray:
         """|S_c| per camera (C,) (cached: the likelihood reads it at every layer)."""
+        if self.given_areas is not None:
+            return np.asarray(self.given_areas, float)
         return np.array([float(s.sum()) for s in self.silhouettes])
 
     def fractions(self) -> np.ndarray:
