@@ -16,9 +16,15 @@ Deterministic for a given seed list (the renderer and the tracker are seeded). S
     python scripts/bench_suite.py --sessions 6 --no-external   # a quick look
     python scripts/bench_suite.py --only-external
     python scripts/bench_suite.py --work DIR --true-masks   # each session tracked from its true masks
+    python scripts/bench_suite.py --work DIR --first 24 --sessions 48 --no-external   # 24 held-out sessions
 
     python scripts/bench_suite.py --work DIR2 --body-from DIR   # each session with its body from DIR's run
     python scripts/bench_suite.py --work DIR2 --only-external --body DIR/runs/ext_ktk_a   # one subject's body
+
+``--first 24 --sessions 48`` draws sessions 24-47 instead (the same generator, other seeds: other people,
+clothes, rooms and cameras): a held-out draw that no setting of the project was chosen on, where the
+first 24 have been looked at for every change since they were drawn (docs/validation.md, "A held-out
+draw").
 
 ``--body-from`` / ``--body`` track with an earlier run's body (``gaitcap track --body``: no shape
 calibration): with ``--body-from`` each session's own calibrated body (what the calibration's stages
@@ -283,7 +289,7 @@ def own_sessions(args: argparse.Namespace) -> list[dict]:
         if reason:
             print(f"# sessions of the {w} walk skipped: {reason}", file=sys.stderr)
     rows = []
-    for p in plan(args.sessions, list(WALKS)):
+    for p in plan(args.sessions, list(WALKS))[args.first :]:
         if why[p["walk"]] or (args.only and p["name"] not in args.only):  # --only: the others are not drawn
             continue
         session = args.work / "sessions" / p["name"]
@@ -424,6 +430,9 @@ def print_bias(rows: list[dict]) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--sessions", type=int, default=24, help="number of the suite's own sessions")
+    ap.add_argument("--first", type=int, default=0,
+                    help="draw the own sessions from this index on (seeds FIRST..SESSIONS-1): with --first 24 "
+                         "--sessions 48, 24 held-out sessions that no choice of the project was judged on")  # fmt: skip
     ap.add_argument("--work", type=Path, default=Path("/tmp/gaitcap_suite"), help="sessions, runs and tables")
     ap.add_argument("--no-external", action="store_true", help="leave out ../shared/data/external_sessions")
     ap.add_argument("--only-external", action="store_true")
