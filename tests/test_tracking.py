@@ -12,7 +12,7 @@ import yaml
 
 from gaitcap.body.measures import model_lengths
 from gaitcap.body.model import load_body_model
-from gaitcap.errors import ConfigError, OutputError
+from gaitcap.errors import ConfigError, OutputError, TrackingError
 from gaitcap.io.silhouettes_h5 import read_masks
 from gaitcap.io.trajectories_h5 import read_trajectory
 from gaitcap.markers.motion import read_markers
@@ -1079,11 +1079,13 @@ def test_track_with_shape_calibration_records_it(embedded_session, tmp_path, mon
     assert body["segment_lengths_m"]["shank"] == pytest.approx(shipped["shank"], abs=1e-4)
 
 
-def test_a_run_whose_legs_lie_off_the_masks_is_tracked_again_with_doubt(embedded_session, tmp_path, caplog):
+def test_a_run_whose_legs_lie_off_the_masks_is_tracked_again_with_doubt(embedded_session, tmp_path, caplog,
+                                                                        monkeypatch):  # fmt: skip
     """``lost_legs``: a run whose legs the masks hold little of (here forced: every leg segment below
     a support of 1 in more than 1 % of the frames counts) is not written; the session is tracked again with the faint
     pixels outside the masks counted as doubtful, and that run is kept and says so. The masks saved
-    are the first run's (the same); no temporary file is left. With ``retrack: false``, tracked once."""
+    are the first run's (the same); no temporary file is left. If that second run fails, the first is
+    kept (tracked once more as it was). With ``retrack: false``, tracked once."""
     data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
     data["shape"]["enabled"] = False
     data["factored_ipf"].update(particles=40, root_particles=80)
@@ -1100,6 +1102,24 @@ def test_a_run_whose_legs_lie_off_the_masks_is_tracked_again_with_doubt(embedded
     assert json.loads((out / "track.json").read_text())["verdict_notes"] == summary.verdict_notes
     assert read_masks(out / "silhouettes.h5", "cam1").shape[0] == 5
     assert not list(out.glob(".*.part*"))
+
+    import gaitcap.pipeline as pipeline_module
+
+    real = pipeline_module._track_session
+
+    def failing_with_doubt(*args, **kwargs):
+        if args[4].soft_silhouettes:  # cfg: the run with the doubtful pixels
+            raise TrackingError("no pose fits")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(pipeline_module, "_track_session", failing_with_doubt)
+    kept = run_track(embedded_session.session, out, config=config, progress=False, max_frames=5, force=True)
+    monkeypatch.undo()
+    assert kept.status == "ok" and kept.verdict_notes[0].startswith("the first run's legs lay off a camera's masks (")
+    assert "failed (no pose fits): this is the first run" in kept.verdict_notes[0]
+    with h5py.File(out / "trajectories.h5") as f:
+        assert yaml.safe_load(f.attrs["config"])["soft_silhouettes"] is False
+    first_run = read_trajectory(out / "trajectories.h5").points
     data["lost_legs"] = {"retrack": False}
     config.write_text(yaml.safe_dump(data))
     once = run_track(embedded_session.session, out, config=config, progress=False, max_frames=5, force=True)
@@ -1107,6 +1127,7 @@ def test_a_run_whose_legs_lie_off_the_masks_is_tracked_again_with_doubt(embedded
     assert any(n.startswith("legs placed where") for n in once.verdict_notes)  # the note stays
     with h5py.File(out / "trajectories.h5") as f:
         assert yaml.safe_load(f.attrs["config"])["soft_silhouettes"] is False
+    np.testing.assert_array_equal(read_trajectory(out / "trajectories.h5").points, first_run)  # the kept first run
 
 
 def test_calibrated_body_outside_the_ranges_is_rejected(embedded_session, tmp_path, caplog):

@@ -184,11 +184,18 @@ def run_track(
         log.warning("%s: the masks lost the legs in some camera (%s): tracking again with the faint pixels outside "
                     "them counted as doubtful (lost_legs)", session, lost.listing)  # fmt: skip
         doubt = sil_cfg.foreground.model_copy(update={"soft_min": 1.0, "doubt_min": cfg.lost_legs.doubt_min})
-        summary = attempt(cfg.model_copy(update={"soft_silhouettes": True}),
-                          sil_cfg.model_copy(update={"foreground": doubt}), None, lost_legs=False,
-                          notes=(f"tracked twice: the first run's legs lay off a camera's masks ({lost.listing}); this "
-                                 "run counted the faint pixels outside the masks as doubtful (tracking.yaml lost_legs)",))
-        return summary
+        try:
+            return attempt(cfg.model_copy(update={"soft_silhouettes": True}),
+                           sil_cfg.model_copy(update={"foreground": doubt}), None, lost_legs=False,
+                           notes=(f"tracked twice: the first run's legs lay off a camera's masks ({lost.listing}); "
+                                  "this run counted the faint pixels outside the masks as doubtful (tracking.yaml "
+                                  "lost_legs)",))  # fmt: skip
+        except TrackingError as e:  # the first run stands: tracked once more as it was (deterministic)
+            log.warning("%s: tracking with the doubtful pixels failed (%s): the first run is kept", session, e)
+            return attempt(cfg, sil_cfg, None, lost_legs=False,
+                           notes=(f"the first run's legs lay off a camera's masks ({lost.listing}); tracking again with "
+                                  f"the faint pixels outside them counted as doubtful failed ({e}): this is the first "
+                                  "run",))  # fmt: skip
     if saver is not None:
         saver.finish()
     return summary
