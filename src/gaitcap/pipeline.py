@@ -429,7 +429,7 @@ def _observations(ses: Session, cams: tuple[str, ...], views, sil_cfg: Silhouett
                 if saver is not None:
                     saver.add(t, sources, prepared, list(done))
                 obs = Observation(list(pool.map(lambda c: views[c].prepare(seen[c]), range(len(cams)))))
-                if soft and sil_cfg.foreground.doubt_min < sil_cfg.foreground.hysteresis:  # the mask's area only
+                if soft and sil_cfg.foreground.doubts:  # |S_c|: the mask's area only
                     inside = pool.map(lambda c: views[c].prepare(seen[c] * (done[c][0] > 0)), range(len(cams)))
                     obs.given_areas = np.array([np.float32(a.sum()) for a in inside], float)
                 for c in range(len(cams)):

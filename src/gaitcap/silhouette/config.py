@@ -75,6 +75,11 @@ class ForegroundConfig(Strict):
         "threshold is doubtful, 0 here up to 0.5 at the weak level (hysteresis); at or above hysteresis: off",
     )  # fmt: skip
 
+    @property
+    def doubts(self) -> bool:
+        """Whether the soft silhouette holds doubtful pixels outside the mask (``doubt_min`` below the weak level)."""
+        return self.doubt_min < self.hysteresis
+
 
 class ShadowConfig(Strict):
     """Cast-shadow suppression: darker than the background, same chromaticity, same texture."""

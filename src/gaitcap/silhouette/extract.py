@@ -543,11 +543,11 @@ class SilhouetteExtractor:
         out[box] = matte_outline(evidence.image[box], evidence.background[box], mask[box], shadow[box], self.config.foreground.min_diff)
         return out
 
-    def _soft(self, strength: np.ndarray, mask_small: np.ndarray, mask: np.ndarray,
-              shadow: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
+    def _soft(self, strength: np.ndarray, mask_small: np.ndarray, mask: np.ndarray, shadow: np.ndarray) -> np.ndarray:
         """(H, W) float32 soft silhouette of :meth:`finish_soft` from the working-scale strength
         (h, w) float32, the working-scale mask (h, w) uint8 0/255 and the full-resolution one (H, W)
-        uint8 0/1. At full resolution it is computed in the mask's bounding box only (0 elsewhere)."""
+        uint8 0/1, with the doubt outside the mask (:meth:`_with_doubt`; ``shadow`` (h, w) bool). At full
+        resolution it is computed in the mask's bounding box only (0 elsewhere)."""
         if (mask_small.shape[1], mask_small.shape[0]) == self._full_size:
             soft = np.zeros(mask.shape, np.float32)
             x, y, w, h = cv2.boundingRect(mask_small)
@@ -556,7 +556,7 @@ class SilhouetteExtractor:
                 soft[box] = self._soft_at_scale(strength[box], mask_small[box], mask[box])
         else:
             soft = self._soft_at_scale(strength, mask_small, mask)
-        return soft if shadow is None else self._with_doubt(soft, strength, mask_small, mask, shadow)
+        return self._with_doubt(soft, strength, mask_small, mask, shadow) if self.config.foreground.doubts else soft
 
     def _with_doubt(self, soft: np.ndarray, strength: np.ndarray, mask_small: np.ndarray, mask: np.ndarray,
                     shadow: np.ndarray) -> np.ndarray:  # fmt: skip
@@ -566,7 +566,7 @@ class SilhouetteExtractor:
         (hysteresis - doubt_min), at most 0.5: a model pixel there is penalised less, never rewarded."""
         lo, hi = self.config.foreground.doubt_min, self.config.foreground.hysteresis
         x, y, w, h = cv2.boundingRect(mask_small)
-        if lo >= hi or not w or not h:
+        if not w or not h:
             return soft
         pad = max(h // 8, 1)
         box = np.s_[max(y - pad, 0) : y + h + pad, max(x - pad, 0) : x + w + pad]
