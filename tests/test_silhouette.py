@@ -630,6 +630,33 @@ def test_another_camera_confirms_a_shadow_only_at_the_same_darkening_ratio():
         assert old[c][inner_shadow].all() and old[c][inner_shoe].all()
 
 
+def test_the_ratio_is_matched_within_the_ratio_window_only():
+    """A shoe (x in [-0.1, 0.7)) stands right beside its shadow (x in [-0.9, -0.1)). The shoe's
+    ratios differ between the views, so only the shadow's ratio, found within the ratio window of a
+    shoe pixel's floor point, confirms that pixel: a band of the shoe along the shadow, as wide as
+    the window. The shadow stays a shadow with any window."""
+    cams = [Camera.look_at(name, (x, -3.0, 1.4), (0.0, 0.0, 0.0), size=(160, 120), focal_px=200.0)
+            for name, x in (("a", -2.0), ("b", 2.0))]  # fmt: skip
+    points = [floor_points(c, c.size) for c in cams]
+    shadow = [_patch(p, -0.9, -0.1) for p in points]
+    shoe = [_patch(p, -0.1, 0.7) for p in points]
+    candidates = [s | o for s, o in zip(shadow, shoe)]
+    ratio = [np.where(s, np.log(0.6), np.where(o, np.log(r), 0)).astype(np.float32)
+             for s, o, r in zip(shadow, shoe, (0.55, 0.3))]  # fmt: skip
+    no_body = [np.zeros_like(c) for c in candidates]
+    kept_shoe = []
+    for window in (0, 1, 3):
+        check = FloorShadowCheck(cams, [c.size for c in cams], tolerance=3, ratio_window=window)
+        kept = check.relabel(candidates, candidates, None, ratio, no_body, ratio_tolerance=0.15)
+        inner_shadow = cv2.erode(shadow[0].view(np.uint8), np.ones((5, 5), np.uint8)) > 0
+        assert kept[0][inner_shadow].all()
+        kept_shoe.append(int(np.count_nonzero(kept[0] & shoe[0])))
+    rows = int(np.count_nonzero(np.any(shoe[0], axis=1)))  # the shoe's height in camera a's image
+    assert kept_shoe[0] <= rows  # the border column at most
+    assert kept_shoe[0] < kept_shoe[1] < kept_shoe[2]
+    assert kept_shoe[2] < 0.5 * np.count_nonzero(shoe[0])  # a band, not the shoe
+
+
 def test_a_camera_that_sees_the_person_in_front_of_the_floor_point_still_confirms():
     """Camera b sees its body (no shadow candidate) over the shadow's floor points, with another
     ratio: it cannot see the floor there, so it confirms as before instead of refuting."""

@@ -116,6 +116,11 @@ class ShadowConfig(Strict):
         default=0.15, gt=0, le=2.0,
         description="largest difference of log brightness ratio (frame / background) between the two cameras",
     )
+    floor_ratio_window: int = Field(
+        default=1, ge=0, le=15,
+        description="with floor_same_ratio, the other camera's log ratio is looked up within this many pixels "
+        "(working scale) of the floor point: a shadow's ratio beside a shoe's outline no longer confirms the shoe",
+    )
     floor_footprint: bool = Field(
         default=False,
         description="with the floor check, a candidate that no other camera sees stays a shadow only where the "

@@ -24,7 +24,10 @@ there. The ratio is the check that tells an object on the floor from a shadow:
   of floor: a dark shoe on a lilac floor, grey shoes on a grey floor, shoes the mat's colour are
   all darker than the floor "like a shadow", at the same floor points in both views, but their
   ratios differ (on the suite's sessions: |log ratio difference| median 0.25-0.44 on such feet,
-  0.02-0.03 on the true shadows; docs/validation.md).
+  0.02-0.03 on the true shadows; docs/validation.md). The other camera's ratio is looked up at the
+  floor point and its neighbours within ``shadow.floor_ratio_window`` (1 pixel): the shoe's own
+  shadow lies right beside it, so a wider window finds the shadow's ratio there and confirms the
+  shoe after all.
 
 Where no other camera sees the point, camera i's photometric decision stands, except
 for candidates darker than the photometric test accepts alone (``shadow.floor_min_ratio``), which
@@ -194,10 +197,15 @@ class FloorShadowCheck:
         footprint: whether :meth:`relabel` may be given the person's floor point (``centre``:
             ``shadow.floor_footprint``); only then is each pixel's floor point kept (about 5 MB per
             640x480 camera).
+        ratio_window: pixels (working scale) around the floor point within which another camera's
+            log ratio may match the candidate's (:meth:`relabel`'s ``log_ratio``). Narrower than
+            ``tolerance``, the darkening's slack: a shoe stands on the floor beside its own shadow,
+            and a window that wide finds the shadow's ratio next to the shoe's floor points and
+            confirms the shoe as shadow.
     """
 
     def __init__(self, cameras: Sequence[Camera], work_sizes: Sequence[tuple[int, int]], tolerance: int = 2,
-                 reach: float = 1.0, footprint: bool = False) -> None:  # fmt: skip
+                 reach: float = 1.0, footprint: bool = False, ratio_window: int = 1) -> None:  # fmt: skip
         if len(cameras) != len(work_sizes):
             raise ValueError(f"{len(cameras)} cameras but {len(work_sizes)} working sizes")
         points = [floor_points(cam, size) for cam, size in zip(cameras, work_sizes)]
@@ -217,7 +225,8 @@ class FloorShadowCheck:
                 seen |= m[..., 0] >= 0
             self.seen.append(seen)
         self.near = _near_shared_floor(points, self.seen, reach)
-        self._grow = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * tolerance + 1,) * 2) if tolerance > 0 else None
+        self._grow, self._ratio_grow = (cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1,) * 2) if r > 0 else None
+                                        for r in (tolerance, ratio_window))
 
     def relabel(self, shadows: Sequence[np.ndarray], darkening: Sequence[np.ndarray],
                 deep: Sequence[np.ndarray] | None = None, log_ratio: Sequence[np.ndarray] | None = None,
@@ -233,7 +242,7 @@ class FloorShadowCheck:
             log_ratio: (h_i, w_i) float32 per camera, log of the frame's brightness over the
                 background's, or None (any darkening confirms). Given, another camera confirms a
                 candidate where it finds the floor point darkened with a log ratio (any within the
-                tolerance window) within ``ratio_tolerance`` of the candidate's, or where it sees
+                ratio window) within ``ratio_tolerance`` of the candidate's, or where it sees
                 ``body`` there.
             body: (h_i, w_i) bool per camera, its foreground that is no shadow candidate (the
                 person in front of the floor point: the camera cannot tell), with ``log_ratio``.
@@ -252,9 +261,9 @@ class FloorShadowCheck:
         dark = [d.view(np.uint8) for d in darkening]
         if self._grow is not None:
             dark = [cv2.dilate(d, self._grow) for d in dark]
-        if log_ratio is not None:  # the range of each camera's log ratio over the tolerance window
-            low = [cv2.erode(r, self._grow) if self._grow is not None else r for r in log_ratio]
-            high = [cv2.dilate(r, self._grow) if self._grow is not None else r for r in log_ratio]
+        if log_ratio is not None:  # the range of each camera's log ratio over the ratio window
+            low = [cv2.erode(r, self._ratio_grow) if self._ratio_grow is not None else r for r in log_ratio]
+            high = [cv2.dilate(r, self._ratio_grow) if self._ratio_grow is not None else r for r in log_ratio]
         out = []
         for i, shadow in enumerate(shadows):
             kept = np.zeros_like(shadow)

@@ -32,7 +32,7 @@ def floor_check(cameras: Sequence[Camera], config: SilhouetteConfig) -> FloorSha
     if not (s.enabled and s.floor_check):
         return None
     sizes = [working_size(tuple(cam.size), config.scale) for cam in cameras]
-    return FloorShadowCheck(cameras, sizes, s.floor_tolerance, s.floor_reach, s.floor_footprint)
+    return FloorShadowCheck(cameras, sizes, s.floor_tolerance, s.floor_reach, s.floor_footprint, s.floor_ratio_window)
 
 
 class JointExtractor:
