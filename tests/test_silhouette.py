@@ -588,12 +588,14 @@ def test_the_16_bit_labels_give_way_to_32_bits_when_they_could_overflow():
     assert n == 90001 and labels.max() == 90000
 
 
-def _two_floor_views(footprint: bool = False) -> tuple[FloorShadowCheck, list[np.ndarray]]:
+def _two_floor_views(footprint: bool = False, tolerance: int = 1,
+                     ratio_window: int = 1) -> tuple[FloorShadowCheck, list[np.ndarray]]:  # fmt: skip
     """Two cameras on either side of a floor (160x120); per camera, the (h, w, 3) floor point of
     every pixel."""
     cams = [Camera.look_at(name, (x, -3.0, 1.4), (0.0, 0.0, 0.0), size=(160, 120), focal_px=200.0)
             for name, x in (("a", -2.0), ("b", 2.0))]  # fmt: skip
-    check = FloorShadowCheck(cams, [c.size for c in cams], tolerance=1, footprint=footprint)
+    check = FloorShadowCheck(cams, [c.size for c in cams], tolerance=tolerance, footprint=footprint,
+                             ratio_window=ratio_window)  # fmt: skip
     return check, [floor_points(c, c.size) for c in cams]
 
 
@@ -635,9 +637,7 @@ def test_the_ratio_is_matched_within_the_ratio_window_only():
     ratios differ between the views, so only the shadow's ratio, found within the ratio window of a
     shoe pixel's floor point, confirms that pixel: a band of the shoe along the shadow, as wide as
     the window. The shadow stays a shadow with any window."""
-    cams = [Camera.look_at(name, (x, -3.0, 1.4), (0.0, 0.0, 0.0), size=(160, 120), focal_px=200.0)
-            for name, x in (("a", -2.0), ("b", 2.0))]  # fmt: skip
-    points = [floor_points(c, c.size) for c in cams]
+    _, points = _two_floor_views()
     shadow = [_patch(p, -0.9, -0.1) for p in points]
     shoe = [_patch(p, -0.1, 0.7) for p in points]
     candidates = [s | o for s, o in zip(shadow, shoe)]
@@ -646,7 +646,7 @@ def test_the_ratio_is_matched_within_the_ratio_window_only():
     no_body = [np.zeros_like(c) for c in candidates]
     kept_shoe = []
     for window in (0, 1, 3):
-        check = FloorShadowCheck(cams, [c.size for c in cams], tolerance=3, ratio_window=window)
+        check, _ = _two_floor_views(tolerance=3, ratio_window=window)
         kept = check.relabel(candidates, candidates, None, ratio, no_body, ratio_tolerance=0.15)
         inner_shadow = cv2.erode(shadow[0].view(np.uint8), np.ones((5, 5), np.uint8)) > 0
         assert kept[0][inner_shadow].all()
