@@ -644,11 +644,11 @@ def test_the_ratio_is_matched_within_the_ratio_window_only():
     ratio = [np.where(s, np.log(0.6), np.where(o, np.log(r), 0)).astype(np.float32)
              for s, o, r in zip(shadow, shoe, (0.55, 0.3))]  # fmt: skip
     no_body = [np.zeros_like(c) for c in candidates]
+    inner_shadow = cv2.erode(shadow[0].view(np.uint8), np.ones((5, 5), np.uint8)) > 0
     kept_shoe = []
     for window in (0, 1, 3):
         check, _ = _two_floor_views(tolerance=3, ratio_window=window)
         kept = check.relabel(candidates, candidates, None, ratio, no_body, ratio_tolerance=0.15)
-        inner_shadow = cv2.erode(shadow[0].view(np.uint8), np.ones((5, 5), np.uint8)) > 0
         assert kept[0][inner_shadow].all()
         kept_shoe.append(int(np.count_nonzero(kept[0] & shoe[0])))
     rows = int(np.count_nonzero(np.any(shoe[0], axis=1)))  # the shoe's height in camera a's image
