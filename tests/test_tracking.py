@@ -1085,7 +1085,8 @@ def test_a_run_whose_legs_lie_off_the_masks_is_tracked_again_with_doubt(embedded
     a support of 1 in more than 1 % of the frames counts) is not written; the session is tracked again with the faint
     pixels outside the masks counted as doubtful, and that run is kept and says so. The masks saved
     are the first run's (the same); no temporary file is left. If that second run fails, the first is
-    kept (tracked once more as it was). With ``retrack: false``, tracked once."""
+    kept, not tracked again: the session is tracked twice, and the outputs are those of the same
+    run with ``retrack: false`` (tracked once)."""
     data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
     data["shape"]["enabled"] = False
     data["factored_ipf"].update(particles=40, root_particles=80)
@@ -1106,20 +1107,36 @@ def test_a_run_whose_legs_lie_off_the_masks_is_tracked_again_with_doubt(embedded
     import gaitcap.pipeline as pipeline_module
 
     real = pipeline_module._track_session
+    runs = []
 
     def failing_with_doubt(*args, **kwargs):
-        if args[4].soft_silhouettes:  # cfg: the run with the doubtful pixels
+        runs.append(args[4].soft_silhouettes)  # cfg: True for the run with the doubtful pixels
+        if runs[-1]:
             raise TrackingError("no pose fits")
         return real(*args, **kwargs)
 
     monkeypatch.setattr(pipeline_module, "_track_session", failing_with_doubt)
     kept = run_track(embedded_session.session, out, config=config, progress=False, max_frames=5, force=True)
     monkeypatch.undo()
+    assert runs == [False, True]  # the first run is not tracked again
     assert kept.status == "ok" and kept.verdict_notes[0].startswith("the first run's legs lay off a camera's masks (")
     assert "failed (no pose fits): this is the first run" in kept.verdict_notes[0]
+    assert json.loads((out / "track.json").read_text())["verdict_notes"] == kept.verdict_notes
+    assert not list(out.glob(".*.part*"))
     with h5py.File(out / "trajectories.h5") as f:
         assert yaml.safe_load(f.attrs["config"])["soft_silhouettes"] is False
     first_run = read_trajectory(out / "trajectories.h5").points
+
+    def interrupted_with_doubt(*args, **kwargs):
+        if args[4].soft_silhouettes:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(pipeline_module, "_track_session", interrupted_with_doubt)
+    with pytest.raises(KeyboardInterrupt):
+        run_track(embedded_session.session, out, config=config, progress=False, max_frames=5, force=True)
+    monkeypatch.undo()
+    assert not list(out.glob(".*.part*")) and not (out / "track.json").exists()  # the kept run's file removed too
     data["lost_legs"] = {"retrack": False}
     config.write_text(yaml.safe_dump(data))
     once = run_track(embedded_session.session, out, config=config, progress=False, max_frames=5, force=True)

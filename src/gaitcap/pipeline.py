@@ -8,7 +8,7 @@ spooled silhouettes (gaitcap.tracking.support) -> zero-lag filtering, the run's 
 calibrated uncertainty (gaitcap.quality) -> joints.csv, joints.trc -> track.json (written last: a
 session with it is finished). A run whose legs lie off a camera's masks (the masks lost them) is
 not written: the session is tracked again with the faint pixels outside the masks counted as
-doubtful (``lost_legs``), and that run is.
+doubtful (``lost_legs``), and that run is (or, if it fails, the first run, kept meanwhile).
 """
 
 from __future__ import annotations
@@ -44,7 +44,7 @@ from gaitcap.io.trc import write_trc
 from gaitcap.prefetch import Head, Prefetched
 from gaitcap.quality import assess, facing_in_doubt, legs_in_doubt, unsupported_legs, unsupported_listing
 from gaitcap.session import CALIBRATION_FILE, Session
-from gaitcap.session_check import check_session_videos, check_silhouettes_meet
+from gaitcap.session_check import SessionVideos, check_session_videos, check_silhouettes_meet
 from gaitcap.silhouette.config import SilhouetteConfig
 from gaitcap.silhouette.joint import JointExtractor, floor_check
 from gaitcap.silhouette.run import Source, camera_attrs, file_attrs, prepare_extractor, quality_row
@@ -185,17 +185,21 @@ def run_track(
                     "them counted as doubtful (lost_legs)", session, lost.listing)  # fmt: skip
         doubt = sil_cfg.foreground.model_copy(update={"soft_min": 1.0, "doubt_min": cfg.lost_legs.doubt_min})
         try:
-            return attempt(cfg.model_copy(update={"soft_silhouettes": True}),
-                           sil_cfg.model_copy(update={"foreground": doubt}), None, lost_legs=False,
-                           notes=(f"tracked twice: the first run's legs lay off a camera's masks ({lost.listing}); "
-                                  "this run counted the faint pixels outside the masks as doubtful (tracking.yaml "
-                                  "lost_legs)",))  # fmt: skip
-        except TrackingError as e:  # the first run stands: tracked once more as it was (deterministic)
+            summary = attempt(cfg.model_copy(update={"soft_silhouettes": True}),
+                              sil_cfg.model_copy(update={"foreground": doubt}), None, lost_legs=False, prepared=True,
+                              notes=(f"tracked twice: the first run's legs lay off a camera's masks ({lost.listing}); "
+                                     "this run counted the faint pixels outside the masks as doubtful (tracking.yaml "
+                                     "lost_legs)",))  # fmt: skip
+        except TrackingError as e:  # the first run stands: its outputs are written now
             log.warning("%s: tracking with the doubtful pixels failed (%s): the first run is kept", session, e)
-            return attempt(cfg, sil_cfg, None, lost_legs=False,
-                           notes=(f"the first run's legs lay off a camera's masks ({lost.listing}); tracking again with "
-                                  f"the faint pixels outside them counted as doubtful failed ({e}): this is the first "
-                                  "run",))  # fmt: skip
+            return _finish_run(lost.run, notes=(
+                f"the first run's legs lay off a camera's masks ({lost.listing}); tracking again with the faint "
+                f"pixels outside them counted as doubtful failed ({e}): this is the first run",))  # fmt: skip
+        except BaseException as e:
+            lost.run.writer.abort(e)
+            raise
+        lost.run.writer.discard()
+        return summary
     if saver is not None:
         saver.finish()
     return summary
@@ -203,20 +207,23 @@ def run_track(
 
 class LegsLost(Exception):
     """A run's legs lie off a camera's masks (:func:`gaitcap.quality.unsupported_legs`): raised before
-    anything of that run is written, so that it is tracked again (``lost_legs``)."""
+    anything of that run is written, so that it is tracked again (``lost_legs``); ``run`` holds the run
+    tracked, its trajectories in the writer's temporary file."""
 
-    def __init__(self, low: dict[str, tuple[int, int]]) -> None:
+    def __init__(self, low: dict[str, tuple[int, int]], run: TrackedRun) -> None:
         self.listing = unsupported_listing(low)  # "thigh_l in 38 of 56 frames, ..."
+        self.run = run  # kept (:func:`_finish_run`) if tracking it again fails, else discarded
         super().__init__(self.listing)
 
 
 def _attempt(session: Path, out: Path, ses: Session, videos, views, likelihood, save_masks: bool,
              height_m: float | None, n_frames: int, progress: bool, on_frame, t_start: float, stages: Stages,
              reused, cfg: TrackingConfig, sil_cfg: SilhouetteConfig, saver: MaskSaver | None, lost_legs: bool,
-             notes: tuple[str, ...] = ()) -> TrackSummary:  # fmt: skip
+             notes: tuple[str, ...] = (), prepared: bool = False) -> TrackSummary:  # fmt: skip
     """One run of :func:`run_track` with these configurations, from the videos to the outputs (the
     stages' times add up over the runs). ``lost_legs``: raise :class:`LegsLost` instead of writing a
-    run whose legs lie off the masks; ``notes``: prepended to the verdict's notes."""
+    run whose legs lie off the masks; ``notes``: prepended to the verdict's notes; ``prepared``: the
+    output folder was prepared by an earlier run of this session (whose temporary file is kept)."""
     # the videos are read and the silhouettes extracted in a worker thread, a few frames ahead; the
     # first frames (initialisation, shape calibration) are read ahead without waiting for the
     # tracker; once they are in the head, the queue shrinks back to PREFETCH_FRAMES
@@ -232,7 +239,8 @@ def _attempt(session: Path, out: Path, ses: Session, videos, views, likelihood, 
             with stages.timed("first_frames"):
                 _first_observations(session, head, cfg)
         check_silhouettes_meet(views, head, ses.root / CALIBRATION_FILE)
-        _prepare_out(out, save_masks)  # only once the inputs are known good: bad input creates nothing
+        if not prepared:
+            _prepare_out(out, save_masks)  # only once the inputs are known good: bad input creates nothing
         if saver is not None:
             saver.open()
         return _track_session(session, out, ses, videos, cfg, views, likelihood, head, stream, height_m, n_frames,
@@ -513,46 +521,84 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
                 log.info("backward pass and leg order: %d of %d frames replaced", replaced, tracked)
                 with stages.timed("verdict"):  # the final poses against the spooled silhouettes
                     support = _leg_support(filt.model, likelihood, spool, writer.read_poses())
-                if lost_legs and (low := unsupported_legs(support, cfg.verdict)):
-                    raise LegsLost(low)  # nothing written yet: the writer's file is removed below
+    except BaseException as e:
+        writer.abort(e)
+        raise
+    run = TrackedRun(session, out, videos, cfg, filt.model, writer, tracked, support, height, height_source,
+                     shape_note, tuple(body_problems), timing, stages, t_start)  # fmt: skip
+    if lost_legs and support is not None and (low := unsupported_legs(support, cfg.verdict)):
+        raise LegsLost(low, run)  # nothing written yet: the run is finished or discarded by run_track
+    return _finish_run(run, notes)
+
+
+@dataclass(frozen=True)
+class TrackedRun:
+    """A run tracked to its end whose outputs are not written yet (:func:`_finish_run`): its
+    trajectories in ``writer``'s temporary file (``tracked`` frames), the legs' ``support``
+    (:func:`_leg_support`, None without the backward pass), the body tracked and how it was found,
+    the run's timings."""
+
+    session: Path
+    out: Path
+    videos: SessionVideos
+    cfg: TrackingConfig
+    model: BodyModel
+    writer: TrackWriter
+    tracked: int
+    support: dict[str, np.ndarray] | None
+    height: float
+    height_source: str
+    shape_note: str
+    body_problems: tuple[str, ...]
+    timing: FrameTiming
+    stages: Stages
+    t_start: float
+
+
+def _finish_run(run: TrackedRun, notes: tuple[str, ...]) -> TrackSummary:
+    """Write a tracked run's outputs: its points filtered and judged (the verdict, ``notes``
+    prepended to its notes), trajectories.h5, joints.csv, joints.trc, then track.json. The writer's
+    temporary file is removed if this fails."""
+    cfg, writer, stages, videos, names = run.cfg, run.writer, run.stages, run.videos, run.model.point_names
+    try:
         t_writing = time.perf_counter()
         verdict_before = stages.get("verdict", 0.0)
         raw, quality = writer.read_back()
         if not np.any(tracked_frames(quality)):
             raise TrackingError(
-                f"{session}: the subject was not found in any of the {tracked} frames (every camera needs a "
+                f"{run.session}: the subject was not found in any of the {run.tracked} frames (every camera needs a "
                 f"silhouette covering at least {100 * cfg.quality.min_silhouette_fraction:.1f} % of its image)"
             )
         points, note = _finish_points(raw, quality, videos.fps, cfg)
         with stages.timed("verdict"):
-            judged = assess(raw, model.point_names, writer.read_fit(), quality, height, videos.fps, cfg.verdict,
-                            cfg.uncertainty, rig=videos.rig, body_problems=tuple(body_problems),
-                            leg_support=support)  # fmt: skip
+            judged = assess(raw, names, writer.read_fit(), quality, run.height, videos.fps, cfg.verdict,
+                            cfg.uncertainty, rig=videos.rig, body_problems=run.body_problems,
+                            leg_support=run.support)  # fmt: skip
         writer.finish(points, note, uncertainty=judged.uncertainty)
     except BaseException as e:
         writer.abort(e)
         raise
     log.info("verdict: %s%s", judged.verdict.verdict, "".join(f"; {r}" for r in judged.verdict.reasons))
-    for note in judged.verdict.notes:
-        log.info("note: %s", note)
-    verdict_notes = [*notes, *judged.verdict.notes]
-    traj = Trajectory(model.point_names, points, videos.fps)
-    write_joints_csv(out / "joints.csv", traj)
-    write_trc(out / "joints.trc", traj, units="mm")
+    for line in judged.verdict.notes:
+        log.info("note: %s", line)
+    traj = Trajectory(names, points, videos.fps)
+    write_joints_csv(run.out / "joints.csv", traj)
+    write_trc(run.out / "joints.trc", traj, units="mm")
     n_flagged = int(np.sum(quality != QUALITY_OK))
     stages["writing"] = time.perf_counter() - t_writing - (stages.get("verdict", 0.0) - verdict_before)
-    seconds = time.perf_counter() - t_start
-    summary = TrackSummary(session=session, out=out, status="ok", n_frames=tracked, n_flagged=n_flagged,
+    seconds = time.perf_counter() - run.t_start
+    timing = run.timing
+    summary = TrackSummary(session=run.session, out=run.out, status="ok", n_frames=run.tracked, n_flagged=n_flagged,
                            seconds=seconds,
-                           message=f"{cfg.tracker}: {tracked} frames, {n_flagged} flagged, "
+                           message=f"{cfg.tracker}: {run.tracked} frames, {n_flagged} flagged, "
                                    f"{1000 * timing.tracking_s / max(timing.searched, 1):.0f} ms/frame tracking "
                                    f"({timing.searched} frames searched), "
-                                   f"{tracked / seconds:.1f} frames/s end to end", stages=stages,
+                                   f"{run.tracked / seconds:.1f} frames/s end to end", stages=stages,
                            verdict=judged.verdict.verdict, verdict_reasons=list(judged.verdict.reasons),
-                           verdict_notes=verdict_notes,
-                           body={"height_m": round(float(height), 4), "height_source": height_source,
-                                 "shape": shape_note,
-                                 "segment_lengths_m": {k: round(v, 4) for k, v in model_lengths(filt.model).items()}})  # fmt: skip
+                           verdict_notes=[*notes, *judged.verdict.notes],
+                           body={"height_m": round(float(run.height), 4), "height_source": run.height_source,
+                                 "shape": run.shape_note,
+                                 "segment_lengths_m": {k: round(v, 4) for k, v in model_lengths(run.model).items()}})  # fmt: skip
     write_track_json(summary)
     return summary
 

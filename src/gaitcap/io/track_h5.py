@@ -125,9 +125,14 @@ class TrackWriter:
         self._stack.close()
 
     def abort(self, exc: BaseException) -> None:
+        """Close and remove the temporary file, ``exc`` the reason: nothing is written."""
         with contextlib.suppress(Exception):
             self._f.close()
         self._stack.__exit__(type(exc), exc, exc.__traceback__)
+
+    def discard(self) -> None:
+        """Close and remove the temporary file of a run that is not kept: nothing is written."""
+        self.abort(OutputError(f"{self.path}: the run was not kept"))
 
 
 def proportions_attrs(model: BodyModel) -> dict[str, str]:
