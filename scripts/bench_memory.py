@@ -117,6 +117,9 @@ def long_session(source: Path, target: Path, n_frames: int, fps: float) -> Path:
 def track_in_child(session: Path, out: Path, extra: list[str]) -> tuple[float, float, dict]:
     """Run ``python -m gaitcap -q track`` on ``session``: (peak RSS MB, wall s, track.json)."""
     env = dict(os.environ, PYTHONPATH=str(REPO / "src") + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    # the checkout's modules compiled once, as `pip install .` compiles an installed package's: with
+    # PYTHONDONTWRITEBYTECODE set, every run would compile them again, a start-up no user pays
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
     cmd = [sys.executable, "-m", "gaitcap", "-q", "track", str(session), "-o", str(out), "--force", *extra]
     t0 = time.perf_counter()
     proc = subprocess.Popen(cmd, env=env)
