@@ -1583,6 +1583,82 @@ def test_recovery_searches_the_mirror_only_with_the_swap_hypothesis(embedded_ses
     assert widens[-1] == cfg.factored_ipf.recover_widen and widens[0] == 1.0
 
 
+@pytest.mark.parametrize(("moved_deg", "turn_widen", "frames", "turning", "widened"),
+                         [(5.0, 2.0, 1, 0, True), (-5.0, 2.0, 1, 0, True), (4.0, 2.0, 1, 0, False),
+                          (5.0, None, 1, 0, False), (360.0 - 5.0, 2.0, 1, 0, True), (360.0 - 4.0, 2.0, 1, 0, False),
+                          (5.0, 2.0, 2, 1, True), (-5.0, 2.0, 2, -1, True), (5.0, 2.0, 2, 0, False),
+                          (5.0, 2.0, 2, -1, False), (4.0, 2.0, 2, 1, False)])  # fmt: skip
+def test_turn_widens_the_heading_alone_in_the_first_passes(embedded_session, moved_deg, turn_widen, frames, turning,
+                                                           widened):  # fmt: skip
+    """The heading moved ``moved_deg`` between the last two frames (its interval 6 deg, the trigger
+    0.8 of it: 4.8 deg; 355 deg is a 5 deg move across the wrap), and ``turning`` frames before
+    that the same way (negative: the other way): with ``turn_frames`` such frames running the
+    frame's first passes (the first hypothesis and the mirror) search the heading on ``turn_widen``
+    times its interval and every other DOF on its own; the further passes on the usual intervals."""
+    from gaitcap.tracking.factored_ipf import FactoredIPF
+
+    truth, rig, model = _truth_setup(embedded_session.session)
+    views = tracking_views(rig, 0.5)
+    cfg = load_tracking_config()
+    fi = cfg.factored_ipf
+    fi.turn_widen, fi.turn_trigger, fi.turn_frames, fi.keep_previous = turn_widen, 0.8, frames, False
+    assert np.isclose(cfg.half_widths(model)[model.dof_index("pelvis_rotation")], np.radians(6.0))
+    tracker = FactoredIPF(model, SilhouetteLikelihood(views, cfg.beta), cfg, np.random.default_rng(0))
+    previous = truth.poses[9].copy()
+    tracker.start(previous)
+    before = previous.copy()
+    before[model.dof_index("pelvis_rotation")] -= np.radians(moved_deg)
+    tracker._fresh, tracker._before, tracker._turning = False, before, turning
+    tracker._legs_close = lambda q: True  # the mirror is searched too
+    calls = []
+
+    def search(obs, start, widen, first, stop, *args, **kwargs):
+        calls.append((first, np.broadcast_to(np.asarray(widen, float), (model.n_dofs,)).copy()))
+        return _stub_estimate(model, start, 0.8), []
+
+    tracker._search = search
+    tracker.step(observe(views, [truth.mask(c, 10) for c in rig.names]))
+    first = [w for p, w in calls if p == 0]
+    further = [w for p, w in calls if p > 0]
+    assert len(first) == 2 and len(further) == 1
+    expected = np.ones(model.n_dofs)
+    if widened:
+        expected[model.dof_index("pelvis_rotation")] = turn_widen
+    assert all(np.array_equal(w, expected) for w in first), first
+    assert np.array_equal(further[0], np.ones(model.n_dofs))
+
+
+def test_turn_widening_follows_a_heading_turned_beyond_the_usual_reach(embedded_session):
+    """The previous estimate's heading 14 deg behind the truth's, the frame before that 24 deg
+    behind and the one before turning the same way (a pivot turning 10 deg a frame): the usual intervals (6 deg, two layers and a further
+    pass: at most 8 deg in a frame) cannot catch up, the widened heading can. For each of four
+    tracker seeds (paired), the heading ends nearer the truth with ``turn_widen`` 2 than without;
+    and within 5 deg on average where the usual search stays further off."""
+    from gaitcap.tracking.factored_ipf import FactoredIPF
+
+    truth, rig, model = _truth_setup(embedded_session.session)
+    views = tracking_views(rig, 0.5)
+    yaw, t = model.dof_index("pelvis_rotation"), 20
+    obs = observe(views, [truth.mask(c, t) for c in rig.names])
+
+    def heading_error(turn_widen, seed):
+        cfg = load_tracking_config()
+        cfg.factored_ipf.turn_widen = turn_widen
+        tracker = FactoredIPF(model, SilhouetteLikelihood(views, cfg.beta), cfg, np.random.default_rng(seed))
+        previous, before = truth.poses[t - 1].copy(), truth.poses[t - 2].copy()
+        previous[yaw] = truth.poses[t, yaw] - np.radians(14)
+        before[yaw] = truth.poses[t, yaw] - np.radians(24)
+        tracker.start(previous)
+        tracker._fresh, tracker._before, tracker._turning = False, before, 1
+        q = tracker.step(obs).q
+        return float(np.degrees(abs(q[yaw] - truth.poses[t, yaw])))
+
+    widened = np.array([heading_error(2.0, seed) for seed in range(4)])
+    usual = np.array([heading_error(None, seed) for seed in range(4)])
+    assert np.all(widened < usual), (widened, usual)
+    assert widened.mean() < 5 < usual.mean(), (widened, usual)
+
+
 def test_stages_leave_an_inner_stage_out_of_the_outer_one():
     stages = Stages()
     with stages.timed("outer"):

@@ -145,18 +145,21 @@ class Tracker:
         return est
 
     # ---------------------------------------------------------------- shared steps
-    def grid_offsets(self, n: int, dofs: np.ndarray, layer: Layer, widen: float = 1.0) -> np.ndarray:
+    def grid_offsets(self, n: int, dofs: np.ndarray, layer: Layer, widen: float | np.ndarray = 1.0) -> np.ndarray:
         """IPF diffusion: offsets (n, len(dofs)) drawn on each DOF's discretised interval.
 
-        The interval [-h, h] (h: the DOF's half-width x shrink x widen) is cut into steps of
-        ``layer.step_deg`` (``step_m`` for translations); each offset is a whole number of steps.
+        The interval [-h, h] (h: the DOF's half-width x shrink x widen; ``widen`` one factor, or one
+        per DOF of ``dofs``) is cut into steps of ``layer.step_deg`` (``step_m`` for translations);
+        each offset is a whole number of steps.
         """
         k, step = self.grid_steps(n, dofs, layer, widen)
         return k * step
 
-    def grid_steps(self, n: int, dofs: np.ndarray, layer: Layer, widen: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    def grid_steps(self, n: int, dofs: np.ndarray, layer: Layer,
+                   widen: float | np.ndarray = 1.0) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
         """:meth:`grid_offsets` as whole numbers of steps (n, len(dofs)) int64 and the steps (len(dofs),)."""
-        key = (np.asarray(dofs).dtype.str, np.asarray(dofs).tobytes(), layer.step_deg, layer.step_m, layer.shrink, widen)
+        key = (np.asarray(dofs).dtype.str, np.asarray(dofs).tobytes(), layer.step_deg, layer.step_m, layer.shrink,
+               np.asarray(widen, float).tobytes())  # fmt: skip
         if key not in self._grids:  # the grid of a node's DOF and layer, built once
             rot = self.model.is_rotation[dofs]
             step = np.where(rot, np.radians(layer.step_deg), layer.step_m)

@@ -59,6 +59,9 @@ class FactoredIPFConfig(Strict):
     swap_margin: float = Field(default=0.008, ge=0, le=1)
     swap_continuity: bool = True
     recover_widen: float | None = Field(default=3.0, gt=1, le=10)
+    turn_widen: float | None = Field(default=2.0, gt=1, le=10)
+    turn_trigger: float = Field(default=0.8, gt=0, le=2)
+    turn_frames: int = Field(default=2, ge=1, le=25)
     keep_previous: bool = True
     ess_threshold: float = Field(default=0.5, ge=0, le=1)
 

@@ -53,7 +53,7 @@ from gaitcap.tracking.resampling import ess, normalise_log_weights, systematic
 
 class FactoredIPF(Tracker):
     name = "factored-ipf"
-    STATE = ("q", "_fits", "_before", "_fresh")
+    STATE = ("q", "_fits", "_before", "_fresh", "_turning")
 
     def __init__(self, *args, uncertainty: bool = True, **kwargs) -> None:  # type: ignore[no-untyped-def]
         """``uncertainty`` False: the estimates' ``uncertainty`` is NaN, the particles' points are not
@@ -67,11 +67,13 @@ class FactoredIPF(Tracker):
         self._explored = self.config.explored_dofs(self.model, self.subtrees)
         everything = np.arange(len(self.model.capsule_segment))
         self._outside = [np.setdiff1d(everything, sub.capsules) for sub in self.subtrees]
+        self._heading = self.model.dof_index("pelvis_rotation")
         self._hip_flex = (self.model.dof_index("hip_flexion_l"), self.model.dof_index("hip_flexion_r"))
         self._knee_flex = (self.model.dof_index("knee_flexion_l"), self.model.dof_index("knee_flexion_r"))
         self._fits: deque[float] = deque(maxlen=self.config.factored_ipf.swap_fit_frames)  # first-pass fits
         self._fresh = True  # no frame tracked since the last start
         self._before: np.ndarray | None = None  # the estimate of the frame before the previous one
+        self._turning = 0  # +-k: the heading moved turn_trigger of its interval or more k frames running, that way
         self._sagittal = np.array([*self._hip_flex, *self._knee_flex])
         legs_dofs = np.concatenate([self.left_leg, self.right_leg])
         self._not_legs = np.setdiff1d(np.arange(self.model.n_dofs), legs_dofs)
@@ -98,6 +100,7 @@ class FactoredIPF(Tracker):
         super().start(q0, fresh)
         self._fits.clear()
         self._before = None
+        self._turning = 0
         self._fresh = fresh  # the next frame weighs both leg assignments of q0 on equal terms
 
     def _step(self, obs: Observation, widen: float = 1.0) -> Estimate:
@@ -132,6 +135,9 @@ class FactoredIPF(Tracker):
         A first pass that still fits ``swap_fit_drop`` below the recent frames is searched again
         on widened intervals (``recover_widen``, :meth:`_recover`).
 
+        While the body turns faster than its heading's interval reaches, every first pass of the
+        frame searches the heading on a wider interval (``turn_widen``, :meth:`_turn_widths`).
+
         Whatever beat the first hypothesis on the first pass (the mirror, a recovered pose) replaces
         it only if it still fits ``swap_margin`` better once both have had the further passes: a
         first pass's fit is a noisy judge of two leg assignments. Such wins are rare, so the second
@@ -151,7 +157,9 @@ class FactoredIPF(Tracker):
         """
         start = self.q.copy()
         cfg = self.config.factored_ipf
-        best, spreads = self._search(obs, start, widen, 0, 1)
+        turn = self._turn_widths(start)
+        reach = widen * turn  # the first passes' interval factors
+        best, spreads = self._search(obs, start, reach, 0, 1)
         if cfg.keep_previous:
             best = self._kept_if_better(obs, start, best)
         first = best
@@ -165,15 +173,15 @@ class FactoredIPF(Tracker):
             # first hypothesis too when it lost)
             mirrored = self.mirrored(start)
             if cfg.swap_search == "legs" and not fresh and not dropped:
-                other = self._search_legs(obs, mirrored, best, spreads, widen)
+                other = self._search_legs(obs, mirrored, best, spreads, reach)
             else:
-                other, _ = self._search(obs, mirrored, widen, 0, 1)
+                other, _ = self._search(obs, mirrored, reach, 0, 1)
             evaluations = best.evaluations + other.evaluations
             best = self._preferred(best, other, start, 0.0 if fresh else cfg.swap_margin, continuity)
             best.evaluations = evaluations
         if cfg.recover_widen is not None and widen <= 1.0 and self._fit_dropped(best.fit):
             before_recovery = best
-            best = self._recover(obs, start, best)
+            best = self._recover(obs, start, best, turn)
             continuity = continuity and best is before_recovery
         self._fits.append(best.fit)
         if cfg.passes > 1:
@@ -224,7 +232,7 @@ class FactoredIPF(Tracker):
                         log_likelihood=ll, fit=fit, evaluations=best.evaluations + 1)  # fmt: skip
 
     def _search_legs(self, obs: Observation, legs: np.ndarray, first: Estimate, spreads: list[np.ndarray],
-                     widen: float) -> Estimate:  # fmt: skip
+                     widen: float | np.ndarray) -> Estimate:  # fmt: skip
         """A first pass over the leg nodes only, from the legs' angles of pose ``legs`` (D,) with the
         nodes before them where the first hypothesis ``first`` placed them (``spreads``: its nodes'
         contributions to the points' variance, in the order walked)."""
@@ -233,7 +241,29 @@ class FactoredIPF(Tracker):
         before = np.sum(spreads[: self._legs_from], axis=0)
         return self._search(obs, q, widen, 0, 1, from_node=self._legs_from, variance=before)[0]
 
-    def _recover(self, obs: Observation, start: np.ndarray, best: Estimate) -> Estimate:
+    def _turn_widths(self, start: np.ndarray) -> float | np.ndarray:
+        """The first passes' interval factor per DOF (D,) while the body turns: the heading's is
+        ``turn_widen`` when the last ``turn_frames`` frames each moved it by ``turn_trigger`` of its
+        interval or more the same way (the last: from the estimate before, ``_before``, to
+        ``start``), the others 1; else 1.0. Counts the frames (``_turning``).
+
+        The heading interval is narrow so that the pelvis does not turn to mimic the legs'
+        scissoring; a pivot turns faster than it reaches, the heading falls behind and the legs
+        are placed from the wrong side (docs/tuning_history.md, ``turn_widen``)."""
+        cfg = self.config.factored_ipf
+        if cfg.turn_widen is None or self._before is None:
+            return 1.0
+        k = self._heading
+        moved = float(np.angle(np.exp(1j * (start[k] - self._before[k]))))
+        way = int(np.sign(moved)) if abs(moved) >= cfg.turn_trigger * self.half_width[k] else 0
+        self._turning = self._turning + way if way and np.sign(self._turning) == way else way
+        if abs(self._turning) < cfg.turn_frames:
+            return 1.0
+        widths = np.ones(self.model.n_dofs)
+        widths[k] = cfg.turn_widen
+        return widths
+
+    def _recover(self, obs: Observation, start: np.ndarray, best: Estimate, turn: float | np.ndarray = 1.0) -> Estimate:
         """A first pass that still fits ``swap_fit_drop`` below the recent frames after the mirrored
         hypothesis: search the whole chain again from the previous estimate and (with
         ``swap_hypothesis``) from its mirror, on intervals widened by ``recover_widen`` (a limb left
@@ -242,7 +272,7 @@ class FactoredIPF(Tracker):
         cfg = self.config.factored_ipf
         evaluations = best.evaluations
         for q0 in (start, self.mirrored(start))[: 2 if cfg.swap_hypothesis else 1]:
-            other, _ = self._search(obs, q0, cfg.recover_widen, 0, 1)
+            other, _ = self._search(obs, q0, cfg.recover_widen * turn, 0, 1)
             evaluations += other.evaluations
             best = other if other.fit > best.fit else best
         best.evaluations = evaluations
@@ -260,10 +290,10 @@ class FactoredIPF(Tracker):
         left, right = self._hip_flex
         return bool(abs(q[left] - q[right]) < np.radians(self.config.factored_ipf.swap_within_deg))
 
-    def _search(self, obs: Observation, start: np.ndarray, widen: float, first: int, stop: int,
+    def _search(self, obs: Observation, start: np.ndarray, widen: float | np.ndarray, first: int, stop: int,
                 from_node: int = 0, variance: np.ndarray | None = None) -> tuple[Estimate, list[np.ndarray]]:  # fmt: skip
         """Passes ``first`` to ``stop - 1`` of the factored search from ``start``
-        (``widen`` > 1 enlarges every interval).
+        (``widen`` > 1 enlarges every interval; an array (D,): each DOF's own factor).
 
         ``from_node`` > 0 (a first pass only) walks the chain from that position of the order: the
         nodes before it stay at ``start``, drawn into the placed masks, with their points' spread
@@ -312,7 +342,8 @@ class FactoredIPF(Tracker):
         return (Estimate(q=q, points=points, uncertainty=uncertainty, log_likelihood=ll, fit=fit,
                          evaluations=evaluations), spreads)  # fmt: skip
 
-    def _node(self, obs, q, idx: np.ndarray, sub, free, n: int, widen: float, layers, alone: bool = False):
+    def _node(self, obs, q, idx: np.ndarray, sub, free, n: int, widen: float | np.ndarray, layers,
+              alone: bool = False):  # fmt: skip
         """Diffuse, weight, resample and keep the best for one node. Returns the new estimate,
         the last layer's log-weights (N,) and particles (N, D). ``alone`` (the
         root only): the segments attached to the root keep their world orientation."""
@@ -330,7 +361,7 @@ class FactoredIPF(Tracker):
             W = normalise_log_weights(logw)
             if li > 0 or ess(W) < self.config.factored_ipf.ess_threshold * n:
                 X = X[systematic(W, n, self.rng)]
-            K, step = self.grid_steps(n, idx, layer, widen)
+            K, step = self.grid_steps(n, idx, layer, widen[idx] if isinstance(widen, np.ndarray) else widen)
             X, Q = layer_poses(X, K, step, best_x, idx, wrap, lower, upper, template)  # the best so far competes
             if alone:
                 Q[:, self._held] = self._held_angles(q, Q)
