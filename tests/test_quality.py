@@ -19,6 +19,7 @@ from gaitcap.quality import (
     crossed_ankles,
     judge,
     legs_in_doubt,
+    no_oblique_view,
     out_of_rhythm,
     run_signals,
     stride_frequency,
@@ -152,6 +153,16 @@ def test_cameras_only_beside_and_in_line_with_the_walk_are_noted(walk, degrees, 
     assert (v.notes == ()) == oblique, v.notes
     if not oblique:
         assert "obliquely" in v.notes[0] and f"cam1 {degrees[0]:.0f}" in v.notes[0], v.notes
+
+
+@pytest.mark.parametrize(("angles", "expected"), [({"cam1": 81.0, "cam2": 0.0}, True), ({"cam1": 89.0, "cam2": 81.0,
+                                                   "cam3": 14.0}, True), ({"cam1": 81.0, "cam2": 15.0}, False),
+                                                   ({"cam1": 75.0}, False), ({"cam1": 76.0}, True), ({}, False)])
+def test_no_oblique_view_needs_every_camera_near_the_line_or_its_perpendicular(angles, expected):
+    """The backward pass's trigger for tracking a run from its legs' mirror (pipeline._mirror_run) and
+    the verdict's note share this rule: 15 degrees from both is oblique; no angles (no walking line
+    or no cameras) is not a layout to act on."""
+    assert no_oblique_view(angles, 15.0) is expected
 
 
 def test_a_walk_on_the_spot_takes_its_line_from_the_way_the_hips_face(walk):

@@ -508,12 +508,20 @@ def judge(signals: RunSignals, cfg: VerdictConfig) -> RunVerdict:
     return RunVerdict("doubtful" if reasons else "ok", tuple(reasons), notes)
 
 
+def no_oblique_view(angles: dict[str, float], min_oblique_deg: float) -> bool:
+    """Whether every camera lies within ``min_oblique_deg`` of the walking line or of its perpendicular,
+    ``angles``: camera -> degrees (:func:`view_angles`; empty, the walking line unknown: False). Seen
+    from beside and along the walkway only, the two leg assignments fit the silhouettes nearly alike
+    (module docstring)."""
+    return bool(angles) and not any(min_oblique_deg <= a <= 90.0 - min_oblique_deg for a in angles.values())
+
+
 def _layout_notes(s: RunSignals, cfg: VerdictConfig) -> tuple[str, ...]:
     """A note (not a reason) when no camera is ``cfg.min_oblique_deg`` or more from both the walking
     line and its perpendicular: which leg is ahead is then ambiguous to the tracker, but the legs'
     fore-aft rhythm (a reason of its own) tells whether it got them wrong."""
     angles = s.view_angles_deg
-    if not angles or any(cfg.min_oblique_deg <= a <= 90.0 - cfg.min_oblique_deg for a in angles.values()):
+    if not no_oblique_view(angles, cfg.min_oblique_deg):
         return ()
     listed = ", ".join(f"{k} {v:.0f}" for k, v in angles.items())
     note = (f"no camera views the walk obliquely (degrees between each line of sight and the walking line: {listed}): "
