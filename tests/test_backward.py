@@ -546,3 +546,137 @@ def test_tracked_back_steps_on_the_observations_already_read():
     assert len(pipeline._tracked_back(Seeing(4), spool, np.zeros(3), 2, 9, read=read)) == 7
     assert seen[:3] == read
     assert [float(o.silhouettes[0][0, 0]) for o in seen[3:]] == [5.0, 4.0, 3.0, 2.0]
+
+
+#: the legs of the runs _mirror_run compares: knee_l, knee_r, ankle_l, ankle_r (left at y > 0)
+_LEGS = np.array([[0.1, 0.1, 0.5], [-0.1, -0.1, 0.5], [0.1, 0.1, 0.1], [-0.1, -0.1, 0.1]])
+
+
+class _MirrorTracker(_FakeTracker):
+    """A tracker whose leg-swapped mirror of q is q + 100 and whose estimates keep the pose it was
+    started from, fitting ``mirror_fit`` when started from a mirror, 0.8 otherwise; its legs are
+    :data:`_LEGS`, left and right exchanged when started from a mirror if ``exchanges``."""
+
+    def __init__(self, n_points: int, mirror_fit: float, exchanges: bool = True) -> None:
+        super().__init__(n_points)
+        self.mirror_fit, self.starts, self.q, self.likelihood = mirror_fit, [], None, None
+        self.exchanges = exchanges
+
+    def mirrored(self, q):
+        return np.asarray(q, float) + 100.0
+
+    def start(self, q0, fresh: bool = True) -> None:
+        self.q = np.asarray(q0, float).copy()
+        self.starts.append((self.q.copy(), fresh))
+
+    def step(self, obs):
+        from gaitcap.tracking.base import Estimate
+
+        mirror = self.q[0] >= 100.0
+        legs = _LEGS[[1, 0, 3, 2]] if mirror and self.exchanges else _LEGS
+        return Estimate(self.q.copy(), legs.copy(), np.zeros(self.n_points), 0.0, self.mirror_fit if mirror else 0.8, 1)
+
+
+@pytest.mark.parametrize("concurrent", [True, False])
+@pytest.mark.parametrize("mirror_fit, exchanges, kept", [(0.81, True, True), (0.8, True, False), (0.79, True, False),
+                                                         (0.81, False, False)])
+def test_the_mirror_run_replaces_the_whole_run_only_if_it_fits_better(monkeypatch, mirror_fit, exchanges, kept,
+                                                                      concurrent):  # fmt: skip
+    """_mirror_run tracks the run forwards from the mirror of its merged first pose and backwards
+    (a tracker of its own, with a random stream apart) from that of its merged last pose (both
+    settled starts), merges them as the run was merged, and returns every frame of it if its legs
+    are the other way round and its mean fit beats the merged run's, else the merge unchanged (a
+    mirror whose legs came back to the run's, however well it fits); the two passes side by side or
+    one after the other, as the compiled kernels allow."""
+    from gaitcap import pipeline
+    from gaitcap.tracking.base import Estimate
+
+    T, P, s, e = 8, 4, 2, 7
+    cfg = load_tracking_config()
+    merged_args = []
+
+    def merge_run(tracker, spool, raw, poses, fit, back, s_, e_, cfg_, rate_hz):
+        merged_args.append((poses[s_:e_].copy(), fit[s_:e_].copy(), [b.q.copy() for b in back]))
+        return {}  # the mirror's forward pass throughout
+
+    monkeypatch.setattr(pipeline, "_merge_run", merge_run)
+    monkeypatch.setattr(pipeline, "_concurrent_kernels", lambda what: concurrent)
+    writer = _FakeWriter(T, P)
+    poses, fit = writer.read_poses(), writer.read_fit()
+    chosen = {e - s - 1: Estimate(np.full(3, -5.0), _LEGS.copy(), np.zeros(P), 0.0, 0.8, 1)}  # the last frame
+    spool = type("Spool", (), {"read": lambda self, t: [np.zeros((2, 2), np.float32)]})()
+    tracker, backwards = _MirrorTracker(P, mirror_fit, exchanges), _MirrorTracker(P, mirror_fit, exchanges)
+    streams = []
+    monkeypatch.setattr(pipeline, "_new_tracker", lambda cfg_, model, lik, stretch=None: streams.append(stretch) or
+                        backwards)  # fmt: skip
+    raw = np.tile(_LEGS, (T, 1, 1))  # the forward pass's legs, left at y > 0
+    out, note = pipeline._mirror_run(tracker, spool, raw, poses, fit, chosen, s, e, cfg, 25.0)
+    [(first, fresh1)], [(last, fresh2)] = tracker.starts, backwards.starts
+    assert streams == [pipeline._MIRROR_STREAM + s]
+    np.testing.assert_array_equal(first, poses[s] + 100.0)  # the mirror of the merged first pose
+    np.testing.assert_array_equal(last, np.full(3, 95.0))  # the mirror of the merged last pose (chosen's)
+    assert not fresh1 and not fresh2
+    forward_poses, forward_fit, back = merged_args[0]
+    np.testing.assert_array_equal(forward_poses, np.tile(poses[s] + 100.0, (e - s, 1)))
+    np.testing.assert_allclose(forward_fit, mirror_fit)
+    assert len(back) == e - s
+    if kept:
+        assert sorted(out) == list(range(e - s))
+        assert all(x.q[0] >= 100.0 and x.fit == mirror_fit for x in out.values())
+        assert note is not None and f"frames {s}-{e - 1}" in note and f"{mirror_fit:.4f} against 0.8000" in note
+    else:
+        assert out is chosen and note is None
+
+
+@pytest.mark.parametrize("angles, enabled, with_rig, called",
+                         [({"cam1": 81.0, "cam2": 3.0}, True, True, True), ({"cam1": 81.0, "cam2": 40.0}, True, True,
+                          False), ({"cam1": 81.0, "cam2": 3.0}, False, True, False),
+                          ({"cam1": 81.0, "cam2": 3.0}, True, False, False)])  # fmt: skip
+def test_a_run_no_camera_views_obliquely_is_tracked_from_its_mirror(monkeypatch, angles, enabled, with_rig, called):
+    """backward.mirror_run's gate: only a run whose cameras are all beside or in line with its
+    walking line (quality.no_oblique_view of the merged points' view angles), only with the key on
+    and the cameras known; what _mirror_run returns is what is written."""
+    from gaitcap import pipeline
+    from gaitcap.tracking.base import Estimate
+
+    T, P = 6, 4
+    cfg = load_tracking_config()
+    cfg.backward.mirror_run = enabled
+    monkeypatch.setattr(pipeline, "legs_in_doubt", lambda points, names, rate, vcfg: 0)
+    monkeypatch.setattr(pipeline, "_merge_run", lambda *a: {})
+    monkeypatch.setattr(pipeline, "view_angles", lambda points, names, rig: angles)
+    calls = []
+
+    def mirror_run(tracker, spool, raw, poses, fit, chosen, s, e, cfg_, rate_hz):
+        calls.append((s, e))
+        return {1: Estimate(np.full(3, 7.0), np.zeros((P, 3)), np.zeros(P), 0.0, 0.9, 1)}, "kept"
+
+    monkeypatch.setattr(pipeline, "_mirror_run", mirror_run)
+    writer = _FakeWriter(T, P)
+    spool = type("Spool", (), {"read": lambda self, t: [np.zeros((2, 2), np.float32)]})()
+    rig = object() if with_rig else None
+    notes = []
+    pipeline._backward_pass(_FakeTracker(P), spool, writer, cfg, 25.0, None, rig=rig, notes=notes)
+    assert calls == ([(0, T)] if called else [])
+    assert notes == (["kept"] if called else [])
+    assert sorted(writer.replaced) == ([1] if called else [])
+    if called:
+        np.testing.assert_array_equal(writer.replaced[1], np.full(3, 7.0))
+
+
+def test_exchanged_legs_finds_the_frames_whose_legs_are_the_other_way_round():
+    """A run against another: the frames whose leg points lie nearer the other's with left and right
+    exchanged; the hips and arms are not compared; a NaN frame is not exchanged."""
+    from gaitcap.tracking.backward import exchanged_legs
+
+    names = ("pelvis", "hip_l", "hip_r", "knee_l", "knee_r", "ankle_l", "ankle_r", "toe_l", "toe_r")
+    rng = np.random.default_rng(3)
+    b = rng.normal(0.0, 0.3, (10, len(names), 3))
+    a = b + rng.normal(0.0, 0.005, b.shape)
+    swap = [0, 1, 2, 4, 3, 6, 5, 8, 7]  # the legs below the hips exchanged
+    a[4:8] = b[4:8][:, swap] + rng.normal(0.0, 0.005, (4, len(names), 3))
+    a[8, 1:3] += 5.0  # the hips far off: not a leg point
+    a[9, 3] = np.nan
+    out = exchanged_legs(a, b, names)
+    assert out.dtype == bool and out.shape == (10,)
+    np.testing.assert_array_equal(out, [False] * 4 + [True] * 4 + [False] * 2)

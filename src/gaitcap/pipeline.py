@@ -34,6 +34,7 @@ from tqdm import tqdm
 from gaitcap.body.measures import model_lengths, outside_ranges
 from gaitcap.body.model import BodyModel, load_body_model
 from gaitcap.body.recorded import recorded_model
+from gaitcap.camera import CameraRig
 from gaitcap.errors import ConfigError, InputError, OutputError, TrackingError
 from gaitcap.io.atomic import write_text_atomic
 from gaitcap.io.silhouettes_h5 import SILHOUETTES_FILE, SilhouetteWriter
@@ -42,7 +43,8 @@ from gaitcap.io.track_h5 import (QUALITY_NOT_INITIALISED, QUALITY_OK, QUALITY_OU
                                  TrackWriter, proportions_attrs, read_track_record, tracked_frames)  # fmt: skip
 from gaitcap.io.trc import write_trc
 from gaitcap.prefetch import Head, Prefetched
-from gaitcap.quality import assess, facing_in_doubt, legs_in_doubt, unsupported_legs, unsupported_listing
+from gaitcap.quality import (assess, facing_in_doubt, legs_in_doubt, no_oblique_view, unsupported_legs,
+                             unsupported_listing, view_angles)
 from gaitcap.session import CALIBRATION_FILE, Session
 from gaitcap.session_check import SessionVideos, check_session_videos, check_silhouettes_meet
 from gaitcap.silhouette.config import SilhouetteConfig
@@ -50,7 +52,8 @@ from gaitcap.silhouette.joint import JointExtractor, floor_check
 from gaitcap.silhouette.run import Source, camera_attrs, file_attrs, prepare_extractor, quality_row
 from gaitcap.timeseries import finite_runs
 from gaitcap.track_summary import TrackSummary, is_finished, write_track_json
-from gaitcap.tracking.backward import choose_backward, leg_points, legs_apart, merge_passes, order_legs
+from gaitcap.tracking.backward import (choose_backward, exchanged_legs, leg_points, legs_apart, merge_passes,
+                                       order_legs)
 from gaitcap.tracking.condensation import Condensation
 from gaitcap.tracking.config import TrackingConfig, load_tracking_config
 from gaitcap.tracking.factored_ipf import FactoredIPF
@@ -501,6 +504,7 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
     writer = TrackWriter(out / "trajectories.h5", model.point_names, model.dof_names, videos.fps, attrs)
     timing = FrameTiming()
     support = None
+    backward_notes: list[str] = []
     try:
         with ExitStack() as stack:
             spool = stack.enter_context(FrameSpool()) if cfg.backward.enabled else None
@@ -515,9 +519,9 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
                 with stages.timed("backward"), kernel_threads(None):
                     backs = ahead.finish()
                     restart = partial(_restart_pass, filt.model, likelihood, views, cfg) if cfg.backward.restart else None
+                    early = restart is not None and _concurrent_kernels("the backward pass's fresh start")
                     replaced = _backward_pass(_new_tracker(cfg, filt.model, likelihood), spool, writer, cfg, videos.fps,
-                                              restart, backs, restart is not None and _concurrent_kernels(
-                                                  "the backward pass's fresh start"))  # fmt: skip
+                                              restart, backs, early, videos.rig, backward_notes)  # fmt: skip
                 log.info("backward pass and leg order: %d of %d frames replaced", replaced, tracked)
                 with stages.timed("verdict"):  # the final poses against the spooled silhouettes
                     support = _leg_support(filt.model, likelihood, spool, writer.read_poses())
@@ -525,7 +529,7 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
         writer.abort(e)
         raise
     run = TrackedRun(session, out, videos, cfg, filt.model, writer, tracked, support, height, height_source,
-                     shape_note, tuple(body_problems), timing, stages, t_start)  # fmt: skip
+                     shape_note, tuple(body_problems), timing, stages, t_start, tuple(backward_notes))  # fmt: skip
     if lost_legs and support is not None and (low := unsupported_legs(support, cfg.verdict)):
         raise LegsLost(low, run)  # nothing written yet: the run is finished or discarded by run_track
     return _finish_run(run, notes)
@@ -553,6 +557,7 @@ class TrackedRun:
     timing: FrameTiming
     stages: Stages
     t_start: float
+    backward_notes: tuple[str, ...] = ()  # what the backward pass did that a reader should know (_mirror_run)
 
 
 def _finish_run(run: TrackedRun, notes: tuple[str, ...]) -> TrackSummary:
@@ -595,7 +600,7 @@ def _finish_run(run: TrackedRun, notes: tuple[str, ...]) -> TrackSummary:
                                    f"({timing.searched} frames searched), "
                                    f"{run.tracked / seconds:.1f} frames/s end to end", stages=stages,
                            verdict=judged.verdict.verdict, verdict_reasons=list(judged.verdict.reasons),
-                           verdict_notes=[*notes, *judged.verdict.notes],
+                           verdict_notes=[*notes, *run.backward_notes, *judged.verdict.notes],
                            body={"height_m": round(float(run.height), 4), "height_source": run.height_source,
                                  "shape": run.shape_note,
                                  "segment_lengths_m": {k: round(v, 4) for k, v in model_lengths(run.model).items()}})  # fmt: skip
@@ -970,7 +975,8 @@ class _Begun:
 
 def _backward_pass(tracker, spool: FrameSpool, writer: TrackWriter, cfg: TrackingConfig, rate_hz: float,
                    restart: Callable[..., list | None] | None = None, backs: dict[tuple[int, int], list] | None = None,
-                   early: bool = False) -> int:  # fmt: skip
+                   early: bool = False, rig: CameraRig | None = None,
+                   notes: list[str] | None = None) -> int:  # fmt: skip
     """Track every run of tracked frames again from its last frame to its first (``tracker``, a
     fresh one, started from the forward pass's last pose of the run) and overwrite in ``writer``
     the frames :func:`~gaitcap.tracking.backward.choose_backward` gives to the backward pass; then,
@@ -986,7 +992,9 @@ def _backward_pass(tracker, spool: FrameSpool, writer: TrackWriter, cfg: Trackin
     backwards; the merge, which exchanges legs, does not clear it) has its fresh start begun in a
     worker thread while it is merged, on the core the merge leaves idle (called as
     ``restart(..., stop=event)``), and stopped if the merged run is not in doubt: the same
-    estimates as a fresh start begun after the merge.
+    estimates as a fresh start begun after the merge. ``rig``: the cameras; with ``backward.mirror_run``,
+    a run that none of them views obliquely is then tracked again from its legs' mirror
+    (:func:`_mirror_run`), and a note appended to ``notes`` where the mirror's run is kept.
     Returns how many frames were overwritten. Memory: the runs' estimates (about a kilobyte a frame)."""
     raw, quality = writer.read_back()
     poses, fit = writer.read_poses(), writer.read_fit()
@@ -1004,7 +1012,7 @@ def _backward_pass(tracker, spool: FrameSpool, writer: TrackWriter, cfg: Trackin
                 begun = _Begun(pool, restart, spool, poses[e - 1], s, e)
             try:
                 replaced += _merge_back(tracker, spool, writer, raw, poses, fit, backs, s, e, cfg, rate_hz, restart,
-                                        begun)  # fmt: skip
+                                        begun, rig, notes)  # fmt: skip
             finally:
                 if begun is not None:
                     begun.stop()
@@ -1013,7 +1021,8 @@ def _backward_pass(tracker, spool: FrameSpool, writer: TrackWriter, cfg: Trackin
 
 def _merge_back(tracker, spool: FrameSpool, writer: TrackWriter, raw: np.ndarray, poses: np.ndarray, fit: np.ndarray,
                 backs: dict[tuple[int, int], list] | None, s: int, e: int, cfg: TrackingConfig, rate_hz: float,
-                restart: Callable[..., list | None] | None, begun: _Begun | None) -> int:  # fmt: skip
+                restart: Callable[..., list | None] | None, begun: _Begun | None,
+                rig: CameraRig | None = None, notes: list[str] | None = None) -> int:  # fmt: skip
     """:func:`_backward_pass` for the run of frames s..e-1 (``begun``: its fresh start, begun already);
     returns how many frames were overwritten."""
     names = tracker.model.point_names
@@ -1039,6 +1048,13 @@ def _merge_back(tracker, spool: FrameSpool, writer: TrackWriter, raw: np.ndarray
                  e - s, doubt_again, "kept" if doubt_again <= doubt else "not kept")  # fmt: skip
         if doubt_again <= doubt:
             chosen = again
+    if cfg.backward.mirror_run and rig is not None and no_oblique_view(
+            view_angles(_merged_points(raw[s:e], chosen), names, rig), cfg.verdict.min_oblique_deg):
+        if begun is not None:
+            begun.stop()  # not wanted past this point: the core goes to the mirror's passes
+        chosen, note = _mirror_run(tracker, spool, raw, poses, fit, chosen, s, e, cfg, rate_hz)
+        if note is not None and notes is not None:
+            notes.append(note)
     for i, b in chosen.items():
         writer.replace(s + i, b.points, b.uncertainty, b.q, b.log_likelihood, b.fit, _fit_quality(b.fit, cfg))
     return len(chosen)
@@ -1067,6 +1083,68 @@ def _merge_run(tracker, spool: FrameSpool, raw: np.ndarray, poses: np.ndarray, f
         order_legs(chosen, raw[s:e], fit[s:e], poses[s:e], back, tracker.model.point_names, rate_hz, again,
                    tracker.mirrored, cfg.backward, cfg.verdict.exchanged_margin_m, refine)  # fmt: skip
     return chosen
+
+
+#: the random stream of a mirror's backward pass (:func:`_mirror_run`) is the tracker seed's with this
+#: index plus the run's first frame: apart from the backward pass's stretches (0, 1, ...)
+_MIRROR_STREAM = 1_000_000
+
+
+def _mirror_run(tracker, spool: FrameSpool, raw: np.ndarray, poses: np.ndarray, fit: np.ndarray, chosen: dict, s: int,
+                e: int, cfg: TrackingConfig, rate_hz: float) -> tuple[dict, str | None]:  # fmt: skip
+    """The merged run s..e-1 (the forward pass's ``raw`` points (T, P, 3), ``poses`` (T, D) and ``fit``
+    (T,), with ``chosen``'s estimates where it has one), or the same run tracked again from its legs'
+    mirror where that holds the legs the other way round and fits the silhouettes better over all its
+    frames (mean fit): frame of the run -> its estimate, every frame for the mirror's; and a note for
+    track.json when the mirror's is kept.
+
+    Seen from beside and along the walkway only, the leg assignments fit a frame nearly alike (the
+    perspective of the nearer and the farther leg tells them apart by a few thousandths of fit), so
+    which one the forward pass keeps is settled over its first few frames, where that difference is
+    noise; over the whole run it adds up. The mirror's run is tracked as the run was: forwards from
+    the mirror of the merged first pose, backwards from that of the merged last pose, the two merged
+    and their legs' order put right (:func:`_merge_run`). It replaces the run only if its legs are the
+    other way round in more than half of the frames (:func:`~gaitcap.tracking.backward.exchanged_legs`)
+    and it fits better: a mirror that came back to the run's own legs is the same hypothesis tracked
+    twice, and the better fit of two such draws is not the more accurate one (docs/validation.md).
+    The backward pass's ``tracker`` tracks the mirror's forward pass (its random stream goes on).
+    """
+    n = e - s
+
+    def pose(t: int) -> np.ndarray:  # frame t's pose in the merge
+        return chosen[t].q if t in chosen else poses[s + t]
+
+    fit_now = float(np.mean([chosen[t].fit if t in chosen else fit[s + t] for t in range(n)]))
+    # the two passes side by side, a core each (a tracker of its own for the backward one)
+    backwards = (_new_tracker(cfg, tracker.model, tracker.likelihood, _MIRROR_STREAM + s), spool,
+                 tracker.mirrored(pose(n - 1)), s, e)  # fmt: skip
+    with ExitStack() as stack:
+        future = None
+        if _concurrent_kernels("the mirror's passes"):
+            pool = stack.enter_context(ThreadPoolExecutor(1, "gaitcap-mirror", partial(numba.set_num_threads, 1)))
+            future = pool.submit(_tracked_back, *backwards)
+            stack.enter_context(kernel_threads(1))
+        tracker.start(tracker.mirrored(pose(0)), fresh=False)
+        forward = [tracker.step(Observation.from_arrays(spool.read(t))) for t in range(s, e)]
+        back = future.result() if future is not None else _tracked_back(*backwards)
+    raw2, poses2, fit2 = raw.copy(), poses.copy(), fit.copy()
+    raw2[s:e] = [x.points for x in forward]
+    poses2[s:e] = [x.q for x in forward]
+    fit2[s:e] = [x.fit for x in forward]
+    merged = _merge_run(tracker, spool, raw2, poses2, fit2, back, s, e, cfg, rate_hz)
+    mirror = {t: merged.get(t, forward[t]) for t in range(n)}
+    fit_mirror = float(np.mean([x.fit for x in mirror.values()]))
+    other = float(np.mean(exchanged_legs(np.array([x.points for x in mirror.values()]),
+                                         _merged_points(raw[s:e], chosen), tracker.model.point_names)))  # fmt: skip
+    kept = other > 0.5 and fit_mirror > fit_now
+    log.info("frames %d-%d: no camera views the walk obliquely; tracked again from the legs' mirror, the run fits "
+             "%.4f against %.4f, its legs the other way round in %.0f %% of the frames: %s", s, e - 1, fit_mirror,
+             fit_now, 100 * other, "kept" if kept else "not kept")  # fmt: skip
+    if not kept:
+        return chosen, None
+    return mirror, (f"frames {s}-{e - 1}: no camera views the walk obliquely, so the run was also tracked from its "
+                    f"legs' mirror, which fits the silhouettes better over the run ({fit_mirror:.4f} against "
+                    f"{fit_now:.4f}) and was kept (backward.mirror_run)")  # fmt: skip
 
 
 def _merged_points(forward: np.ndarray, chosen: dict) -> np.ndarray:

@@ -33,6 +33,14 @@ decisively better: a subject who turned, whose heading the forward pass lost); i
 the first (:func:`merge_passes`, the same rule, but a run of disagreeing frames may switch passes
 once, at a turn) and the run merged again, kept if it leaves no more frames in doubt
 (``gaitcap.pipeline._backward_pass``).
+
+The rhythm cannot see a run whose legs are exchanged from its first frame to its last: the leading
+ankle still changes at every passing. Where no camera views the walk obliquely, the forward pass
+settles the assignment over its first few frames, on a difference of fit that is noise there. With
+``backward.mirror_run``, such a run is also tracked from its legs' mirror (forwards from the mirror
+of its first pose, backwards from that of its last, merged as above); where that run holds the legs
+the other way round (:func:`exchanged_legs`) and fits the silhouettes better over all its frames, it
+replaces the first whole (``gaitcap.pipeline._mirror_run``).
 """
 
 from __future__ import annotations
@@ -69,6 +77,18 @@ def legs_apart(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """The mean distance (metres) between two sets of leg points, (..., K, 3) each -> (...): two
     passes agree on a frame when it is below ``backward.agree_m``."""
     return np.linalg.norm(a - b, axis=-1).mean(axis=-1)
+
+
+def exchanged_legs(a: np.ndarray, b: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
+    """(T,) bool: the frames where the leg points (:data:`LEG_POINT_PREFIXES`) of ``a`` lie nearer to
+    those of ``b`` with left and right exchanged than to ``b``'s own (mean distance): the two runs hold
+    the legs the other way round there. a, b: (T, P, 3) points named ``names`` (``*_l``, ``*_r``
+    pairs); a frame where either is NaN is False."""
+    legs = leg_points(names)
+    other = np.array([names.index(names[i][:-1] + ("r" if names[i].endswith("_l") else "l")) for i in legs], int)
+    same, swapped = legs_apart(a[:, legs], b[:, legs]), legs_apart(a[:, legs], b[:, other])
+    with np.errstate(invalid="ignore"):
+        return swapped < same
 
 
 def choose_backward(forward: np.ndarray, backward: np.ndarray, fit_forward: np.ndarray, fit_backward: np.ndarray,

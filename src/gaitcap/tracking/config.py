@@ -272,6 +272,10 @@ class BackwardConfig(Strict):
     order_fit_tolerance: float = Field(default=0.015, ge=0, le=1)
     restart: bool = True
     stretch_frames: int | None = Field(default=25, ge=2)
+    #: a run that no camera views obliquely (quality.no_oblique_view) is also tracked from its legs'
+    #: mirror, forwards and backwards and merged the same way; the mirror's run replaces it whole if it
+    #: holds the legs the other way round and fits better (gaitcap.pipeline._mirror_run)
+    mirror_run: bool = True
 
 
 class LegGapConfig(Strict):
