@@ -36,6 +36,18 @@ EVENT_KINDS: tuple[EventKind, EventKind] = ("foot_strike", "foot_off")
 TOE_RELEASES = "toe_releases"
 
 
+def exchanged_frames(a: np.ndarray, b: np.ndarray, pairs: Sequence[tuple[int, int]]) -> np.ndarray:
+    """(T,) bool: the frames where the points of ``a`` (T, P, 3) lie nearer those of ``b`` (T, P, 3)
+    with each (left, right) index pair of ``pairs`` exchanged than to ``b``'s own (mean distance over
+    the pairs' points): left and right the other way round there. False where a distance is NaN."""
+    left, right = [i for i, _ in pairs], [j for _, j in pairs]
+    points, crossed = left + right, right + left  # a's right points against b's left ones and back
+    direct = np.linalg.norm(a[:, points] - b[:, points], axis=2).mean(axis=1)
+    exchanged = np.linalg.norm(a[:, crossed] - b[:, points], axis=2).mean(axis=1)
+    with np.errstate(invalid="ignore"):
+        return exchanged < direct
+
+
 def side_suffix(side: Side) -> str:
     """``"left"`` -> ``"_l"``, ``"right"`` -> ``"_r"``."""
     return "_l" if side == "left" else "_r"

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gaitcap.trajectory import EVENT_KINDS, GaitEvent
+from gaitcap.trajectory import EVENT_KINDS, GaitEvent, exchanged_frames
 
 #: the left/right point pairs of the legs, exchanged by a left/right swap
 LEG_PAIRS: tuple[tuple[str, str], ...] = (
@@ -126,14 +126,7 @@ def swap_mask(est: np.ndarray, ref: np.ndarray, names: Sequence[str]) -> np.ndar
     pairs = [(names.index(a), names.index(b)) for a, b in LEG_PAIRS if a in names and b in names]
     if not pairs:
         return np.zeros(len(est), dtype=bool)
-    left = [i for i, _ in pairs]
-    right = [j for _, j in pairs]
-    legs = left + right
-    swapped = right + left  # est's right points against ref's left ones and back
-    direct = np.linalg.norm(est[:, legs] - ref[:, legs], axis=2).mean(axis=1)
-    crossed = np.linalg.norm(est[:, swapped] - ref[:, legs], axis=2).mean(axis=1)
-    with np.errstate(invalid="ignore"):
-        return crossed < direct
+    return exchanged_frames(est, ref, pairs)
 
 
 def runs(mask: np.ndarray) -> list[tuple[int, int]]:

@@ -54,6 +54,7 @@ import numpy as np
 
 from gaitcap.quality import fore_aft, walking_line
 from gaitcap.timeseries import finite_runs
+from gaitcap.trajectory import exchanged_frames
 from gaitcap.tracking.config import BackwardConfig
 
 log = logging.getLogger("gaitcap.tracking.backward")
@@ -82,13 +83,10 @@ def legs_apart(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def exchanged_legs(a: np.ndarray, b: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
     """(T,) bool: the frames where the leg points (:data:`LEG_POINT_PREFIXES`) of ``a`` lie nearer to
     those of ``b`` with left and right exchanged than to ``b``'s own (mean distance): the two runs hold
-    the legs the other way round there. a, b: (T, P, 3) points named ``names`` (``*_l``, ``*_r``
-    pairs); a frame where either is NaN is False."""
-    legs = leg_points(names)
-    other = np.array([names.index(names[i][:-1] + ("r" if names[i].endswith("_l") else "l")) for i in legs], int)
-    same, swapped = legs_apart(a[:, legs], b[:, legs]), legs_apart(a[:, legs], b[:, other])
-    with np.errstate(invalid="ignore"):
-        return swapped < same
+    the legs the other way round there (:func:`gaitcap.trajectory.exchanged_frames`). a, b: (T, P, 3)
+    points named ``names`` (``*_l``, ``*_r`` pairs); a frame where either is NaN is False."""
+    pairs = [(i, names.index(names[i][:-2] + "_r")) for i in leg_points(names) if names[i].endswith("_l")]
+    return exchanged_frames(a, b, pairs)
 
 
 def choose_backward(forward: np.ndarray, backward: np.ndarray, fit_forward: np.ndarray, fit_backward: np.ndarray,
