@@ -20,6 +20,7 @@ from gaitcap.tracking.backward import (
     merge_passes,
     order_legs,
     order_sign,
+    passing_period,
 )
 from gaitcap.tracking.config import load_tracking_config
 
@@ -217,6 +218,32 @@ def test_crossing_frames_fill_in_a_passing_the_rhythm_expects() -> None:
     stopped = np.abs(d)
     stopped[40:] = 0.3
     assert crossing_frames(stopped, RATE, 0.1) == [f for f in strict if f < 40]
+
+
+def test_passing_period_counts_the_intervals_that_hide_passings() -> None:
+    steps = np.cumsum(np.r_[7, np.full(9, 12)])  # a step every 12 frames
+    assert passing_period(list(steps)) == 12.0
+    for kept in ([0, 2, 3], [1, 4, 5], [0, 1, 3, 5, 7, 9]):  # passings missed in between
+        assert passing_period(list(steps[kept]), 7.5) == 12.0, kept
+    assert passing_period(list(steps[[0, 2, 4, 6]]), 7.5) == 24.0  # every other one missed: a slower walk
+    assert passing_period([9, 33, 45], 7.5) == 12.0  # s08_c3dorg, seed 0: the median interval is 18
+    assert passing_period([0, 5, 17, 29], 7.5) == 12.0  # a spurious passing 5 frames after one: a step is longer
+    assert passing_period([0, 24], 7.5) == 24.0  # one interval: nothing to tell a missed passing by
+    assert passing_period([0, 4, 8], 7.5) == 4.0  # no interval as long as a step: the median
+
+
+def test_crossing_frames_fill_in_passings_the_median_interval_hides() -> None:
+    """A passing missed beside few others (the mean distance of the two passes stays between
+    ``cross_m`` and twice it there): the interval around it is twice the step, which the median of
+    the intervals found, half of them doubled, does not show as long."""
+    for T, hidden in ((50, (1,)), (75, (1, 3))):
+        d = _lead(T)
+        strict = crossing_frames(np.abs(d), RATE, 0.1)
+        sep = np.abs(d)
+        for k in hidden:
+            sep[strict[k] - 3 : strict[k] + 4] += 0.1
+        assert min(sep[strict[k]] for k in hidden) > 0.1
+        assert crossing_frames(sep, RATE, 0.1) == strict, (T, hidden)
 
 
 def test_order_sign_reads_the_leading_ankle() -> None:

@@ -163,6 +163,8 @@ def merge_passes(first: list[_Estimate], second: list[_Estimate], legs: np.ndarr
 #: half-width of the window in which a foot passing is the closest approach (seconds): the feet pass
 #: each other twice a stride, at least 0.3 s apart even running, and once per approach
 CROSSING_WINDOW_S = 0.12
+#: the shortest step (seconds between the feet's passings) :func:`passing_period` counts: 200 steps a minute
+MIN_STEP_S = 0.3
 
 
 def crossing_frames(separation: np.ndarray, rate_hz: float, cross_m: float) -> list[int]:
@@ -176,19 +178,34 @@ def crossing_frames(separation: np.ndarray, rate_hz: float, cross_m: float) -> l
     for t in np.flatnonzero(s < cross_m):
         if s[t] <= s[max(0, t - w) : t + w + 1].min() and (not out or t - out[-1] > w):
             out.append(int(t))
-    return _rhythm_crossings(s, out, w, cross_m)
+    return _rhythm_crossings(s, out, w, cross_m, MIN_STEP_S * rate_hz)
 
 
-#: a stretch between passings longer than this many times the median interval hides a passing
+#: a stretch between passings longer than this many times their interval (:func:`passing_period`) hides a passing
 RHYTHM_GAP = 1.5
 #: ... which is then accepted where the ankles come closer than this many times ``cross_m``
 RHYTHM_CROSS = 2.0
 
 
-def _rhythm_crossings(s: np.ndarray, found: list[int], w: int, cross_m: float) -> list[int]:
+def passing_period(found: list[int], min_frames: float = 0.0) -> float:
+    """The interval (frames) between the feet's passings, from the passings ``found`` (sorted, at
+    least two), some of which may be missing: each interval between found passings is a whole number
+    of periods of the shortest interval that could be a step (at least ``min_frames`` and 0.4 times
+    their median: a shorter one is taken for a spurious passing), and the period is the median of
+    the intervals so divided. With passings missed, the median interval alone overstates it: found at
+    frames 9, 33 and 45 (a passing at 21 missed), the intervals 24 and 12 have the median 18, against
+    which a stretch of 24 frames does not look long enough to hide one."""
+    gaps = np.diff(np.asarray(found, float))
+    steps = gaps[gaps >= max(min_frames, 0.4 * float(np.median(gaps)))]
+    if not len(steps):
+        return float(np.median(gaps))
+    return float(np.median(gaps / np.maximum(1.0, np.round(gaps / steps.min()))))
+
+
+def _rhythm_crossings(s: np.ndarray, found: list[int], w: int, cross_m: float, min_step: float) -> list[int]:
     """``found`` (sorted frames of passings) with the passings their rhythm expects: the feet pass
     every half stride, so where a stretch (before the first, between two, after the last) lasts
-    more than ``RHYTHM_GAP`` times the median interval P between the passings found, the closest
+    more than ``RHYTHM_GAP`` times the interval P between the passings (:func:`passing_period`), the closest
     approach within +-w frames of P frames after (or, before the first, before) its neighbour is
     one too, if closer than ``RHYTHM_CROSS`` x ``cross_m``: where one of the two passes has the legs
     misplaced, the mean distance at a passing stays above ``cross_m``. Needs two passings found.
@@ -198,10 +215,11 @@ def _rhythm_crossings(s: np.ndarray, found: list[int], w: int, cross_m: float) -
         found: the passings found, sorted.
         w: the half-width of a passing's window (frames).
         cross_m: the distance below which the feet pass (metres).
+        min_step: the shortest step (frames; :func:`passing_period`).
     """
     if len(found) < 2:
         return found
-    period = float(np.median(np.diff(found)))
+    period = passing_period(found, min_step)
     out = list(found)
 
     def closest(centre: float) -> int | None:
