@@ -20,7 +20,7 @@ from gaitcap.tracking.backward import (
     merge_passes,
     order_legs,
     order_sign,
-    passing_period,
+    step_frames,
 )
 from gaitcap.tracking.config import load_tracking_config
 
@@ -220,16 +220,20 @@ def test_crossing_frames_fill_in_a_passing_the_rhythm_expects() -> None:
     assert crossing_frames(stopped, RATE, 0.1) == [f for f in strict if f < 40]
 
 
-def test_passing_period_counts_the_intervals_that_hide_passings() -> None:
-    steps = np.cumsum(np.r_[7, np.full(9, 12)])  # a step every 12 frames
-    assert passing_period(list(steps)) == 12.0
-    for kept in ([0, 2, 3], [1, 4, 5], [0, 1, 3, 5, 7, 9]):  # passings missed in between
-        assert passing_period(list(steps[kept]), 7.5) == 12.0, kept
-    assert passing_period(list(steps[[0, 2, 4, 6]]), 7.5) == 24.0  # every other one missed: a slower walk
-    assert passing_period([9, 33, 45], 7.5) == 12.0  # s08_c3dorg, seed 0: the median interval is 18
-    assert passing_period([0, 5, 17, 29], 7.5) == 12.0  # a spurious passing 5 frames after one: a step is longer
-    assert passing_period([0, 24], 7.5) == 24.0  # one interval: nothing to tell a missed passing by
-    assert passing_period([0, 4, 8], 7.5) == 4.0  # no interval as long as a step: the median
+def test_step_frames_is_half_the_stride_whatever_the_passings_found() -> None:
+    for stride_hz in (0.8, 1.0, 1.3):
+        d = _lead(75, stride_hz)
+        expected = RATE / (2 * stride_hz)
+        assert step_frames(np.abs(d), RATE) == pytest.approx(expected, rel=0.02), stride_hz
+        strict = crossing_frames(np.abs(d), RATE, 0.1)
+        sep = np.abs(d)
+        for t in strict[1::2]:  # every other passing blurred by a misplaced leg: the intervals found double
+            sep[t - 3 : t + 4] += 0.1
+        assert step_frames(sep, RATE) == pytest.approx(expected, rel=0.03), stride_hz
+        sep[::4] = np.nan  # frames unknown
+        assert step_frames(sep, RATE) == pytest.approx(expected, rel=0.03), stride_hz
+    assert step_frames(np.abs(_lead(15)), RATE) is None  # under one stride of the fastest walk
+    assert step_frames(np.full(40, np.nan), RATE) is None
 
 
 def test_crossing_frames_fill_in_passings_the_median_interval_hides() -> None:
@@ -244,6 +248,28 @@ def test_crossing_frames_fill_in_passings_the_median_interval_hides() -> None:
             sep[strict[k] - 3 : strict[k] + 4] += 0.1
         assert min(sep[strict[k]] for k in hidden) > 0.1
         assert crossing_frames(sep, RATE, 0.1) == strict, (T, hidden)
+
+
+def test_crossing_frames_fill_in_the_rhythm_from_a_single_passing_found() -> None:
+    d = _lead(70)  # the last passing 9 frames before the end
+    strict = crossing_frames(np.abs(d), RATE, 0.1)
+    assert len(strict) == 5
+    sep = np.abs(d)
+    for t in strict[:2] + strict[3:]:  # all but one passing blurred: no interval between passings found
+        sep[t - 3 : t + 4] += 0.1
+    assert crossing_frames(sep, RATE, 0.1) == strict
+
+
+def test_crossing_frames_make_up_no_passing_from_a_spurious_one() -> None:
+    """Short steps (the ankles never 0.2 m apart fore and aft, as in a shuffling gait) and one
+    spurious dip 8 frames after a passing: the intervals found (8, 6, 16, 15, 16) read as a step of
+    8 frames would make up a passing in the middle of each stretch; the stride does not change."""
+    d = 0.15 * np.sin(2 * np.pi * 0.8 * np.arange(63) / RATE + 0.3)
+    strict = crossing_frames(np.abs(d), RATE, 0.1)
+    assert strict == [0, 14, 30, 45, 61]
+    sep = np.abs(d)
+    sep[strict[0] + 8] = 0.02
+    assert crossing_frames(sep, RATE, 0.1) == sorted([*strict, strict[0] + 8])
 
 
 def test_order_sign_reads_the_leading_ankle() -> None:

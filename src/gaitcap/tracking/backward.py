@@ -52,7 +52,7 @@ from typing import Protocol
 
 import numpy as np
 
-from gaitcap.quality import fore_aft, walking_line
+from gaitcap.quality import STRIDE_HZ, fore_aft, stride_frequency, walking_line
 from gaitcap.timeseries import finite_runs
 from gaitcap.trajectory import exchanged_frames
 from gaitcap.tracking.config import BackwardConfig
@@ -163,63 +163,58 @@ def merge_passes(first: list[_Estimate], second: list[_Estimate], legs: np.ndarr
 #: half-width of the window in which a foot passing is the closest approach (seconds): the feet pass
 #: each other twice a stride, at least 0.3 s apart even running, and once per approach
 CROSSING_WINDOW_S = 0.12
-#: the shortest step (seconds between the feet's passings) :func:`passing_period` counts: 200 steps a minute
-MIN_STEP_S = 0.3
 
 
 def crossing_frames(separation: np.ndarray, rate_hz: float, cross_m: float) -> list[int]:
     """The frames where the feet pass each other (or meet): local minima of the fore-aft distance
     between the ankles ``separation`` (T,) metres (NaN: unknown) within +-``CROSSING_WINDOW_S``,
-    closer than ``cross_m``; at most one per window. Then the passings the rhythm of the others
-    expects (:func:`_rhythm_crossings`)."""
+    closer than ``cross_m``; at most one per window. Then the passings the walk's rhythm expects
+    (:func:`_rhythm_crossings`, at the step of :func:`step_frames`)."""
     w = max(1, round(CROSSING_WINDOW_S * rate_hz))
     s = np.where(np.isfinite(separation), separation, np.inf)
     out: list[int] = []
     for t in np.flatnonzero(s < cross_m):
         if s[t] <= s[max(0, t - w) : t + w + 1].min() and (not out or t - out[-1] > w):
             out.append(int(t))
-    return _rhythm_crossings(s, out, w, cross_m, MIN_STEP_S * rate_hz)
+    step = step_frames(separation, rate_hz)
+    return out if step is None else _rhythm_crossings(s, out, w, cross_m, step)
 
 
-#: a stretch between passings longer than this many times their interval (:func:`passing_period`) hides a passing
+#: a stretch between passings longer than this many steps (:func:`step_frames`) hides a passing
 RHYTHM_GAP = 1.5
 #: ... which is then accepted where the ankles come closer than this many times ``cross_m``
 RHYTHM_CROSS = 2.0
 
 
-def passing_period(found: list[int], min_frames: float = 0.0) -> float:
-    """The interval (frames) between the feet's passings, from the passings ``found`` (sorted, at
-    least two), some of which may be missing: each interval between found passings is a whole number
-    of periods of the shortest interval that could be a step (at least ``min_frames`` and 0.4 times
-    their median: a shorter one is taken for a spurious passing), and the period is the median of
-    the intervals so divided. With passings missed, the median interval alone overstates it: found at
-    frames 9, 33 and 45 (a passing at 21 missed), the intervals 24 and 12 have the median 18, against
-    which a stretch of 24 frames does not look long enough to hide one."""
-    gaps = np.diff(np.asarray(found, float))
-    steps = gaps[gaps >= max(min_frames, 0.4 * float(np.median(gaps)))]
-    if not len(steps):
-        return float(np.median(gaps))
-    return float(np.median(gaps / np.maximum(1.0, np.round(gaps / steps.min()))))
+def step_frames(separation: np.ndarray, rate_hz: float) -> float | None:
+    """The step (frames between the feet's passings): half the stride period, at the stride
+    frequency that fits the fore-aft distance between the ankles ``separation`` (T,) metres (NaN or
+    inf: unknown) over the whole run (:func:`gaitcap.quality.stride_frequency`). A passing that the
+    passes missed does not lengthen it, as it lengthens the intervals between the passings found.
+    None under one stride of the fastest rhythm measured (:data:`gaitcap.quality.STRIDE_HZ`)."""
+    known = np.flatnonzero(np.isfinite(separation))
+    if len(known) < rate_hz / STRIDE_HZ[1]:
+        return None
+    return rate_hz / (2 * stride_frequency(known / rate_hz, separation[known]))
 
 
-def _rhythm_crossings(s: np.ndarray, found: list[int], w: int, cross_m: float, min_step: float) -> list[int]:
-    """``found`` (sorted frames of passings) with the passings their rhythm expects: the feet pass
-    every half stride, so where a stretch (before the first, between two, after the last) lasts
-    more than ``RHYTHM_GAP`` times the interval P between the passings (:func:`passing_period`), the closest
-    approach within +-w frames of P frames after (or, before the first, before) its neighbour is
-    one too, if closer than ``RHYTHM_CROSS`` x ``cross_m``: where one of the two passes has the legs
-    misplaced, the mean distance at a passing stays above ``cross_m``. Needs two passings found.
+def _rhythm_crossings(s: np.ndarray, found: list[int], w: int, cross_m: float, step: float) -> list[int]:
+    """``found`` (sorted frames of passings) with the passings the rhythm expects: the feet pass
+    every step, so where a stretch (before the first, between two, after the last) lasts more than
+    ``RHYTHM_GAP`` steps, the closest approach within +-w frames of a step after (or, before the
+    first, before) its neighbour is one too, if closer than ``RHYTHM_CROSS`` x ``cross_m``: where
+    one of the two passes has the legs misplaced, the mean distance at a passing stays above
+    ``cross_m``. Needs a passing found.
 
     Args:
         s: (T,) the separation, metres (inf: unknown).
         found: the passings found, sorted.
         w: the half-width of a passing's window (frames).
         cross_m: the distance below which the feet pass (metres).
-        min_step: the shortest step (frames; :func:`passing_period`).
+        step: the frames between passings (:func:`step_frames`).
     """
-    if len(found) < 2:
+    if not found:
         return found
-    period = passing_period(found, min_step)
     out = list(found)
 
     def closest(centre: float) -> int | None:
@@ -232,11 +227,11 @@ def _rhythm_crossings(s: np.ndarray, found: list[int], w: int, cross_m: float, m
     k = 0
     while k < len(out):  # forwards: after each passing, up to the next one or the end
         nxt = out[k + 1] if k + 1 < len(out) else len(s) - 1
-        if nxt - out[k] > RHYTHM_GAP * period and (t := closest(out[k] + period)) is not None and \
+        if nxt - out[k] > RHYTHM_GAP * step and (t := closest(out[k] + step)) is not None and \
                 out[k] + w < t < nxt - w:
             out.insert(k + 1, t)
         k += 1
-    while out[0] > RHYTHM_GAP * period and (t := closest(out[0] - period)) is not None and w < t < out[0] - w:
+    while out[0] > RHYTHM_GAP * step and (t := closest(out[0] - step)) is not None and w < t < out[0] - w:
         out.insert(0, t)  # backwards from the first
     return out
 
