@@ -153,7 +153,8 @@ class FactoredIPF(Tracker):
 
         The runs behind these choices are in docs/tuning_history.md (``factored_ipf`` keys); with the
         pipeline's backward pass on, switching them off was measured on the whole suite and made the
-        tails worse (docs/validation.md, "The step's swap mechanisms with the backward pass in place").
+        tails worse (docs/validation.md, "The step's swap mechanisms with the backward pass in place";
+        again with the restart, the mirror's run and the leg order: "The step's swap mechanisms, again").
         """
         start = self.q.copy()
         cfg = self.config.factored_ipf
