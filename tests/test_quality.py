@@ -288,6 +288,17 @@ def test_a_long_walk_is_judged_in_pieces():
     assert 4 <= exchanged.sum() <= 10 and set(np.flatnonzero(exchanged)) <= set(range(400, 410))
 
 
+@pytest.mark.parametrize("index", [0, 15, 16, 17, 130, 255, 260])
+def test_stride_frequency_is_found_anywhere_in_its_range(index: int):
+    """A noisy separation whose stride frequency is the index-th of the search's grid (the first,
+    the last, and either side of the frequencies searched together) is given that frequency:
+    the search's pieces are put back together in order."""
+    hz = quality.STRIDE_HZ[0] + index * quality.STRIDE_HZ_STEP
+    t = np.arange(1500) / RATE
+    d = 0.4 * np.sin(2 * np.pi * hz * t + 0.7) + np.random.default_rng(index).normal(0, 0.1, len(t))
+    assert stride_frequency(t, d) == pytest.approx(hz, abs=1e-9)
+
+
 def _turned_back(points: np.ndarray, names: tuple[str, ...], at: int) -> np.ndarray:
     """points (T, P, 3) of a walk along +x with frames ``at`` onwards turned half round about the
     vertical through frame ``at - 1``'s pelvis: the subject turns there and walks back the way it came."""

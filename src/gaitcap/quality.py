@@ -328,12 +328,24 @@ def stride_frequency(t: np.ndarray, d: np.ndarray) -> float:
     twice a stride, where the feet pass each other."""
     hz = np.arange(STRIDE_HZ[0], STRIDE_HZ[1] + 1e-9, STRIDE_HZ_STEP)
     y = np.abs(d) - np.mean(np.abs(d))
-    A = _sinusoids(t, 2 * hz)  # (H, T, 2)
+    explained = np.concatenate([_explained(t, y, 2 * hz[i:i + _HZ_CHUNK])
+                                for i in range(0, len(hz), _HZ_CHUNK)])  # fmt: skip
+    return float(hz[int(np.argmax(explained))])
+
+
+#: frequencies whose sinusoids :func:`stride_frequency` holds at once: its memory is a few
+#: times this many by the run's length, whatever the number of frequencies searched
+_HZ_CHUNK = 16
+
+
+def _explained(t: np.ndarray, y: np.ndarray, hz: np.ndarray) -> np.ndarray:
+    """(H,): how much a sinusoid plus a constant at each frequency of hz (H,) lowers the sum of
+    squares of y (T,) (zero mean) at times t (T,), by least squares."""
+    A = _sinusoids(t, hz)  # (H, T, 2)
     A -= A.mean(axis=1, keepdims=True)  # the constant's share taken out
     G = np.einsum("htj,htk->hjk", A, A) + 1e-12 * np.eye(2)  # normal equations of each frequency
     b = np.einsum("htj,t->hj", A, y)
-    explained = np.einsum("hj,hj->h", b, np.linalg.solve(G, b[..., None])[..., 0])  # the residual's drop
-    return float(hz[int(np.argmax(explained))])
+    return np.einsum("hj,hj->h", b, np.linalg.solve(G, b[..., None])[..., 0])  # the residual's drop
 
 
 def _separation(points: np.ndarray, names: tuple[str, ...], rate_hz: float) -> tuple[np.ndarray, np.ndarray] | None:
