@@ -1,6 +1,7 @@
 from __future__ import annotations
 
 import json
+import os
 import re
 import subprocess
 import sys
@@ -88,3 +89,36 @@ def test_track_starts_without_the_scipy_modules_imported_late():
     code = f"import sys, gaitcap.cli.main, gaitcap.pipeline; print([m for m in {late!r} if m in sys.modules])"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
+
+
+def _child(code: str, tmp_path) -> subprocess.CompletedProcess:
+    """``code`` run in a fresh interpreter (the package importable as in this one), in tmp_path."""
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, env=env,
+                          timeout=120)  # fmt: skip
+
+
+def test_the_program_ends_with_its_status_output_and_exit_handlers(tmp_path):
+    """gaitcap.cli.main.main ends the process itself (no module teardown): the command's output,
+    its error message and status, and the exit handlers registered during the run all still come
+    out as a normal exit gives them."""
+    handler = "import atexit, pathlib; atexit.register(pathlib.Path('handled').write_text, 'yes'); "
+    ok = _child(handler + "from gaitcap.cli.main import main; main(['--version'])", tmp_path)
+    assert ok.returncode == 0 and __version__ in ok.stdout
+    assert (tmp_path / "handled").read_text() == "yes"
+    bad = _child("from gaitcap.cli.main import main; main(['-q', 'track', '.', '-o', 'out', '-c', 'none.yaml'])",
+                 tmp_path)  # fmt: skip
+    assert bad.returncode == 2 and "none.yaml" in bad.stderr and not (tmp_path / "out").exists()
+    text = _child("import sys; from gaitcap.cli.main import _exit_now; _exit_now('stopped: reason')", tmp_path)
+    assert text.returncode == 1 and text.stderr.strip() == "stopped: reason"
+
+
+def test_the_program_waits_for_a_thread_still_running(tmp_path):
+    """A non-daemon thread still running when the command returns is waited for (the normal exit),
+    not cut short by the fast one."""
+    code = ("import threading, time, pathlib\n"
+            "threading.Thread(target=lambda: (time.sleep(0.5), pathlib.Path('done').write_text('x'))).start()\n"
+            "from gaitcap.cli.main import main; main(['--version'])")  # fmt: skip
+    run = _child(code, tmp_path)
+    assert run.returncode == 0 and __version__ in run.stdout
+    assert (tmp_path / "done").exists()

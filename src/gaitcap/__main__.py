@@ -1,4 +1,4 @@
-from gaitcap.cli.main import cli
+from gaitcap.cli.main import main
 
 if __name__ == "__main__":
-    cli()
+    main()

@@ -2,8 +2,13 @@
 
 from __future__ import annotations
 
+import atexit
 import importlib
 import logging
+import os
+import sys
+import threading
+from typing import NoReturn
 
 import click
 
@@ -61,3 +66,41 @@ def cli(ctx: click.Context, verbose: int, quiet: bool) -> None:
 
 # the command modules (gaitcap.cli.NAME, each defining ``command``), in the order of the pipeline
 COMMAND_MODULES: list[str] = ["calibrate", "markers", "synth", "silhouettes", "track", "report", "eval", "demo"]
+
+
+def main(args: list[str] | None = None) -> NoReturn:
+    """The ``gaitcap`` program (the console script and ``python -m gaitcap``): :func:`cli`, then the
+    process ends without the interpreter's teardown of its modules.
+
+    Freeing numba's, scipy's and OpenCV's modules one object at a time takes 0.3-0.5 s after every
+    command (about a fifth of the fixed cost #30 allows a run), and none of it is the command's work:
+    every output is already written and renamed (temporary name, then rename). So once the command
+    has returned or failed cleanly, and if no thread but daemons is left running, the exit handlers
+    run (``atexit``), the logs and the standard streams are flushed, as a normal exit does, and the
+    process ends there (``os._exit``) with the command's status. With a thread still running, or an
+    error Click does not handle (its traceback), the process exits the normal way.
+    """
+    try:
+        cli.main(args=args, prog_name="gaitcap")  # standalone: always ends in SystemExit
+        code: int | str | None = 0
+    except SystemExit as done:
+        code = done.code
+    if any(t is not threading.current_thread() and not t.daemon for t in threading.enumerate()):
+        sys.exit(code)  # the normal exit joins them
+    _exit_now(code)
+
+
+def _exit_now(code: int | str | None) -> NoReturn:
+    """End the process with ``code`` (SystemExit's meaning: None 0, a text printed and 1) after the
+    exit handlers and the flushes that a normal exit does."""
+    if isinstance(code, str):
+        print(code, file=sys.stderr)
+        code = 1
+    atexit._run_exitfuncs()
+    logging.shutdown()
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):  # a closed pipe or stream: what was left could not be written
+            code = code or 1
+    os._exit(code or 0)
