@@ -109,7 +109,7 @@ def test_the_program_ends_with_its_status_output_and_exit_handlers(tmp_path):
     bad = _child("from gaitcap.cli.main import main; main(['-q', 'track', '.', '-o', 'out', '-c', 'none.yaml'])",
                  tmp_path)  # fmt: skip
     assert bad.returncode == 2 and "none.yaml" in bad.stderr and not (tmp_path / "out").exists()
-    text = _child("import sys; from gaitcap.cli.main import _exit_now; _exit_now('stopped: reason')", tmp_path)
+    text = _child("from gaitcap.cli.main import _exit_now; _exit_now('stopped: reason')", tmp_path)
     assert text.returncode == 1 and text.stderr.strip() == "stopped: reason"
 
 

@@ -321,6 +321,11 @@ def _sinusoids(t: np.ndarray, hz: float | np.ndarray) -> np.ndarray:
     return np.stack([np.cos(w), np.sin(w)], axis=-1)
 
 
+#: frequencies whose sinusoids :func:`stride_frequency` holds at once: its memory is a few
+#: times this many by the run's length, whatever the number of frequencies searched
+_HZ_CHUNK = 16
+
+
 def stride_frequency(t: np.ndarray, d: np.ndarray) -> float:
     """The stride frequency (Hz) of a fore-aft separation d (T,) (finite values) at times t (T,)
     (seconds): the frequency in :data:`STRIDE_HZ` at twice which a sinusoid plus a constant best
@@ -331,11 +336,6 @@ def stride_frequency(t: np.ndarray, d: np.ndarray) -> float:
     explained = np.concatenate([_explained(t, y, 2 * hz[i:i + _HZ_CHUNK])
                                 for i in range(0, len(hz), _HZ_CHUNK)])  # fmt: skip
     return float(hz[int(np.argmax(explained))])
-
-
-#: frequencies whose sinusoids :func:`stride_frequency` holds at once: its memory is a few
-#: times this many by the run's length, whatever the number of frequencies searched
-_HZ_CHUNK = 16
 
 
 def _explained(t: np.ndarray, y: np.ndarray, hz: np.ndarray) -> np.ndarray:
