@@ -1,6 +1,6 @@
 """Are a run's legs placed on its silhouettes, or guessed where the masks have none? (a diagnostic)
 
-    PYTHONPATH=src python scripts/leg_support.py RUN... [--below 0.5]
+    PYTHONPATH=src python scripts/leg_support.py RUN... [--below 0.5] [--segments foot_l foot_r]
 
 RUN is a ``gaitcap track --save-masks`` output folder (``scripts/bench_suite.py``'s runs keep their
 masks). For every tracked frame, each leg segment (thighs, shanks) is drawn as the tracker draws it
@@ -32,9 +32,9 @@ from gaitcap.tracking.observation import observe, tracking_views
 from gaitcap.tracking.support import LEG_SEGMENTS, segment_support
 
 
-def support(run: Path) -> dict[str, np.ndarray]:
-    """Per leg segment, each tracked frame's support (:func:`segment_support`, at full resolution on
-    the run's saved masks): (T,) arrays (NaN: not judged in any camera)."""
+def support(run: Path, segments: tuple[str, ...] = LEG_SEGMENTS) -> dict[str, np.ndarray]:
+    """Per segment (default: the legs'), each tracked frame's support (:func:`segment_support`, at full
+    resolution on the run's saved masks): (T,) arrays (NaN: not judged in any camera)."""
     model = read_body(run).model
     with h5py.File(run / "trajectories.h5", "r") as f:
         poses = f["poses"][()]
@@ -43,10 +43,10 @@ def support(run: Path) -> dict[str, np.ndarray]:
     views = tracking_views(rig, 1.0)
     likelihood = SilhouetteLikelihood(views, 1.0)
     masks = [read_masks(run / "silhouettes.h5", cam) for cam in rig.names]
-    out = {s: np.full(len(poses), np.nan) for s in LEG_SEGMENTS}
+    out = {s: np.full(len(poses), np.nan) for s in segments}
     for t in np.flatnonzero(np.all(np.isfinite(poses), axis=1)):
-        shares = segment_support(model, likelihood, observe(views, [m[t] for m in masks]), poses[t])
-        for s, share in zip(LEG_SEGMENTS, shares):
+        shares = segment_support(model, likelihood, observe(views, [m[t] for m in masks]), poses[t], segments)
+        for s, share in zip(segments, shares):
             out[s][t] = share
     return out
 
@@ -55,16 +55,19 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("runs", nargs="+", type=Path)
     parser.add_argument("--below", type=float, default=0.5, help="support counted as missing below this (0-1)")
+    parser.add_argument("--segments", nargs="+", default=list(LEG_SEGMENTS),
+                        help="the body model's segments to judge (default: thighs and shanks)")  # fmt: skip
     args = parser.parse_args(argv)
+    segments = tuple(args.segments)
     for run in args.runs:
         for need in ("trajectories.h5", "track.json", "silhouettes.h5"):
             if not (run / need).is_file():
                 print(f"error: {run / need}: missing (a gaitcap track --save-masks output folder?)", file=sys.stderr)
                 return 1
-    print("| run | lower-limb mm | knee RMSE l, r (deg) | verdict | " + " | ".join(LEG_SEGMENTS) + " |")
-    print("|---|---|---|---|" + "---|" * len(LEG_SEGMENTS))
+    print("| run | lower-limb mm | knee RMSE l, r (deg) | verdict | " + " | ".join(segments) + " |")
+    print("|---|---|---|---|" + "---|" * len(segments))
     for run in args.runs:
-        by_segment = support(run)
+        by_segment = support(run, segments)
         verdict = json.loads((run / "track.json").read_text()).get("verdict", "?")
         mm, knees = "-", "-"
         if (run / "eval.json").is_file():
@@ -72,7 +75,7 @@ def main(argv: list[str] | None = None) -> int:
             mm = f"{e['positions_mm']['lower_limb']['mpjpe_mm']:.1f}"
             knees = f"{e['angles_rmse_deg']['knee_flexion_l']:.1f}, {e['angles_rmse_deg']['knee_flexion_r']:.1f}"
         cells = []
-        for s in LEG_SEGMENTS:
+        for s in segments:
             v = by_segment[s][np.isfinite(by_segment[s])]
             cells.append(f"{np.percentile(v, 10):.2f} ({np.mean(v < args.below):.0%})" if len(v) else "-")
         print(f"| {run.name} | {mm} | {knees} | {verdict} | " + " | ".join(cells) + " |", flush=True)

@@ -14,6 +14,7 @@ from gaitcap import quality
 from gaitcap.errors import ConfigError
 from gaitcap.io.track_h5 import QUALITY_OK, QUALITY_OUT_OF_VIEW, QUALITY_POOR_FIT
 from gaitcap.quality import (
+    FOOT_SEGMENTS,
     assess,
     calibrated_uncertainty,
     crossed_ankles,
@@ -24,6 +25,7 @@ from gaitcap.quality import (
     run_signals,
     stride_frequency,
     turns,
+    unsupported_legs,
 )
 from gaitcap.tracking.config import TrackingConfig, UncertaintyConfig, VerdictConfig, load_tracking_config
 
@@ -468,3 +470,23 @@ def test_legs_the_silhouettes_hold_little_of_in_many_frames_get_a_note_the_verdi
     quiet = assess(points, names, np.full(T, 0.8), quality, HEIGHT, RATE, cfg, UncertaintyConfig(),
                    leg_support={"shank_l": few})  # fmt: skip
     assert not [n for n in quiet.verdict.notes if n.startswith("legs placed where")]
+
+
+def test_feet_the_silhouettes_hold_little_of_get_a_note_of_their_own(walk):
+    """A foot the masks miss in many frames (a shoe of the floor's colour) gets its own note, which says
+    that its heel and toe points and the events follow the leg; it is neither the legs' note nor a
+    leg for ``lost_legs`` (:func:`unsupported_legs` reads the legs alone unless told otherwise)."""
+    points, names = walk
+    quality = np.zeros(len(points), np.uint8)
+    cfg = VerdictConfig()
+    held = np.full(T, 0.9)
+    lost = held.copy()
+    lost[: T // 2] = 0.2
+    support = {"thigh_l": held, "shank_l": held, "foot_l": lost, "foot_r": held}
+    a = assess(points, names, np.full(T, 0.8), quality, HEIGHT, RATE, cfg, UncertaintyConfig(), leg_support=support)
+    assert a.verdict.verdict == "ok" and a.verdict.reasons == ()
+    (note,) = [n for n in a.verdict.notes if n.startswith("feet placed where")]
+    assert f"foot_l in {T // 2} of {T} frames" in note and "foot_r" not in note and "gait events" in note
+    assert not [n for n in a.verdict.notes if n.startswith("legs placed where")]
+    assert unsupported_legs(support, cfg) == {}
+    assert unsupported_legs(support, cfg, FOOT_SEGMENTS) == {"foot_l": (T // 2, T)}

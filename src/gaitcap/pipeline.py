@@ -61,7 +61,7 @@ from gaitcap.tracking.init import estimate_height, initialise, settle_legs, subj
 from gaitcap.tracking.ipf import IntervalPF
 from gaitcap.tracking.likelihood import SilhouetteLikelihood
 from gaitcap.tracking.observation import Observation, tracking_views
-from gaitcap.tracking.support import LEG_SEGMENTS, segment_support
+from gaitcap.tracking.support import FOOT_SEGMENTS, LEG_SEGMENTS, segment_support
 from gaitcap.tracking.raster import warm_up
 from gaitcap.tracking.shape import ShapeResult, average_shapes, calibrate_shape
 from gaitcap.tracking.smoothing import lowpass
@@ -621,12 +621,13 @@ def _check_reused_height(ses: Session, reused: ReusedBody) -> None:
 
 
 def _leg_support(model: BodyModel, likelihood, spool: FrameSpool, poses: np.ndarray) -> dict[str, np.ndarray]:
-    """Each leg segment's support (:func:`gaitcap.tracking.support.segment_support`) in every frame
-    of the spool at its pose (T, D): segment -> (T,), NaN where the frame has no pose."""
-    out = {name: np.full(len(poses), np.nan) for name in LEG_SEGMENTS}
+    """Each leg segment's and foot's support (:func:`gaitcap.tracking.support.segment_support`) in every
+    frame of the spool at its pose (T, D): segment -> (T,), NaN where the frame has no pose."""
+    segments = LEG_SEGMENTS + FOOT_SEGMENTS
+    out = {name: np.full(len(poses), np.nan) for name in segments}
     for t in np.flatnonzero(np.all(np.isfinite(poses), axis=1)):
         obs = Observation.from_arrays(spool.read(t))
-        for name, share in zip(LEG_SEGMENTS, segment_support(model, likelihood, obs, poses[t])):
+        for name, share in zip(segments, segment_support(model, likelihood, obs, poses[t], segments)):
             out[name][t] = share
     return out
 

@@ -111,9 +111,9 @@ class RunSignals:
         moving_backwards: (frames moving against the way the hips face, frames moving, first
             and last frame) of the tracked frames' stretch between turns that does so most
             (:func:`moving_backwards`).
-        leg_support: segment -> (T,) its lowest share over the cameras of drawn pixels on the
-            silhouettes (:func:`gaitcap.tracking.support.segment_support`; NaN: not judged), empty
-            when not measured.
+        leg_support: segment (:data:`LEG_SEGMENTS`, :data:`FOOT_SEGMENTS`) -> (T,) its lowest share
+            over the cameras of drawn pixels on the silhouettes
+            (:func:`gaitcap.tracking.support.segment_support`; NaN: not judged), empty when not measured.
     """
 
     n_frames: int
@@ -516,7 +516,7 @@ def judge(signals: RunSignals, cfg: VerdictConfig) -> RunVerdict:
     if small:
         listed = ", ".join(f"{v:.0f} px in {k}" for k, v in small.items())
         reasons.append(f"the subject is too small in the image ({listed})")
-    notes = _layout_notes(s, cfg) + _direction_notes(s) + _support_notes(s, cfg)
+    notes = _layout_notes(s, cfg) + _direction_notes(s) + _support_notes(s, cfg) + _feet_notes(s, cfg)
     return RunVerdict("doubtful" if reasons else "ok", tuple(reasons), notes)
 
 
@@ -542,12 +542,21 @@ def _layout_notes(s: RunSignals, cfg: VerdictConfig) -> tuple[str, ...]:
     return (note,)
 
 
-def unsupported_legs(leg_support: dict[str, np.ndarray], cfg: VerdictConfig) -> dict[str, tuple[int, int]]:
-    """The leg segments that some camera's silhouette holds less than ``cfg.min_leg_support`` of in
-    more than ``cfg.max_unsupported_fraction`` of the frames where they were judged: segment ->
-    (such frames, frames judged). ``leg_support``: segment -> (T,), as :class:`RunSignals` holds it."""
+#: the segments whose support (:func:`gaitcap.tracking.support.segment_support`) the verdict reads:
+#: the legs (a note, and ``lost_legs``'s second run) ...
+LEG_SEGMENTS = ("thigh_l", "shank_l", "thigh_r", "shank_r")
+#: ... and the feet (a note only: a shoe of the floor's colour and brightness cannot be seen at all)
+FOOT_SEGMENTS = ("foot_l", "foot_r")
+
+
+def unsupported_legs(leg_support: dict[str, np.ndarray], cfg: VerdictConfig,
+                     segments: tuple[str, ...] = LEG_SEGMENTS) -> dict[str, tuple[int, int]]:  # fmt: skip
+    """The ``segments`` (default: the legs') that some camera's silhouette holds less than
+    ``cfg.min_leg_support`` of in more than ``cfg.max_unsupported_fraction`` of the frames where they
+    were judged: segment -> (such frames, frames judged). ``leg_support``: segment -> (T,), as
+    :class:`RunSignals` holds it (segments it does not hold are not judged)."""
     low = {}
-    for name, share in leg_support.items():
+    for name, share in ((k, leg_support[k]) for k in segments if k in leg_support):
         judged = np.isfinite(share)
         n = int(np.sum(share[judged] < cfg.min_leg_support))
         if judged.any() and n > cfg.max_unsupported_fraction * np.sum(judged):
@@ -570,6 +579,19 @@ def _support_notes(s: RunSignals, cfg: VerdictConfig) -> tuple[str, ...]:
     return (f"legs placed where a camera's silhouette has little of them ({listed}: less than "
             f"{100 * cfg.min_leg_support:.0f} % of the segment on the masks): the masks lost them there and the other "
             "cameras and the priors placed them; check the masks (gaitcap track --save-masks)",)
+
+
+def _feet_notes(s: RunSignals, cfg: VerdictConfig) -> tuple[str, ...]:
+    """A note (not a reason) naming the feet that the silhouettes hold little of in many frames
+    (:func:`unsupported_legs` of :data:`FOOT_SEGMENTS`): there the masks do not show the shoes, and
+    the heel and toe points, and the gait events read from them, follow the leg above."""
+    low = unsupported_legs(s.leg_support, cfg, FOOT_SEGMENTS)
+    if not low:
+        return ()
+    return (f"feet placed where a camera's silhouette has little of them ({unsupported_listing(low)}: less than "
+            f"{100 * cfg.min_leg_support:.0f} % of the foot on the masks): the masks do not show the shoes there (a "
+            "shoe of the floor's colour and brightness cannot be told from it), so the heel and toe points, and the "
+            "gait events read from them, follow the legs above; check the masks (gaitcap track --save-masks)",)
 
 
 def _backwards_frames(found: tuple[int, int, int, int]) -> int:

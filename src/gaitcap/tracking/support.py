@@ -3,7 +3,8 @@
 A leg the masks lost in one camera (trousers the floor's colour, taken for shadow) is placed there
 by the other cameras and the priors alone: right or wrong, the silhouettes do not confirm it, and
 neither the fit (the lost leg costs nothing where nothing is expected) nor the legs' order reads
-that. The verdict notes it (:func:`gaitcap.quality.assess`, ``verdict.min_leg_support``).
+that. The verdict notes it (:func:`gaitcap.quality.assess`, ``verdict.min_leg_support``), and the
+same of a foot, whose heel and toe points and gait events then follow the leg above it.
 """
 
 from __future__ import annotations
@@ -11,11 +12,12 @@ from __future__ import annotations
 import numpy as np
 
 from gaitcap.body.model import BodyModel
+from gaitcap.quality import FOOT_SEGMENTS, LEG_SEGMENTS
 from gaitcap.tracking.likelihood import SilhouetteLikelihood
 from gaitcap.tracking.observation import Observation
 
-#: the segments whose support the verdict reads
-LEG_SEGMENTS = ("thigh_l", "shank_l", "thigh_r", "shank_r")
+__all__ = ["FOOT_SEGMENTS", "LEG_SEGMENTS", "MIN_PIXELS", "segment_support"]
+
 
 #: a segment drawn over fewer full-resolution pixels than this in a camera (out of view, seen end-on)
 #: is not judged there
