@@ -34,24 +34,13 @@ import numpy as np
 from gaitcap.evaluation.report import read_truth_reference
 from gaitcap.evaluation.silhouettes import part_centres, part_pixels, project_part
 from gaitcap.io.calibration_toml import read_calibration
+from gaitcap.silhouette.run import read_plate
+from gaitcap.video import read_frames
 
 #: shares of a missed foot's pixels that stand out, below which it is camouflaged, above which visible
 CAMOUFLAGED, VISIBLE = 0.25, 0.6
 #: the true mask is grown by this many pixels on each side before the floor around a foot is taken
 MARGIN_PX = 3
-
-
-def read_frame(path: Path, k: int) -> np.ndarray:
-    """Frame k (H, W, 3) BGR of the video at ``path``."""
-    cap = cv2.VideoCapture(str(path))
-    try:
-        cap.set(cv2.CAP_PROP_POS_FRAMES, k)
-        ok, img = cap.read()
-    finally:
-        cap.release()
-    if not ok:
-        raise SystemExit(f"{path}: frame {k} could not be read")
-    return img
 
 
 def standing_out(diff: np.ndarray, missed: np.ndarray, floor: np.ndarray, sigma: float) -> float | None:
@@ -76,15 +65,21 @@ def foot_shares(work: Path, row: dict, sigma: float) -> list[float]:
     rig = read_calibration(session / "calibration.toml")
     centres = part_centres(read_truth_reference(session / "truth.h5").trajectory)
     grow = np.ones((2 * MARGIN_PX + 1, 2 * MARGIN_PX + 1), np.uint8)
+    by_camera: dict[str, list[tuple[str, int]]] = {}
+    for part, items in missed.items():
+        for item in items:
+            cam, k = item.rsplit(":", 1)
+            by_camera.setdefault(cam, []).append((part, int(k)))
     shares = []
     with h5py.File(session / "truth.h5", "r") as truth, h5py.File(run / "silhouettes.h5", "r") as masks:
-        for part, items in missed.items():
-            for item in items:
-                cam, k = item.rsplit(":", 1)
-                true, ours = truth["masks"][cam][int(k)] > 0, masks["masks"][cam][int(k)] > 0
-                pix, radius = project_part(rig[cam], centres[part][int(k) : int(k) + 1], part)
+        for cam, feet in by_camera.items():
+            plate = read_plate(session / "background" / f"{cam}.png").astype(float)
+            frames = read_frames(session / "videos" / f"{cam}.mp4", [k for _, k in feet])
+            for part, k in feet:
+                true, ours = truth["masks"][cam][k] > 0, masks["masks"][cam][k] > 0
+                pix, radius = project_part(rig[cam], centres[part][k : k + 1], part)
                 found = part_pixels(true.astype(np.uint8), pix[0], radius[0])
-                if found is None:
+                if found is None or k not in frames:
                     continue
                 box, inside = found
                 foot = np.zeros_like(true)
@@ -93,9 +88,7 @@ def foot_shares(work: Path, row: dict, sigma: float) -> list[float]:
                 floor = np.zeros_like(true)
                 floor[max(box[0].start - r, 0) : box[0].stop + r, max(box[1].start - r, 0) : box[1].stop + r] = True
                 floor &= ~cv2.dilate(true.astype(np.uint8), grow).astype(bool)
-                plate = cv2.imread(str(session / "background" / f"{cam}.png")).astype(float)
-                diff = read_frame(session / "videos" / f"{cam}.mp4", int(k)).astype(float) - plate
-                share = standing_out(diff, foot & ~ours, floor, sigma)
+                share = standing_out(frames[k].astype(float) - plate, foot & ~ours, floor, sigma)
                 if share is not None:
                     shares.append(share)
     return shares
