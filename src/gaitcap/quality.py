@@ -516,7 +516,7 @@ def judge(signals: RunSignals, cfg: VerdictConfig) -> RunVerdict:
     if small:
         listed = ", ".join(f"{v:.0f} px in {k}" for k, v in small.items())
         reasons.append(f"the subject is too small in the image ({listed})")
-    notes = _layout_notes(s, cfg) + _direction_notes(s) + _support_notes(s, cfg) + _feet_notes(s, cfg)
+    notes = _layout_notes(s, cfg) + _direction_notes(s) + _support_notes(s, cfg)
     return RunVerdict("doubtful" if reasons else "ok", tuple(reasons), notes)
 
 
@@ -569,29 +569,29 @@ def unsupported_listing(low: dict[str, tuple[int, int]]) -> str:
     return ", ".join(f"{k} in {n} of {m} frames" for k, (n, m) in low.items())
 
 
+#: the support notes (:func:`_support_notes`): the segments judged, what they are called, the unit
+#: a share is of, and what the masks' loss means for them
+_SUPPORT_NOTES = (
+    (LEG_SEGMENTS, "legs", "segment",
+     "the masks lost them there and the other cameras and the priors placed them"),
+    (FOOT_SEGMENTS, "feet", "foot",
+     "the masks do not show the shoes there (a shoe of the floor's colour and brightness cannot be told from it), "
+     "so the heel and toe points, and the gait events read from them, follow the legs above"),
+)  # fmt: skip
+
+
 def _support_notes(s: RunSignals, cfg: VerdictConfig) -> tuple[str, ...]:
-    """A note (not a reason) naming the :func:`unsupported_legs`: there the other cameras and the
-    priors placed them, right or wrong."""
-    low = unsupported_legs(s.leg_support, cfg)
-    if not low:
-        return ()
-    listed = unsupported_listing(low)
-    return (f"legs placed where a camera's silhouette has little of them ({listed}: less than "
-            f"{100 * cfg.min_leg_support:.0f} % of the segment on the masks): the masks lost them there and the other "
-            "cameras and the priors placed them; check the masks (gaitcap track --save-masks)",)
-
-
-def _feet_notes(s: RunSignals, cfg: VerdictConfig) -> tuple[str, ...]:
-    """A note (not a reason) naming the feet that the silhouettes hold little of in many frames
-    (:func:`unsupported_legs` of :data:`FOOT_SEGMENTS`): there the masks do not show the shoes, and
-    the heel and toe points, and the gait events read from them, follow the leg above."""
-    low = unsupported_legs(s.leg_support, cfg, FOOT_SEGMENTS)
-    if not low:
-        return ()
-    return (f"feet placed where a camera's silhouette has little of them ({unsupported_listing(low)}: less than "
-            f"{100 * cfg.min_leg_support:.0f} % of the foot on the masks): the masks do not show the shoes there (a "
-            "shoe of the floor's colour and brightness cannot be told from it), so the heel and toe points, and the "
-            "gait events read from them, follow the legs above; check the masks (gaitcap track --save-masks)",)
+    """A note (not a reason) for the legs, and one for the feet, naming those the silhouettes hold
+    little of in many frames (:func:`unsupported_legs`): there the other cameras and the priors
+    placed them, right or wrong, and a foot's heel and toe points and gait events follow its leg."""
+    notes = []
+    for segments, what, unit, meaning in _SUPPORT_NOTES:
+        low = unsupported_legs(s.leg_support, cfg, segments)
+        if low:
+            notes.append(f"{what} placed where a camera's silhouette has little of them ({unsupported_listing(low)}: "
+                         f"less than {100 * cfg.min_leg_support:.0f} % of the {unit} on the masks): {meaning}; check "
+                         "the masks (gaitcap track --save-masks)")  # fmt: skip
+    return tuple(notes)
 
 
 def _backwards_frames(found: tuple[int, int, int, int]) -> int:
