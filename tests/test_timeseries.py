@@ -36,6 +36,22 @@ def test_each_run_is_filtered_on_its_own_and_short_runs_are_kept():
     assert y.shape == x.shape and y.dtype == np.float64
 
 
+@pytest.mark.parametrize("layout", ["points picked by a list", "transposed", "Fortran order"])
+def test_any_memory_layout_is_filtered(layout):
+    """The input's memory layout does not matter: a (T, P, 3) array taken with a list of points (numpy
+    lays such a result out point-major), a transposed view or a Fortran-ordered array is filtered as its
+    C copy is (such inputs once came back unfiltered: the rows were filtered in a copy)."""
+    rng = np.random.default_rng(1)
+    points = rng.standard_normal((60, 5, 3)).cumsum(axis=0)
+    x = {"points picked by a list": points[:, [0, 2, 3]], "transposed": points.transpose(0, 2, 1),
+         "Fortran order": np.asfortranarray(points)}[layout]
+    assert not x.flags["C_CONTIGUOUS"]
+    sos = butter(4, 0.3, output="sos")
+    y = filtfilt_runs(x, sos)
+    np.testing.assert_array_equal(y, filtfilt_runs(np.ascontiguousarray(x), sos))
+    assert not np.allclose(y, x)
+
+
 @pytest.mark.parametrize("order", [2, 4])
 def test_tracking_smoothing_is_minus_3_db_at_its_cut_off(order):
     """Two passes of the Butterworth, each designed at cutoff / C, leave a sine at the cut-off at

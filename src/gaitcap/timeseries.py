@@ -28,7 +28,7 @@ def filtfilt_runs(x: np.ndarray, sos: np.ndarray) -> np.ndarray:
     """
     from scipy.signal import sosfiltfilt  # here, not at start-up (gaitcap.pipeline._import_late)
 
-    out = np.array(x, dtype=np.float64, copy=True)
+    out = np.array(x, dtype=np.float64, copy=True, order="C")  # C order: ``flat`` is a view of it, not a copy
     flat = out.reshape(len(out), -1)
     pad = 3 * (2 * len(sos) + 1)
     for start, stop in finite_runs(np.all(np.isfinite(flat), axis=1)):
