@@ -258,7 +258,7 @@ class ShapeConfig(Strict):
 
 
 class SmoothingConfig(Strict):
-    cutoff_hz: float | None = Field(default=6.0, gt=0)
+    cutoff_hz: float | None = Field(default=4.5, gt=0)
     order: int = Field(default=4, ge=1, le=8)
 
 
