@@ -75,3 +75,25 @@ def test_tracking_smoothing_is_minus_3_db_at_its_cut_off(order):
 def test_tracking_smoothing_refuses_a_cut_off_at_or_above_nyquist():
     with pytest.raises(ValueError, match="Nyquist"):
         track_lowpass(np.zeros((40, 3)), RATE, 12.5)
+
+
+def test_written_points_are_smoothed_at_the_shipped_cut_off_and_not_at_or_above_nyquist(caplog):
+    """The trajectories gaitcap track writes: flagged frames NaN, the rest low-passed at the shipped
+    cut-off; at a frame rate whose half is not above the cut-off, written unfiltered with a warning
+    naming the key."""
+    from gaitcap.io.track_h5 import QUALITY_OK, QUALITY_POOR_FIT
+    from gaitcap.pipeline import _finish_points
+    from gaitcap.tracking.config import load_tracking_config
+
+    cfg = load_tracking_config()
+    raw = np.random.default_rng(2).standard_normal((50, 4, 3)).cumsum(axis=0)
+    quality = np.full(50, QUALITY_OK)
+    quality[20] = QUALITY_POOR_FIT
+    points, note = _finish_points(raw, quality, RATE, cfg)
+    assert np.all(np.isnan(points[20])) and f"cut-off {cfg.smoothing.cutoff_hz} Hz" in note
+    np.testing.assert_allclose(points[:20], track_lowpass(raw[:20], RATE, cfg.smoothing.cutoff_hz, cfg.smoothing.order))
+    slow = 1.9 * cfg.smoothing.cutoff_hz  # frames per second: its half is below the cut-off
+    with caplog.at_level("WARNING"):
+        points, note = _finish_points(raw, quality, slow, cfg)
+    assert note == "none" and "smoothing.cutoff_hz" in caplog.text
+    np.testing.assert_array_equal(np.delete(points, 20, axis=0), np.delete(raw, 20, axis=0))

@@ -1157,10 +1157,14 @@ def _merged_points(forward: np.ndarray, chosen: dict) -> np.ndarray:
 
 
 def _finish_points(raw: np.ndarray, quality: np.ndarray, rate_hz: float, cfg: TrackingConfig) -> tuple[np.ndarray, str]:
-    """Flagged frames -> NaN, then the optional zero-lag low-pass filter."""
+    """Flagged frames -> NaN, then the optional zero-lag low-pass filter (none, with a warning, where its
+    cut-off is not below half the frame rate: such videos hold nothing above it to filter)."""
     points = raw.copy()
     points[quality != QUALITY_OK] = np.nan
     cutoff = cfg.smoothing.cutoff_hz
+    if cutoff is not None and cutoff >= rate_hz / 2:
+        log.warning("smoothing.cutoff_hz %g Hz is not below half the videos' frame rate (%g fps): the trajectories "
+                    "are written unfiltered", cutoff, rate_hz)  # fmt: skip
     if cutoff is None or cutoff >= rate_hz / 2:
         return points, "none"
     return lowpass(points, rate_hz, cutoff, cfg.smoothing.order), (
