@@ -1,4 +1,5 @@
-"""The zero-lag filtering shared by the tracking output's smoothing and the gait analysis."""
+"""The zero-lag filtering shared by the tracking output's smoothing and the gait analysis, and the
+smoothing of the trajectories gaitcap track writes."""
 
 from __future__ import annotations
 
@@ -7,7 +8,10 @@ import pytest
 from scipy.signal import butter
 
 from gaitcap.gait.signals import lowpass as gait_lowpass
+from gaitcap.io.track_h5 import QUALITY_OK, QUALITY_POOR_FIT
+from gaitcap.pipeline import _finish_points
 from gaitcap.timeseries import filtfilt_runs, finite_runs
+from gaitcap.tracking.config import load_tracking_config
 from gaitcap.tracking.smoothing import lowpass as track_lowpass
 
 RATE = 25.0
@@ -81,10 +85,6 @@ def test_written_points_are_smoothed_at_the_shipped_cut_off_and_not_at_or_above_
     """The trajectories gaitcap track writes: flagged frames NaN, the rest low-passed at the shipped
     cut-off; at a frame rate whose half is not above the cut-off, written unfiltered with a warning
     naming the key."""
-    from gaitcap.io.track_h5 import QUALITY_OK, QUALITY_POOR_FIT
-    from gaitcap.pipeline import _finish_points
-    from gaitcap.tracking.config import load_tracking_config
-
     cfg = load_tracking_config()
     raw = np.random.default_rng(2).standard_normal((50, 4, 3)).cumsum(axis=0)
     quality = np.full(50, QUALITY_OK)

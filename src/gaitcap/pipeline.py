@@ -1162,10 +1162,11 @@ def _finish_points(raw: np.ndarray, quality: np.ndarray, rate_hz: float, cfg: Tr
     points = raw.copy()
     points[quality != QUALITY_OK] = np.nan
     cutoff = cfg.smoothing.cutoff_hz
-    if cutoff is not None and cutoff >= rate_hz / 2:
+    if cutoff is None:
+        return points, "none"
+    if cutoff >= rate_hz / 2:
         log.warning("smoothing.cutoff_hz %g Hz is not below half the videos' frame rate (%g fps): the trajectories "
                     "are written unfiltered", cutoff, rate_hz)  # fmt: skip
-    if cutoff is None or cutoff >= rate_hz / 2:
         return points, "none"
     return lowpass(points, rate_hz, cutoff, cfg.smoothing.order), (
         f"zero-lag Butterworth low-pass, order {cfg.smoothing.order}, cut-off {cutoff} Hz (filtfilt)")
