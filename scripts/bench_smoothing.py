@@ -5,11 +5,12 @@
 WORK is a ``scripts/bench_suite.py --work`` folder whose runs have finished (``WORK/runs/<name>`` with
 ``trajectories.h5`` and ``eval.json``; sessions under ``WORK/sessions``, the external ones read from
 ``../shared/data/external_sessions``). The smoothing changes only the written points, not the tracking:
-each run's raw estimate (``/points_unfiltered``, NaN where the run flagged the frame) is filtered again
-at each cut-off ("none": not filtered) as ``gaitcap track`` would (``gaitcap.tracking.smoothing.lowpass``,
-order ``--order``), written into a copy of the run under ``--out`` (the other files linked), and scored by
-``gaitcap eval`` as the suite scores it (``bench_suite.evaluate_run``). A run of the suite tracked with the
-cut-off in its configuration gives the same figures (checked: 4.5 Hz, tracker seed 0, 30 of 30 runs equal).
+each run's raw estimate (``/points_unfiltered``, with its ``/quality`` flags) is filtered again at each
+cut-off ("none": not filtered) by the function ``gaitcap track`` writes its points with
+(``gaitcap.pipeline._finish_points``, order ``--order``), written into a copy of the run under ``--out``
+(the other files linked), and scored by ``gaitcap eval`` as the suite scores it (``bench_suite.evaluate_run``).
+A run of the suite tracked with the cut-off in its configuration gives the same figures (checked: 4.5 Hz,
+tracker seed 0, 30 of 30 runs equal).
 
 Printed per cut-off, pooled over the WORK folders: the lower-limb MPJPE's median, 90th percentile, worst
 and mean, runs better / worse by more than 2 mm than at the first cut-off listed, knee flexion RMSE
@@ -34,36 +35,42 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 sys.path.insert(0, str(ROOT / "scripts"))
 
-from bench_suite import SHARED, evaluate_run  # noqa: E402
+from bench_suite import SHARED, evaluate_run, external_sessions  # noqa: E402
 
 from gaitcap.evaluation.compare import align  # noqa: E402
 from gaitcap.evaluation.report import read_tracked, read_truth_reference  # noqa: E402
 from gaitcap.gait.analysis import analyse  # noqa: E402
 from gaitcap.gait.angles import joint_angles  # noqa: E402
-from gaitcap.tracking.smoothing import lowpass  # noqa: E402
+from gaitcap.pipeline import _finish_points  # noqa: E402
+from gaitcap.tracking.config import SmoothingConfig, TrackingConfig, load_tracking_config  # noqa: E402
 
 KNEES = ("knee_flexion_l", "knee_flexion_r")
 
 
-def truth_of(work: Path, name: str) -> Path:
-    """A suite run's truth: its session's truth.h5, or an external session's truth folder."""
-    if name.startswith("ext_"):
-        return SHARED / "external_sessions" / name.removeprefix("ext_") / "truth"
-    return work / "sessions" / name / "truth.h5"
+def truth_of(work: Path, name: str, external: dict[str, Path]) -> Path:
+    """A suite run's truth: an external session's (``external``: name -> truth, as bench_suite.py names
+    them), else its own session's truth.h5."""
+    return external.get(name) or work / "sessions" / name / "truth.h5"
 
 
-def refiltered_copy(run: Path, out: Path, cutoff: str, order: int) -> None:
-    """``out``: ``run``'s files linked, its trajectories.h5 copied with /points filtered again at ``cutoff``."""
+def smoothing(cutoff: str, order: int) -> TrackingConfig:
+    """The shipped tracking configuration with the smoothing at ``cutoff`` (Hz, or "none") and ``order``."""
+    smooth = SmoothingConfig(cutoff_hz=None if cutoff == "none" else float(cutoff), order=order)
+    return load_tracking_config().model_copy(update={"smoothing": smooth})
+
+
+def refiltered_copy(run: Path, out: Path, cfg: TrackingConfig) -> None:
+    """``out``: ``run``'s files linked, its trajectories.h5 copied with /points written again with ``cfg``'s
+    smoothing."""
     out.mkdir(parents=True, exist_ok=True)
     for f in run.iterdir():
         if f.name not in ("trajectories.h5", "eval.json") and not (out / f.name).exists():
             os.symlink(f.resolve(), out / f.name)
     shutil.copy(run / "trajectories.h5", out / "trajectories.h5")
     with h5py.File(out / "trajectories.h5", "r+") as h:
-        rate = float(h["points"].attrs["rate_hz"])
-        raw = h["points_unfiltered"][...]
-        raw[np.isnan(h["points"][...])] = np.nan  # the frames the run flagged
-        h["points"][...] = raw if cutoff == "none" else lowpass(raw, rate, float(cutoff), order)
+        points, _ = _finish_points(h["points_unfiltered"][...], h["quality"][...], float(h["points"].attrs["rate_hz"]),
+                                   cfg)  # fmt: skip
+        h["points"][...] = points
 
 
 def knee_extremes(run: Path, truth: Path) -> tuple[float, float]:
@@ -79,15 +86,16 @@ def knee_extremes(run: Path, truth: Path) -> tuple[float, float]:
     return float(high), float(low)
 
 
-def scored(work: Path, name: str, out: Path, cutoff: str, order: int) -> dict:
-    """The suite's row of ``name``'s run filtered at ``cutoff`` (cached in ``out``), with the knees' extremes."""
+def scored(work: Path, name: str, out: Path, cutoff: str, cfg: TrackingConfig, truth: Path) -> dict:
+    """The suite's row of ``name``'s run filtered at ``cutoff`` by ``cfg`` (cached in ``out``), scored
+    against ``truth``, with the knees' extremes."""
     copy = out / work.name / cutoff / name
     if (copy / "row.json").exists():
         return json.loads((copy / "row.json").read_text())
-    refiltered_copy(work / "runs" / name, copy, cutoff, order)
-    row = evaluate_run(copy, truth_of(work, name))
+    refiltered_copy(work / "runs" / name, copy, cfg)
+    row = evaluate_run(copy, truth)
     if row.get("lower_mm") is not None:
-        row["knee_high_deg"], row["knee_low_deg"] = knee_extremes(copy, truth_of(work, name))
+        row["knee_high_deg"], row["knee_low_deg"] = knee_extremes(copy, truth)
     (copy / "row.json").write_text(json.dumps(row, default=float))
     return row
 
@@ -107,9 +115,12 @@ def main() -> None:
     runs = [(w, p.name) for w in args.work for p in sorted((w / "runs").glob("*")) if (p / "eval.json").exists()]
     if not runs:
         sys.exit("no finished runs under " + ", ".join(str(w / "runs") for w in args.work))
+    shared = (SHARED / "external_sessions").is_dir()
+    external = {r["name"]: r["truth"] for r in external_sessions()} if shared else {}
     table, first = [], None
     for cutoff in args.cutoffs:
-        rows = [scored(w, name, args.out, cutoff, args.order) for w, name in runs]
+        cfg = smoothing(cutoff, args.order)
+        rows = [scored(w, name, args.out, cutoff, cfg, truth_of(w, name, external)) for w, name in runs]
         lower = np.array([np.nan if r.get("lower_mm") is None else r["lower_mm"] for r in rows])
         first = lower if first is None else first
         missed = sum(r.get("events_missed") or 0 for r in rows)
