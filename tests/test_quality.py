@@ -331,6 +331,52 @@ def test_a_walk_that_turns_back_is_judged_apart_on_each_side_of_the_turn(monkeyp
     assert 4 <= exchanged.sum() <= 10 and set(np.flatnonzero(exchanged)) <= set(range(64, 74))
 
 
+def _walk_pivot_walk(exchanged: slice = slice(0)) -> tuple[np.ndarray, tuple[str, ...], int, int]:
+    """Two strides up the room (1.2 m/s), a pivot of 180 degrees on the spot in 1 s (the pelvis
+    still, the legs apart as the walk left them, the body turning), two strides back: points
+    (T, P, 3), names, and the pivot's first and last frames. The legs are exchanged in the
+    ``exchanged`` frames (as :func:`_walking`)."""
+    model = load_body_model(height_m=HEIGHT)
+    walk, pivot = 50, 25
+    n = 2 * walk + pivot
+    phase = 2 * np.pi * np.r_[np.arange(walk), np.full(pivot, walk - 1), np.arange(walk, 2 * walk)] / 25.0
+    Q = np.repeat(model.neutral_pose()[None], n, axis=0)
+    x = 1.2 * np.arange(walk) / RATE
+    Q[:, model.dof_index("pelvis_tx")] = np.r_[x, np.full(pivot, x[-1]), x[-1] - 1.2 * np.arange(1, walk + 1) / RATE]
+    turn = np.r_[np.zeros(walk), np.pi * np.arange(1, pivot + 1) / pivot, np.full(walk, np.pi)]
+    Q[:, model.dof_index("pelvis_rotation")] = turn
+    left, right = model.dof_index("hip_flexion_l"), model.dof_index("hip_flexion_r")
+    Q[:, left] = np.radians(20) * np.sin(phase)
+    Q[:, right] = -Q[:, left]
+    Q[exchanged, left], Q[exchanged, right] = Q[exchanged, right].copy(), Q[exchanged, left].copy()
+    return model.forward(Q), model.point_names, walk, walk + pivot - 1
+
+
+def test_a_pivot_on_the_spot_is_not_judged_for_the_rhythm(monkeypatch):
+    """A walk that stops, pivots half round on the spot and walks back: along the walking line the
+    feet's fore-aft order follows the pivot (the legs apart swing round), not a stride's rhythm,
+    and the frames where the pelvis pauses at the turn are not judged: no frame out of rhythm and
+    the verdict ok (before, frames of the pivot were out of it: the truth of the speed benchmark's
+    turning clip was itself doubtful). Legs exchanged after the pivot are still found."""
+    points, names, first, last = _walk_pivot_walk()
+    n = len(points)
+    at = turns(points, names)
+    assert len(at) == 1 and first <= at[0] <= last + 1, at
+    paused = quality.turning_on_the_spot(points, names, RATE, at)
+    assert first + 3 <= np.flatnonzero(paused).min() and np.flatnonzero(paused).max() <= last - 3
+    assert paused.sum() >= 15
+    assert not out_of_rhythm(points, names, np.ones(n, bool), RATE, 0.05).any()
+    assert _judge(points, names).verdict == "ok"
+    # judged over the pivot (its pause not recognised), frames of it go against the rhythm
+    monkeypatch.setattr(quality, "MIN_SPEED_M_S", -1.0)
+    assert out_of_rhythm(points, names, np.ones(n, bool), RATE, 0.05)[first : last + 1].sum() >= 3
+    assert _judge(points, names).verdict == "doubtful"
+    monkeypatch.undo()
+    points, names, first, last = _walk_pivot_walk(slice(last + 15, last + 25))
+    exchanged = out_of_rhythm(points, names, np.ones(n, bool), RATE, 0.05)
+    assert 4 <= exchanged.sum() <= 10 and set(np.flatnonzero(exchanged)) <= set(range(last + 15, last + 25))
+
+
 def test_a_walk_taken_backwards_turns_where_it_reverses():
     """A walk followed by the same frames backwards (as the speed benchmark's clips loop their video)
     turns once, after the last forward frame; a straight walk shaken by 2 cm (seeded) and a walk on

@@ -43,7 +43,7 @@ from gaitcap.io.track_h5 import (QUALITY_NOT_INITIALISED, QUALITY_OK, QUALITY_OU
                                  TrackWriter, proportions_attrs, read_track_record, tracked_frames)  # fmt: skip
 from gaitcap.io.trc import write_trc
 from gaitcap.prefetch import Head, Prefetched
-from gaitcap.quality import (assess, facing_in_doubt, legs_in_doubt, no_oblique_view, unsupported_legs,
+from gaitcap.quality import (assess, facing_in_doubt, legs_in_doubt, no_oblique_view, pivots, unsupported_legs,
                              unsupported_listing, view_angles)
 from gaitcap.session import CALIBRATION_FILE, Session
 from gaitcap.session_check import SessionVideos, check_session_videos, check_silhouettes_meet
@@ -984,13 +984,16 @@ def _backward_pass(tracker, spool: FrameSpool, writer: TrackWriter, cfg: Trackin
     with ``backward.leg_order``, put right the stretches whose leading leg does not alternate
     (:func:`~gaitcap.tracking.backward.order_legs`). A run whose merged legs the verdict would
     doubt (:func:`~gaitcap.quality.legs_in_doubt`: legs crossed or out of rhythm, or a stretch moving
-    against the way the body faces) is merged again with the backward pass
+    against the way the body faces), or that pauses at a turn (:func:`~gaitcap.quality.pivots`: a pivot
+    on the spot, where the tracker can lose the legs and the rhythm cannot tell), is merged again with
+    the backward pass
     ``restart`` gives (:func:`_restart_pass`), merged with the first
     (:func:`~gaitcap.tracking.backward.merge_passes`), if that leaves no more frames in doubt.
     ``backs``: every run's backward estimates, tracked already (:meth:`BackwardAhead.finish`).
     ``early``: a run whose forward pass moves against the way it faces for a stretch
     (:func:`~gaitcap.quality.facing_in_doubt`: a turn the model did not follow, or a subject walking
-    backwards; the merge, which exchanges legs, does not clear it) has its fresh start begun in a
+    backwards; the merge, which exchanges legs, does not clear it), or pauses at a turn (the merge
+    does not take the turns away), has its fresh start begun in a
     worker thread while it is merged, on the core the merge leaves idle (called as
     ``restart(..., stop=event)``), and stopped if the merged run is not in doubt: the same
     estimates as a fresh start begun after the merge. ``rig``: the cameras; with ``backward.mirror_run``,
@@ -1007,9 +1010,9 @@ def _backward_pass(tracker, spool: FrameSpool, writer: TrackWriter, cfg: Trackin
             pool = stack.enter_context(ThreadPoolExecutor(1, "gaitcap-restart", partial(numba.set_num_threads, 1)))
         for s, e in finite_runs(tracked_frames(quality)):
             begun = None
-            if pool is not None and facing_in_doubt(raw[s:e], names, rate_hz):
-                log.debug("frames %d-%d: the forward pass moves against the way it faces; the fresh start begun "
-                          "beside the merge", s, e - 1)  # fmt: skip
+            if pool is not None and (facing_in_doubt(raw[s:e], names, rate_hz) or pivots(raw[s:e], names, rate_hz)):
+                log.debug("frames %d-%d: the forward pass moves against the way it faces, or pauses at a turn; the "
+                          "fresh start begun beside the merge", s, e - 1)  # fmt: skip
                 begun = _Begun(pool, restart, spool, poses[e - 1], s, e)
             try:
                 replaced += _merge_back(tracker, spool, writer, raw, poses, fit, backs, s, e, cfg, rate_hz, restart,
@@ -1031,11 +1034,12 @@ def _merge_back(tracker, spool: FrameSpool, writer: TrackWriter, raw: np.ndarray
     back = backs[(s, e)] if backs is not None else _tracked_back(tracker, spool, poses[e - 1], s, e)
     with kernel_threads(1) if begun is not None else nullcontext():  # a core each, beside the fresh start
         chosen = _merge_run(tracker, spool, raw, poses, fit, back, s, e, cfg, rate_hz)
-    doubt = 0
+    doubt = paused = 0
     if restart is not None:
-        doubt = legs_in_doubt(_merged_points(raw[s:e], chosen), names, rate_hz, cfg.verdict)
+        merged = _merged_points(raw[s:e], chosen)
+        doubt, paused = legs_in_doubt(merged, names, rate_hz, cfg.verdict), pivots(merged, names, rate_hz)
     second = None
-    if doubt:
+    if doubt or paused:
         second = begun.result() if begun is not None else restart(spool, poses[e - 1], s, e)
     elif begun is not None:
         log.debug("frames %d-%d: no legs in doubt once merged; the fresh start begun beside the merge is not used", s,
@@ -1044,9 +1048,10 @@ def _merge_back(tracker, spool: FrameSpool, writer: TrackWriter, raw: np.ndarray
         back = merge_passes(back, second, legs, cfg.backward.agree_m)
         again = _merge_run(tracker, spool, raw, poses, fit, back, s, e, cfg, rate_hz)
         doubt_again = legs_in_doubt(_merged_points(raw[s:e], again), names, rate_hz, cfg.verdict)
-        log.info("frames %d-%d: legs in doubt in %d frames; the backward pass from a fresh start at the end "
-                 "(%d of %d frames) leaves %d: %s", s, e - 1, doubt, sum(b is c for b, c in zip(back, second)),
-                 e - s, doubt_again, "kept" if doubt_again <= doubt else "not kept")  # fmt: skip
+        log.info("frames %d-%d: legs in doubt in %d frames, %d frames pausing at a turn; the backward pass from a "
+                 "fresh start at the end (%d of %d frames) leaves %d in doubt: %s", s, e - 1, doubt, paused,
+                 sum(b is c for b, c in zip(back, second)), e - s, doubt_again,
+                 "kept" if doubt_again <= doubt else "not kept")  # fmt: skip
         if doubt_again <= doubt:
             chosen = again
     if cfg.backward.mirror_run and rig is not None and no_oblique_view(

@@ -23,7 +23,8 @@ walking person passes:
   ``exchanged_margin_m``. The run is judged in pieces of :data:`RHYTHM_STRIDES` strides, each with
   its own walking line and frequency (the cadence drifts, a walk turns), and apart before and after
   each point where the walk turns back (:func:`turns`: a subject walking up and down the room; the
-  stride's phase starts afresh there);
+  stride's phase starts afresh there); the frames where the pelvis pauses at such a turn (a pivot
+  on the spot, :func:`turning_on_the_spot`) are not judged, nor fitted;
 - the lowest foot point's height above the floor, median over the frames: one foot stands on the
   floor in every frame of a walk (z = 0 in the calibration's world frame); a model floating above
   it, or sunk into it, has collapsed onto something else;
@@ -242,6 +243,19 @@ SPEED_SPAN_S = 0.4
 MIN_STRETCH_S = 1.0
 
 
+def pelvis_velocity(points: np.ndarray, names: tuple[str, ...], rate_hz: float) -> np.ndarray:
+    """(T, 2) m/s: the pelvis's horizontal velocity in points (T, P, 3) sampled at ``rate_hz``, its
+    displacement over :data:`SPEED_SPAN_S` centred on the frame; NaN within half the span of the
+    run's ends and where a point of the span's ends is missing."""
+    half = max(1, round(SPEED_SPAN_S * rate_hz / 2))
+    T = len(points)
+    velocity = np.full((T, 2), np.nan)
+    if T > 2 * half:
+        xy = points[:, names.index("pelvis"), :2]
+        velocity[half:-half] = (xy[2 * half :] - xy[: -2 * half]) * (rate_hz / (2 * half))
+    return velocity
+
+
 def moving_backwards(points: np.ndarray, names: tuple[str, ...], rate_hz: float) -> tuple[int, int, int, int]:
     """Where the tracked body moves against the way its hips face, in points (T, P, 3) sampled at
     ``rate_hz``: (frames moving so, frames moving, first frame, last frame) of the stretch between
@@ -256,13 +270,10 @@ def moving_backwards(points: np.ndarray, names: tuple[str, ...], rate_hz: float)
     none = (0, 0, 0, 0)
     if not {"pelvis", "hip_l", "hip_r"} <= set(names) or _travel_axis(points, names) is None:
         return none
-    half = max(1, round(SPEED_SPAN_S * rate_hz / 2))
+    velocity = pelvis_velocity(points, names, rate_hz)
     T = len(points)
-    if T <= 2 * half:
+    if not np.isfinite(velocity).any():
         return none
-    xy = points[:, names.index("pelvis"), :2]
-    velocity = np.full((T, 2), np.nan)
-    velocity[half:-half] = (xy[2 * half :] - xy[: -2 * half]) * (rate_hz / (2 * half))
     hips = points[:, names.index("hip_l"), :2] - points[:, names.index("hip_r"), :2]
     facing = np.stack([hips[:, 1], -hips[:, 0]], axis=1)
     with np.errstate(invalid="ignore"):
@@ -389,15 +400,37 @@ def out_of_rhythm(points: np.ndarray, names: tuple[str, ...], tracked: np.ndarra
     if tracked.shape != (len(points),):
         raise ValueError(f"tracked must have shape ({len(points)},), got {tracked.shape}")
     pts = np.where(tracked[:, None, None], points, np.nan)
+    at = turns(pts, names)
+    pts[turning_on_the_spot(pts, names, rate_hz, at)] = np.nan
     measured = _separation(pts, names, rate_hz)
     if measured is None:
         return np.zeros(len(points), bool)
     stride = rate_hz / stride_frequency(measured[0] / rate_hz, measured[1])  # frames
     pieces = []
-    for leg in np.split(np.arange(len(points)), turns(pts, names)):
+    for leg in np.split(np.arange(len(points)), at):
         n_pieces = max(1, int(len(leg) // (RHYTHM_STRIDES * stride)))
         pieces += np.array_split(leg, n_pieces)
     return np.concatenate([_piece_out_of_rhythm(pts[idx], names, rate_hz, margin_m) for idx in pieces])
+
+
+def turning_on_the_spot(points: np.ndarray, names: tuple[str, ...], rate_hz: float, at: np.ndarray) -> np.ndarray:
+    """(T,) bool: the frames of points (T, P, 3) sampled at ``rate_hz`` where the pelvis pauses at a
+    turn (``at``: :func:`turns`): the frames either side of each turn whose pelvis moves at less
+    than :data:`MIN_SPEED_M_S` (:func:`pelvis_velocity`), up to the first that moves or has no
+    velocity. A subject who stops and pivots steps round on the spot there: the feet's fore-aft
+    order along the walking line then follows the pivot, not a stride's rhythm."""
+    out = np.zeros(len(points), bool)
+    if not len(at):
+        return out
+    with np.errstate(invalid="ignore"):
+        still = np.linalg.norm(pelvis_velocity(points, names, rate_hz), axis=1) < MIN_SPEED_M_S
+    for k in at:
+        for frames in (range(k - 1, -1, -1), range(k, len(points))):
+            for i in frames:
+                if not still[i]:
+                    break
+                out[i] = True
+    return out
 
 
 def turns(points: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
@@ -474,6 +507,14 @@ def legs_in_doubt(points: np.ndarray, names: tuple[str, ...], rate_hz: float, cf
     doubt_crossed, doubt_exchanged = _leg_doubts(signals, cfg)
     backwards = facing_in_doubt(points, names, rate_hz)
     return doubt_crossed * signals.n_crossed + doubt_exchanged * signals.n_exchanged + backwards
+
+
+def pivots(points: np.ndarray, names: tuple[str, ...], rate_hz: float) -> int:
+    """How many frames of points (T, P, 3) sampled at ``rate_hz`` pause at a turn
+    (:func:`turning_on_the_spot`): a pivot, where the tracker can lose the legs and the stride's
+    rhythm cannot tell (:func:`out_of_rhythm` does not judge those frames)."""
+    points = np.asarray(points, float)
+    return int(turning_on_the_spot(points, names, rate_hz, turns(points, names)).sum())
 
 
 def facing_in_doubt(points: np.ndarray, names: tuple[str, ...], rate_hz: float) -> int:
