@@ -465,15 +465,17 @@ class _FakeWriter:
 
 
 @pytest.mark.parametrize(
-    "doubts, second, restarted, kept",
-    [([0], True, False, "first"), ([4, 3], True, True, "second"), ([4, 4], True, True, "second"),
-     ([4, 5], True, True, "first"), ([4], False, True, "first")],
+    "doubts, second, restarted, kept, paused",
+    [([0], True, False, "first", 0), ([4, 3], True, True, "second", 0), ([4, 4], True, True, "second", 0),
+     ([4, 5], True, True, "first", 0), ([4], False, True, "first", 0), ([0, 0], True, True, "second", 20),
+     ([0, 1], True, True, "first", 20)],
 )  # fmt: skip
 def test_a_second_hypothesis_only_for_a_run_in_doubt_and_kept_if_no_worse(monkeypatch, doubts, second, restarted,
-                                                                          kept):  # fmt: skip
+                                                                          kept, paused):  # fmt: skip
     """backward.restart's gate: the fresh start is asked for only when the merged run's legs are in
-    doubt (legs_in_doubt > 0), with the forward pass's last pose and the run's bounds; its merge
-    replaces the first only if it leaves no more frames in doubt; none to be had (None) keeps the first."""
+    doubt (legs_in_doubt > 0) or it pauses at a turn (pivots > 0), with the forward pass's last pose
+    and the run's bounds; its merge replaces the first only if it leaves no more frames in doubt (the
+    pauses not counted); none to be had (None) keeps the first."""
     from gaitcap import pipeline
     from gaitcap.tracking.base import Estimate
 
@@ -481,6 +483,7 @@ def test_a_second_hypothesis_only_for_a_run_in_doubt_and_kept_if_no_worse(monkey
     cfg = load_tracking_config()
     doubt = iter(doubts)
     monkeypatch.setattr(pipeline, "legs_in_doubt", lambda points, names, rate, vcfg: next(doubt))
+    monkeypatch.setattr(pipeline, "pivots", lambda points, names, rate: paused)
     marker = {"first": np.full(3, 1.0), "second": np.full(3, 2.0)}
     merges = []
 
@@ -509,15 +512,17 @@ def test_a_second_hypothesis_only_for_a_run_in_doubt_and_kept_if_no_worse(monkey
 
 
 @pytest.mark.parametrize(
-    "facing, doubts, begun, used",
-    [(30, [4, 3], True, True), (30, [0], True, False), (0, [4, 3], False, True), (0, [0], False, False)],
+    "facing, paused, doubts, begun, used",
+    [(30, 0, [4, 3], True, True), (30, 0, [0], True, False), (0, 0, [4, 3], False, True), (0, 0, [0], False, False),
+     (0, 20, [0, 0], True, True)],
 )  # fmt: skip
-def test_a_fresh_start_begun_beside_the_merge_is_used_only_if_the_merged_run_is_in_doubt(monkeypatch, facing, doubts,
-                                                                                         begun, used):  # fmt: skip
+def test_a_fresh_start_begun_beside_the_merge_is_used_only_if_the_merged_run_is_in_doubt(monkeypatch, facing, paused,
+                                                                                         doubts, begun, used):  # fmt: skip
     """``early``: the fresh start is begun in a worker thread before the merge when the forward pass
-    moves against the way it faces (facing_in_doubt > 0), with the arguments a call after the merge
-    gets; its result is taken when the merged run is in doubt (legs_in_doubt), and it is told to stop
-    otherwise; any other run gets it after the merge, as without ``early``."""
+    moves against the way it faces (facing_in_doubt > 0) or pauses at a turn (pivots > 0), with the
+    arguments a call after the merge gets; its result is taken when the merged run is in doubt
+    (legs_in_doubt) or pauses, and it is told to stop otherwise; any other run gets it after the
+    merge, as without ``early``."""
     import threading
 
     from gaitcap import pipeline
@@ -528,6 +533,7 @@ def test_a_fresh_start_begun_beside_the_merge_is_used_only_if_the_merged_run_is_
     doubt = iter(doubts)
     monkeypatch.setattr(pipeline, "legs_in_doubt", lambda points, names, rate, vcfg: next(doubt))
     monkeypatch.setattr(pipeline, "facing_in_doubt", lambda points, names, rate: facing)
+    monkeypatch.setattr(pipeline, "pivots", lambda points, names, rate: paused)
     monkeypatch.setattr(pipeline, "_merge_run", lambda *a: {0: Estimate(np.zeros(3), np.zeros((P, 3)), np.zeros(P), 0.0,
                                                                         0.8, 1)})  # fmt: skip
     calls, stops = [], []

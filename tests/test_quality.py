@@ -365,6 +365,9 @@ def test_a_pivot_on_the_spot_is_not_judged_for_the_rhythm(monkeypatch):
     paused = quality.turning_on_the_spot(points, names, RATE, at)
     assert first + 3 <= np.flatnonzero(paused).min() and np.flatnonzero(paused).max() <= last - 3
     assert paused.sum() >= 15
+    # the restart's gate counts those frames (quality.pivots); a straight walk has none
+    assert quality.pivots(points, names, RATE) == paused.sum()
+    assert quality.pivots(*_walking(2 * np.pi * np.arange(n) / 25.0), RATE) == 0
     assert not out_of_rhythm(points, names, np.ones(n, bool), RATE, 0.05).any()
     assert _judge(points, names).verdict == "ok"
     # judged over the pivot (its pause not recognised), frames of it go against the rhythm
