@@ -11,6 +11,7 @@ from gaitcap.body.model import load_body_model
 from gaitcap.camera import Camera, CameraRig
 from gaitcap.config import load_yaml_model
 from gaitcap import quality
+from gaitcap.gait import passes
 from gaitcap.errors import ConfigError
 from gaitcap.io.track_h5 import QUALITY_OK, QUALITY_OUT_OF_VIEW, QUALITY_POOR_FIT
 from gaitcap.quality import (
@@ -191,7 +192,7 @@ def test_a_body_moving_against_the_way_it_faces_is_noted(walk):
     backwards = _judge(points[::-1].copy(), names)
     assert backwards.verdict == "ok", backwards.reasons
     assert len(backwards.notes) == 1 and "moves backwards" in backwards.notes[0], backwards.notes
-    half = round(quality.SPEED_SPAN_S * RATE / 2)
+    half = round(passes.SPEED_SPAN_S * RATE / 2)
     assert f"in {T - 2 * half} of the {T - 2 * half} frames where it moves in frames 0-{T - 1}" in backwards.notes[0]
     on_the_spot = points.copy()
     on_the_spot[..., 0] -= points[:, :1, 0] - points[:, 0, 0].mean()
@@ -324,7 +325,7 @@ def test_a_walk_that_turns_back_is_judged_apart_on_each_side_of_the_turn(monkeyp
     tracked = np.ones(n, bool)
     assert not out_of_rhythm(turned, names, tracked, RATE, 0.05).any()
     # the same frames judged as one piece (no turn found): many of them against the rhythm
-    monkeypatch.setattr(quality, "TURN_M", 1e9)
+    monkeypatch.setattr(passes, "TURN_M", 1e9)
     assert out_of_rhythm(turned, names, tracked, RATE, 0.05).sum() >= 10
     monkeypatch.undo()
     exchanged = out_of_rhythm(_turned_back(_walking(phase, slice(64, 74))[0], names, at), names, tracked, RATE, 0.05)
@@ -371,7 +372,7 @@ def test_a_pivot_on_the_spot_is_not_judged_for_the_rhythm(monkeypatch):
     assert not out_of_rhythm(points, names, np.ones(n, bool), RATE, 0.05).any()
     assert _judge(points, names).verdict == "ok"
     # judged over the pivot (its pause not recognised), frames of it go against the rhythm
-    monkeypatch.setattr(quality, "MIN_SPEED_M_S", -1.0)
+    monkeypatch.setattr(passes, "MIN_SPEED_M_S", -1.0)
     assert out_of_rhythm(points, names, np.ones(n, bool), RATE, 0.05)[first : last + 1].sum() >= 3
     assert _judge(points, names).verdict == "doubtful"
     monkeypatch.undo()

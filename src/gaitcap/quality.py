@@ -41,7 +41,8 @@ walking person passes:
   for a walk on the spot (a treadmill);
 - (a note too) whether the tracked body faces against its motion: the way the hips face (their
   axis turned a quarter-turn about the vertical, the left hip on the left) against the pelvis's
-  horizontal velocity, over the frames where it moves at :data:`MIN_SPEED_M_S` or more. A subject
+  horizontal velocity, over the frames where it moves at
+  :data:`~gaitcap.gait.passes.MIN_SPEED_M_S` or more. A subject
   walking backwards does (a rehabilitation exercise); a subject walking forwards does only if the
   model faces the wrong way, which the legs' rhythm does not reveal (a body facing backwards bends
   its knees to mimic the stride).
@@ -74,6 +75,8 @@ import numpy as np
 
 from gaitcap.body.measures import model_lengths, segment_lengths
 from gaitcap.body.model import load_body_model
+from gaitcap.gait import passes
+from gaitcap.gait.passes import MIN_SPEED_M_S, travel_axis
 from gaitcap.io.track_h5 import QUALITY_OK, tracked_frames
 from gaitcap.tracking.smoothing import lowpass
 
@@ -197,15 +200,10 @@ def _segment_ratios(points: np.ndarray, names: tuple[str, ...], height_m: float)
             if seg in per_side[side]}  # fmt: skip
 
 
-#: a pelvis travelling less than this (metres) along its principal axis walks on the spot (a
-#: treadmill): its walking line is then the way the hips face
-MIN_TRAVEL_M = 0.5
-
-
 def walking_line(points: np.ndarray, names: tuple[str, ...]) -> np.ndarray | None:
     """Unit horizontal vector (2,) of the walking line of points (T, P, 3): the principal horizontal
-    axis of the pelvis positions when they travel :data:`MIN_TRAVEL_M` or more along it, else the
-    perpendicular of the hips' mean horizontal axis (walking on the spot); None when neither can
+    axis of the pelvis positions when they travel (:func:`gaitcap.gait.passes.travel_axis`), else
+    the perpendicular of the hips' mean horizontal axis (walking on the spot); None when neither can
     be measured (NaN frames ignored)."""
     axis = _travel_axis(points, names)
     if axis is not None:
@@ -220,23 +218,8 @@ def walking_line(points: np.ndarray, names: tuple[str, ...]) -> np.ndarray | Non
 
 
 def _travel_axis(points: np.ndarray, names: tuple[str, ...]) -> np.ndarray | None:
-    """Unit horizontal vector (2,): the principal horizontal axis of the pelvis positions of points
-    (T, P, 3) (NaN frames ignored) when they travel :data:`MIN_TRAVEL_M` or more along it, else None."""
-    if "pelvis" not in names:
-        return None
-    xy = points[:, names.index("pelvis"), :2]
-    xy = xy[np.all(np.isfinite(xy), axis=1)]
-    if len(xy) < 2:
-        return None
-    centred = xy - xy.mean(axis=0)
-    axis = np.linalg.svd(centred, full_matrices=False)[2][0]
-    return axis if np.ptp(centred @ axis) >= MIN_TRAVEL_M else None
-
-
-#: the pelvis moves when its horizontal speed is at least this (m/s; a slow walk is 0.4-0.8)
-MIN_SPEED_M_S = 0.2
-#: the pelvis's velocity is its displacement over this span (seconds), centred on the frame
-SPEED_SPAN_S = 0.4
+    """:func:`gaitcap.gait.passes.travel_axis` of the pelvis of points (T, P, 3); None without one."""
+    return travel_axis(points[:, names.index("pelvis"), :2]) if "pelvis" in names else None
 
 
 #: a stretch between turns is judged for moving backwards when it moves in this many seconds of frames
@@ -244,16 +227,8 @@ MIN_STRETCH_S = 1.0
 
 
 def pelvis_velocity(points: np.ndarray, names: tuple[str, ...], rate_hz: float) -> np.ndarray:
-    """(T, 2) m/s: the pelvis's horizontal velocity in points (T, P, 3) sampled at ``rate_hz``, its
-    displacement over :data:`SPEED_SPAN_S` centred on the frame; NaN within half the span of the
-    run's ends and where a point of the span's ends is missing."""
-    half = max(1, round(SPEED_SPAN_S * rate_hz / 2))
-    T = len(points)
-    velocity = np.full((T, 2), np.nan)
-    if T > 2 * half:
-        xy = points[:, names.index("pelvis"), :2]
-        velocity[half:-half] = (xy[2 * half :] - xy[: -2 * half]) * (rate_hz / (2 * half))
-    return velocity
+    """(T, 2) m/s: :func:`gaitcap.gait.passes.pelvis_velocity` of the pelvis of points (T, P, 3)."""
+    return passes.pelvis_velocity(points[:, names.index("pelvis"), :2], rate_hz)
 
 
 def moving_backwards(points: np.ndarray, names: tuple[str, ...], rate_hz: float) -> tuple[int, int, int, int]:
@@ -261,10 +236,10 @@ def moving_backwards(points: np.ndarray, names: tuple[str, ...], rate_hz: float)
     ``rate_hz``: (frames moving so, frames moving, first frame, last frame) of the stretch between
     turns (:func:`turns`) with the largest share of such frames, among those that move in
     :data:`MIN_STRETCH_S` of frames or more; (0, 0, 0, 0) without one. The velocity is the pelvis's
-    horizontal displacement over :data:`SPEED_SPAN_S` centred on the frame, moving at
-    :data:`MIN_SPEED_M_S` or more; the hips face (y, -x) of the left-minus-right hip (x, y) (z up).
-    NaN frames count as neither; a pelvis that travels less than :data:`MIN_TRAVEL_M` moves in no
-    frame (a walk on the spot, whose sway and jitter a 0.4 s span can take for motion). A subject
+    (:func:`pelvis_velocity`), moving at :data:`~gaitcap.gait.passes.MIN_SPEED_M_S` or more; the hips
+    face (y, -x) of the left-minus-right hip (x, y) (z up). NaN frames count as neither; a pelvis
+    without a travel axis (:func:`gaitcap.gait.passes.travel_axis`) moves in no frame (a walk on the
+    spot, whose sway and jitter a 0.4 s span can take for motion). A subject
     who turns round while the model keeps facing the first way moves backwards after the turn only:
     hence the stretches."""
     none = (0, 0, 0, 0)
@@ -311,10 +286,6 @@ STRIDE_HZ = (0.3, 1.6)
 STRIDE_HZ_STEP = 0.005
 #: a run is judged for its rhythm in pieces of about this many strides (at least one piece)
 RHYTHM_STRIDES = 3
-#: metres the pelvis travels back along the walking line, and had travelled forth, where the walk
-#: turns (:func:`turns`); a walk never takes the pelvis backwards (the tracked pelvis of the suite's
-#: walks goes back 1 cm at most: docs/validation.md)
-TURN_M = 0.1
 #: a frame's fore-aft order is judged where the rhythm puts the legs beyond this fraction of their
 #: largest separation (0.5: 60 degrees of phase either side of a peak)
 APART = 0.5
@@ -415,41 +386,17 @@ def out_of_rhythm(points: np.ndarray, names: tuple[str, ...], tracked: np.ndarra
 
 def turning_on_the_spot(points: np.ndarray, names: tuple[str, ...], rate_hz: float, at: np.ndarray) -> np.ndarray:
     """(T,) bool: the frames of points (T, P, 3) sampled at ``rate_hz`` where the pelvis pauses at a
-    turn (``at``: :func:`turns`): the frames either side of each turn whose pelvis moves at less
-    than :data:`MIN_SPEED_M_S` (:func:`pelvis_velocity`), up to the first that moves or has no
-    velocity. A subject who stops and pivots steps round on the spot there: the feet's fore-aft
-    order along the walking line then follows the pivot, not a stride's rhythm."""
-    out = np.zeros(len(points), bool)
-    if not len(at):
-        return out
-    with np.errstate(invalid="ignore"):
-        still = np.linalg.norm(pelvis_velocity(points, names, rate_hz), axis=1) < MIN_SPEED_M_S
-    for k in at:
-        for frames in (range(k - 1, -1, -1), range(k, len(points))):
-            for i in frames:
-                if not still[i]:
-                    break
-                out[i] = True
-    return out
+    turn (``at``: :func:`turns`; :func:`gaitcap.gait.passes.paused_at_turns`). A subject who stops
+    and pivots steps round on the spot there: the feet's fore-aft order along the walking line then
+    follows the pivot, not a stride's rhythm."""
+    return passes.paused_at_turns(points[:, names.index("pelvis"), :2], rate_hz, at)
 
 
 def turns(points: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
     """(K,) int, increasing: the frames of points (T, P, 3) just after each point where the walk
-    turns back: the pelvis, having travelled :data:`TURN_M` or more one way along the walking line,
-    travels as far back (a peak of its position along the line with that prominence). A turn
-    restarts the stride's phase: before and after it the fore-aft rhythm is judged apart. Empty
-    without a pelvis that travels :data:`MIN_TRAVEL_M` (a walk on the spot, whose pelvis sways fore and
-    aft, has no turns); NaN frames ignored."""
-    from scipy.signal import find_peaks  # here, not at start-up (gaitcap.pipeline._import_late)
-
-    line = _travel_axis(points, names)
-    if line is None:
-        return np.zeros(0, int)
-    xy = points[:, names.index("pelvis"), :2]
-    frames = np.flatnonzero(np.all(np.isfinite(xy), axis=1))
-    along = xy[frames] @ line
-    peaks = np.concatenate([find_peaks(sign * along, prominence=TURN_M)[0] for sign in (1.0, -1.0)])
-    return np.sort(frames[peaks]) + 1
+    turns back (:func:`gaitcap.gait.passes.turns` of the pelvis). A turn restarts the stride's phase:
+    before and after it the fore-aft rhythm is judged apart. Empty without a pelvis."""
+    return passes.turns(points[:, names.index("pelvis"), :2]) if "pelvis" in names else np.zeros(0, int)
 
 
 def _image_heights(points: np.ndarray, rig: CameraRig | None) -> dict[str, float]:

@@ -1,0 +1,106 @@
+"""A clip's passes along the walkway, from the pelvis's horizontal path.
+
+A subject walking up and down a room turns back at each end, often stopping to pivot on the spot. A
+*turn* is a peak of the pelvis's position along its travel axis (the principal axis of its
+horizontal positions) with a prominence of :data:`TURN_M`: the pelvis went that far one way and as
+far back. A walk never takes the pelvis backwards (the tracked pelvis of the suite's walks goes back
+1 cm at most: docs/validation.md), and a walk on the spot (a treadmill, the pelvis travelling less
+than :data:`MIN_TRAVEL_M`) has no turns. Around each turn, the frames whose pelvis moves at less than
+:data:`MIN_SPEED_M_S` (its displacement over :data:`SPEED_SPAN_S`) *pause* there: a pivot, where the
+feet step round and follow no stride.
+
+A *pass* is the stretch between two turns (or a clip's end), its pauses left out: a straight walk
+with its own direction of progression, as a gait lab's clip of one crossing is. Everything here reads
+a pelvis path xy (T, 2) metres (NaN frames ignored) sampled at ``rate_hz``; the verdict
+(:mod:`gaitcap.quality`) and the gait analysis (:mod:`gaitcap.gait.analysis`) both use it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: a pelvis travelling less than this (metres) along its principal axis walks on the spot (a treadmill)
+MIN_TRAVEL_M = 0.5
+#: metres the pelvis travels back along its travel axis, and had travelled forth, where the walk turns
+TURN_M = 0.1
+#: the pelvis moves when its horizontal speed is at least this (m/s; a slow walk is 0.4-0.8)
+MIN_SPEED_M_S = 0.2
+#: the pelvis's velocity is its displacement over this span (seconds), centred on the frame
+SPEED_SPAN_S = 0.4
+
+
+def travel_axis(xy: np.ndarray) -> np.ndarray | None:
+    """Unit horizontal vector (2,): the principal axis of the pelvis positions xy (T, 2) when they
+    travel :data:`MIN_TRAVEL_M` or more along it, else None (NaN frames ignored)."""
+    xy = xy[np.all(np.isfinite(xy), axis=1)]
+    if len(xy) < 2:
+        return None
+    centred = xy - xy.mean(axis=0)
+    axis = np.linalg.svd(centred, full_matrices=False)[2][0]
+    return axis if np.ptp(centred @ axis) >= MIN_TRAVEL_M else None
+
+
+def turns(xy: np.ndarray) -> np.ndarray:
+    """(K,) int, increasing: the frames of the pelvis path xy (T, 2) just after each point where the
+    walk turns back (a peak of the position along :func:`travel_axis` with a prominence of
+    :data:`TURN_M`). Empty without a travel axis; NaN frames ignored."""
+    from scipy.signal import find_peaks  # here, not at start-up (gaitcap.pipeline._import_late)
+
+    line = travel_axis(xy)
+    if line is None:
+        return np.zeros(0, int)
+    frames = np.flatnonzero(np.all(np.isfinite(xy), axis=1))
+    along = xy[frames] @ line
+    peaks = np.concatenate([find_peaks(sign * along, prominence=TURN_M)[0] for sign in (1.0, -1.0)])
+    return np.sort(frames[peaks]) + 1
+
+
+def pelvis_velocity(xy: np.ndarray, rate_hz: float) -> np.ndarray:
+    """(T, 2) m/s: the velocity of the pelvis path xy (T, 2), its displacement over
+    :data:`SPEED_SPAN_S` centred on the frame; NaN within half the span of the path's ends and where
+    a frame of the span's ends is missing."""
+    half = max(1, round(SPEED_SPAN_S * rate_hz / 2))
+    T = len(xy)
+    velocity = np.full((T, 2), np.nan)
+    if T > 2 * half:
+        velocity[half:-half] = (xy[2 * half :] - xy[: -2 * half]) * (rate_hz / (2 * half))
+    return velocity
+
+
+def paused_at_turns(xy: np.ndarray, rate_hz: float, at: np.ndarray | None = None) -> np.ndarray:
+    """(T,) bool: the frames of the pelvis path xy (T, 2) where it pauses at a turn (``at``:
+    :func:`turns`, found when not given): either side of each turn, the frames moving at less than
+    :data:`MIN_SPEED_M_S` (:func:`pelvis_velocity`), up to the first that moves or has no velocity."""
+    at = turns(xy) if at is None else at
+    out = np.zeros(len(xy), bool)
+    if not len(at):
+        return out
+    with np.errstate(invalid="ignore"):
+        still = np.linalg.norm(pelvis_velocity(xy, rate_hz), axis=1) < MIN_SPEED_M_S
+    for k in at:
+        for frames in (range(k - 1, -1, -1), range(k, len(xy))):
+            for i in frames:
+                if not still[i]:
+                    break
+                out[i] = True
+    return out
+
+
+def walk_passes(xy: np.ndarray, rate_hz: float) -> list[tuple[int, int]]:
+    """The passes of the pelvis path xy (T, 2): (start, stop) frames of each stretch between turns,
+    its pauses at them left out, and half of :data:`SPEED_SPAN_S` more either side of each pause
+    (the span's velocity reaches into the pause by up to that: a stop and a pivot's first frames
+    would be taken for walking); stretches of pause alone dropped; [(0, T)] without a turn."""
+    T = len(xy)
+    at = turns(xy)
+    if not len(at):
+        return [(0, T)]
+    half = max(1, round(SPEED_SPAN_S * rate_hz / 2))
+    paused = np.convolve(paused_at_turns(xy, rate_hz, at), np.ones(2 * half + 1), mode="same") > 0
+    moving = np.flatnonzero(~paused)
+    out = []
+    for a, b in zip([0, *at.tolist()], [*at.tolist(), T], strict=True):
+        inside = moving[(moving >= a) & (moving < b)]
+        if len(inside):
+            out.append((int(inside[0]), int(inside[-1]) + 1))
+    return out
