@@ -13,7 +13,8 @@ Steps, each a small function:
    reference's, a calibration off by a shift).
 3. left/right swaps: frames where exchanging OUT's left and right leg points fits better.
 4. joint angles (:func:`gaitcap.gait.angles.joint_angles`, both in the reference's walking
-   direction): RMSE per angle and side.
+   direction, pass by pass for a walk that turns: :func:`gaitcap.gait.analysis.angles_by_pass`):
+   RMSE per angle and side.
 5. gait events detected on OUT (:func:`gaitcap.gait.analysis.analyse`) against the reference's
    recorded events (a truth from ``gaitcap synth`` carries the motion file's events) or, when it
    has none, the events detected on the reference; plus the *method baseline*: events detected on
@@ -47,10 +48,10 @@ from gaitcap.evaluation.metrics import (
     runs,
     swap_mask,
 )
-from gaitcap.gait.analysis import GaitAnalysis, analyse
-from gaitcap.gait.angles import ANGLE_NAMES, joint_angles
+from gaitcap.gait.analysis import GaitAnalysis, analyse, angles_by_pass, parameters_by_pass
+from gaitcap.gait.angles import ANGLE_NAMES
 from gaitcap.gait.options import GaitOptions
-from gaitcap.gait.parameters import OVERALL_KEYS, SIDE_KEYS, GaitParameters, compute_parameters
+from gaitcap.gait.parameters import OVERALL_KEYS, SIDE_KEYS, GaitParameters
 from gaitcap.quality import walking_line
 from gaitcap.trajectory import FOOT, LOWER_LIMB, SIDES, GaitEvent, Trajectory, side_suffix
 
@@ -285,8 +286,8 @@ def _angles(a: Aligned, ref_analysis: GaitAnalysis | None, notes: list[str]) -> 
     if ref_analysis is None:
         return {}
     try:
-        est_angles, _ = joint_angles(a.trajectory("est", mask_invalid=True), ref_analysis.direction)
-        ref_angles, _ = joint_angles(a.trajectory("ref"), ref_analysis.direction)
+        est_angles, _ = angles_by_pass(a.trajectory("est", mask_invalid=True), ref_analysis.passes)
+        ref_angles, _ = angles_by_pass(a.trajectory("ref"), ref_analysis.passes)
     except InputError as e:
         notes.append(f"joint angles not compared: {e}")
         return {}
@@ -396,7 +397,8 @@ def evaluate(
         if recorded:
             reference_events, label = recorded, "recorded in the reference"
             baseline = _event_section(ref_analysis.events, recorded, a.rate_hz, label)
-            ref_params = compute_parameters(ref_traj, recorded, ref_analysis.direction, (options or GaitOptions()).plausible)
+            plausible = (options or GaitOptions()).plausible
+            ref_params = parameters_by_pass(ref_traj, recorded, ref_analysis.passes, plausible)
         else:
             reference_events, label = ref_analysis.events, "detected on the reference"
             ref_params = ref_analysis.parameters

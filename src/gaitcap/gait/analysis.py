@@ -1,21 +1,91 @@
-"""The gait analysis of one trajectory: events -> cycles -> parameters -> angles -> cycle curves."""
+"""The gait analysis of one trajectory: events -> cycles -> parameters -> angles -> cycle curves.
+
+A clip of a subject walking up and down a walkway is cut into its passes
+(:func:`gaitcap.gait.passes.walk_passes`: the stretches between turns, the pauses at them left out),
+and each pass is analysed on its own, with its own walking direction: along one direction for the
+whole clip, the heel's lead over the pelvis runs the other way after a turn, and the coordinate-based
+events (:mod:`gaitcap.gait.events`) would take every foot off on the way back for a foot strike. The
+events, cycles, strides and steps of the passes are then put together; the frames of a pause belong
+to no pass (no event, no angle there). A clip without a turn is one pass: the analysis as before.
+"""
 
 from __future__ import annotations
 
 import logging
 import warnings
-from dataclasses import dataclass, field
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from gaitcap.errors import InputError
 from gaitcap.gait.angles import ANGLE_NAMES, joint_angles
 from gaitcap.gait.cycles import GaitCycle, find_cycles, normalise_cycle
-from gaitcap.gait.events import WalkingDirection, detect_events
-from gaitcap.gait.options import GaitOptions
+from gaitcap.gait.events import WalkingDirection, detect_events, pelvis_track
+from gaitcap.gait.options import GaitOptions, PlausibleRanges
 from gaitcap.gait.parameters import GaitParameters, compute_parameters
-from gaitcap.trajectory import SIDES, GaitEvent, Trajectory, side_suffix
+from gaitcap.gait.passes import walk_passes
+from gaitcap.trajectory import SIDES, TOE_RELEASES, GaitEvent, Trajectory, side_suffix
 
 log = logging.getLogger("gaitcap.gait.analysis")
+
+
+@dataclass(frozen=True)
+class WalkPass:
+    """One pass along the walkway: frames ``start`` to ``stop - 1`` and their walking direction."""
+
+    start: int
+    stop: int
+    direction: WalkingDirection
+
+
+def within(traj: Trajectory, start: int, stop: int) -> Trajectory:
+    """``traj`` with its points NaN outside frames start..stop-1 (same frames and times) and its toe
+    releases (``meta[TOE_RELEASES]``) kept inside them; ``traj`` itself when that is every frame."""
+    if (start, stop) == (0, traj.n_frames):
+        return traj
+    points = np.full_like(traj.points, np.nan)
+    points[start:stop] = traj.points[start:stop]
+    meta = dict(traj.meta)
+    if TOE_RELEASES in meta:
+        meta[TOE_RELEASES] = {side: [f for f in frames if start <= f < stop]
+                              for side, frames in meta[TOE_RELEASES].items()}  # fmt: skip
+    return replace(traj, points=points, meta=meta)
+
+
+def forward_by_frame(passes: Sequence[WalkPass], n_frames: int) -> np.ndarray:
+    """(T, 3): each frame's walking direction (its pass's ``forward``), NaN in no pass."""
+    out = np.full((n_frames, 3), np.nan)
+    for p in passes:
+        out[p.start : p.stop] = p.direction.forward
+    return out
+
+
+def angles_by_pass(traj: Trajectory, passes: Sequence[WalkPass]) -> tuple[dict[str, np.ndarray], dict[str, str]]:
+    """:func:`~gaitcap.gait.angles.joint_angles` of each pass against its own walking direction,
+    put together (T,) degrees per angle, NaN in no pass; the notes of the first pass."""
+    if len(passes) == 1 and (passes[0].start, passes[0].stop) == (0, traj.n_frames):
+        return joint_angles(traj, passes[0].direction)
+    out: dict[str, np.ndarray] = {}
+    notes: dict[str, str] = {}
+    for p in passes:
+        angles, pass_notes = joint_angles(within(traj, p.start, p.stop), p.direction)
+        notes = notes or pass_notes
+        for name, values in angles.items():
+            out.setdefault(name, np.full(traj.n_frames, np.nan))[p.start : p.stop] = values[p.start : p.stop]
+    return out, notes
+
+
+def parameters_by_pass(traj: Trajectory, events: Sequence[GaitEvent], passes: Sequence[WalkPass],
+                       ranges: PlausibleRanges | None = None) -> GaitParameters:  # fmt: skip
+    """:func:`~gaitcap.gait.parameters.compute_parameters` of ``events`` (e.g. a file's recorded
+    events), each pass's own (by time) against its own direction, put together."""
+    times = traj.times()
+    parts = []
+    for p in passes:
+        lo, hi = times[p.start] - 0.5 / traj.rate_hz, times[p.stop - 1] + 0.5 / traj.rate_hz
+        parts.append((within(traj, p.start, p.stop), [e for e in events if lo <= e.time_s < hi], p.direction))
+    return compute_parameters(traj, events, passes[0].direction, ranges, passes=parts)
 
 
 @dataclass
@@ -25,7 +95,7 @@ class GaitAnalysis:
     Attributes:
         trajectory: the analysed trajectory (its own ``events`` are the file's reference events).
         events: events detected from the foot kinematics, sorted by time.
-        direction: the estimated walking direction.
+        direction: the estimated walking direction (of the first pass).
         parameters: spatio-temporal parameters (``parameters.status`` tells if there were enough steps).
         angles: per-frame joint angles, ``"<angle>_l|_r" -> (T,)`` degrees.
         angle_notes: how the frames were built (e.g. the pelvis frame method).
@@ -41,6 +111,8 @@ class GaitAnalysis:
     angle_notes: dict[str, str]
     cycles: dict[str, list[GaitCycle]]
     curves: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
+    #: the passes along the walkway (one for a clip without a turn), each with its walking direction
+    passes: list[WalkPass] = field(default_factory=list)
 
     @property
     def reference_events(self) -> tuple[GaitEvent, ...]:
@@ -68,10 +140,30 @@ def analyse(traj: Trajectory, options: GaitOptions | None = None) -> GaitAnalysi
         InputError: the trajectory lacks the points needed (pelvis or hips, heels or ankles).
     """
     opt = options or GaitOptions()
-    events, direction = detect_events(traj, opt)
-    params = compute_parameters(traj, events, direction, opt.plausible)
-    angles, notes = joint_angles(traj, direction)
-    cycles = {s: find_cycles(events, s) for s in SIDES}
+    passes, parts = [], []
+    spans = walk_passes(pelvis_track(traj)[:, :2], traj.rate_hz)
+    for start, stop in spans:
+        part = within(traj, start, stop)
+        try:
+            found, direction = detect_events(part, opt)
+        except InputError as e:
+            if len(spans) == 1:
+                raise
+            log.info("frames %d-%d (a pass along the walkway) not analysed: %s", start, stop - 1, e)
+            continue
+        passes.append(WalkPass(start, stop, direction))
+        parts.append((part, found, direction))
+    if not passes:
+        raise InputError("no pass along the walkway could be analysed (too few valid pelvis and heel samples in each)")
+    events = sorted((e for _, found, _ in parts for e in found), key=lambda e: e.time_s)
+    log.info("detected %d gait events (%s)", len(events), passes[0].direction.method)
+    if len(passes) > 1:
+        log.info("%d passes along the walkway (frames %s), each analysed along its own direction", len(passes),
+                 ", ".join(f"{p.start}-{p.stop - 1}" for p in passes))  # fmt: skip
+    direction = passes[0].direction
+    params = compute_parameters(traj, events, direction, opt.plausible, passes=parts)
+    angles, notes = angles_by_pass(traj, passes)
+    cycles = {s: [c for _, found, _ in parts for c in find_cycles(found, s)] for s in SIDES}
     times = traj.times()
     curves: dict[str, dict[str, np.ndarray]] = {}
     for side in SIDES:
@@ -82,4 +174,4 @@ def analyse(traj: Trajectory, options: GaitOptions | None = None) -> GaitAnalysi
         }
     if not params.ok:
         log.warning("%s", params.reason)
-    return GaitAnalysis(traj, events, direction, params, angles, notes, cycles, curves)
+    return GaitAnalysis(traj, events, direction, params, angles, notes, cycles, curves, passes)

@@ -462,5 +462,5 @@ def detect_events(
                     frame, source = better, SOURCE_REFINED
             events.append(GaitEvent(traj.t0_s + frame / traj.rate_hz, side, e.event, source))  # type: ignore[arg-type]
     events.sort()
-    log.info("detected %d gait events (%s)", len(events), direction.method)
+    log.debug("detected %d gait events (%s)", len(events), direction.method)
     return events, direction

@@ -281,12 +281,17 @@ def _symmetry(left: float, right: float) -> float:
 
 
 def compute_parameters(
-    traj: Trajectory, events: Sequence[GaitEvent], direction: WalkingDirection, ranges: PlausibleRanges | None = None
-) -> GaitParameters:
+    traj: Trajectory, events: Sequence[GaitEvent], direction: WalkingDirection, ranges: PlausibleRanges | None = None,
+    *, passes: Sequence[tuple[Trajectory, Sequence[GaitEvent], WalkingDirection]] | None = None,
+) -> GaitParameters:  # fmt: skip
     """Spatio-temporal parameters from a trajectory and its events (see the module docstring).
 
     Args:
         ranges: the plausible range of each parameter (default :class:`PlausibleRanges`).
+        passes: a clip walked up and down a walkway, pass by pass (:mod:`gaitcap.gait.analysis`):
+            each pass's trajectory (NaN outside it), events and walking direction; its cycles, strides
+            and steps are its own, and they are summarised together (``events`` and ``direction``
+            then only name the whole clip's events and the first pass's direction in ``info``).
 
     Returns:
         :class:`GaitParameters`; ``status == "not_enough_steps"`` (with the reason, the step-level
@@ -294,8 +299,9 @@ def compute_parameters(
         ``"implausible"`` when values were withheld (``implausible`` names them and why).
     """
     bounds = (ranges or PlausibleRanges()).bounds()
-    cycles = {s: find_cycles(events, s) for s in SIDES}
-    all_cycles = cycles["left"] + cycles["right"]
+    parts = list(passes) if passes is not None else [(traj, events, direction)]
+    per_pass = [{s: find_cycles(ev, s) for s in SIDES} for _, ev, _ in parts]
+    cycles = {s: [c for pc in per_pass for c in pc[s]] for s in SIDES}
     info: dict[str, Any] = {
         "n_frames": traj.n_frames,
         "rate_hz": traj.rate_hz,
@@ -305,12 +311,17 @@ def compute_parameters(
         "in_place": direction.in_place,
         "event_method": "Zeni et al. 2008 (heel/toe relative to pelvis along the walking direction)",
     }
-    v_belt = belt_velocity(traj, direction, all_cycles)
-    info["belt_velocity_m_s"] = v_belt
-    strides = _strides(traj, direction, all_cycles, v_belt)
+    if len(parts) > 1:
+        info["walking_directions"] = [[round(float(x), 6) for x in d.forward] for _, _, d in parts]
+    strides: list[Stride] = []
+    for (part, _, d), pc in zip(parts, per_pass, strict=True):
+        pass_cycles = pc["left"] + pc["right"]
+        v_belt = belt_velocity(part, d, pass_cycles)
+        info.setdefault("belt_velocity_m_s", v_belt)  # the first pass's (a walk that turns travels: 0)
+        strides += _strides(part, d, pass_cycles, v_belt)
     median_stride = float(np.median([s.stride_time_s for s in strides])) if strides else math.nan
     max_step_s = 0.75 * median_stride if math.isfinite(median_stride) else bounds["step_time_s"][1]
-    steps = _steps(traj, direction, events, max_step_s=max_step_s)
+    steps = [st for part, ev, d in parts for st in _steps(part, d, ev, max_step_s=max_step_s)]
     strides, implausible = _withhold(strides, bounds, [k for k in SIDE_KEYS if k not in STEP_KEYS], "strides")
     steps, bad_steps = _withhold(steps, bounds, STEP_KEYS, "steps")
     implausible.update(bad_steps)

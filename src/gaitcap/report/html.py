@@ -177,6 +177,15 @@ def render_fit_report(traj: Trajectory, view: FitView, problem: str, title: str 
     return "\n".join(parts)
 
 
+def _passes_note(analysis: GaitAnalysis) -> str:
+    """", in N passes along the walkway (frames ...), each along its own direction" for a walk that
+    turns, else nothing."""
+    if len(analysis.passes) < 2:
+        return ""
+    frames = ", ".join(f"{p.start}-{p.stop - 1}" for p in analysis.passes)
+    return f"; {len(analysis.passes)} passes along the walkway (frames {frames}), each along its own direction"
+
+
 def render_report(analysis: GaitAnalysis, title: str = "Gait report", view: FitView | None = None,
                   sheet_frames: list[int] | None = None) -> str:  # fmt: skip
     """The whole report as one HTML string; ``view`` adds the tracking's verdict and fit, with the
@@ -189,7 +198,8 @@ def render_report(analysis: GaitAnalysis, title: str = "Gait report", view: FitV
         f"<p class='note'>Source: {html.escape(str(traj.meta.get('source', '')))} — {traj.n_frames} frames at "
         f"{traj.rate_hz:g} Hz ({traj.n_frames / traj.rate_hz:.2f} s). Walking direction "
         f"{info.get('walking_direction')} ({html.escape(str(info.get('direction_method')))}"
-        f"{', walking in place, belt speed %.2f m/s' % -info['belt_velocity_m_s'] if info.get('in_place') else ''}). "
+        f"{', walking in place, belt speed %.2f m/s' % -info['belt_velocity_m_s'] if info.get('in_place') else ''}"
+        f"{_passes_note(analysis)}). "
         f"Events: {len(analysis.events)} detected ({html.escape(str(info.get('event_method')))}), "
         f"{len(analysis.reference_events)} recorded in the file. gaitcap {__version__}.</p>"
     )

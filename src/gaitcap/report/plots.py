@@ -13,7 +13,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from gaitcap.gait.analysis import GaitAnalysis  # noqa: E402
+from gaitcap.gait.analysis import GaitAnalysis, forward_by_frame  # noqa: E402
 from gaitcap.gait.angles import ANGLE_NAMES  # noqa: E402
 from gaitcap.gait.events import heel_track, pelvis_track, toe_track  # noqa: E402
 from gaitcap.evaluation.metrics import runs  # noqa: E402
@@ -72,15 +72,18 @@ def angle_curves(analysis: GaitAnalysis) -> bytes:
 
 def foot_trajectories(analysis: GaitAnalysis) -> bytes:
     """Heel and toe along the walking direction relative to the pelvis, and heel height, over time."""
-    traj, d = analysis.trajectory, analysis.direction
+    traj = analysis.trajectory
     t = traj.times()
     pel = pelvis_track(traj)
+    # each pass's own direction (a walk up and down a walkway), NaN in the pauses at its turns
+    forward = (forward_by_frame(analysis.passes, traj.n_frames) if analysis.passes
+               else np.broadcast_to(analysis.direction.forward, (traj.n_frames, 3)))  # fmt: skip
     fig, (a1, a2) = plt.subplots(2, 1, figsize=(12, 6), sharex=True, layout="constrained")
     for side in SIDES:
         c = COLOURS[side]
         heel, toe = heel_track(traj, side), toe_track(traj, side)
-        a1.plot(t, (heel - pel) @ d.forward, color=c, lw=1.5, label=f"heel {side}")
-        a1.plot(t, (toe - pel) @ d.forward, color=c, lw=1, ls=":", label=f"toe {side}")
+        a1.plot(t, np.sum((heel - pel) * forward, axis=1), color=c, lw=1.5, label=f"heel {side}")
+        a1.plot(t, np.sum((toe - pel) * forward, axis=1), color=c, lw=1, ls=":", label=f"toe {side}")
         a2.plot(t, heel[:, 2], color=c, lw=1.5, label=f"heel {side}")
         a2.plot(t, toe[:, 2], color=c, lw=1, ls=":", label=f"toe {side}")
         for e in analysis.events:
