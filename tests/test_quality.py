@@ -369,6 +369,10 @@ def test_a_pivot_on_the_spot_is_not_judged_for_the_rhythm(monkeypatch):
     # the restart's gate counts those frames (quality.pivots); a straight walk has none
     assert quality.pivots(points, names, RATE) == paused.sum()
     assert quality.pivots(*_walking(2 * np.pi * np.arange(n) / 25.0), RATE) == 0
+    # points without a pelvis (a reference that lacks it) have no turn to pause at
+    no_pelvis = tuple("x" if p == "pelvis" else p for p in names)
+    assert quality.pivots(points, no_pelvis, RATE) == 0
+    assert out_of_rhythm(points, no_pelvis, np.ones(n, bool), RATE, 0.05).shape == (n,)  # judged, not raised
     assert not out_of_rhythm(points, names, np.ones(n, bool), RATE, 0.05).any()
     assert _judge(points, names).verdict == "ok"
     # judged over the pivot (its pause not recognised), frames of it go against the rhythm

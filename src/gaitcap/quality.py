@@ -388,7 +388,9 @@ def turning_on_the_spot(points: np.ndarray, names: tuple[str, ...], rate_hz: flo
     """(T,) bool: the frames of points (T, P, 3) sampled at ``rate_hz`` where the pelvis pauses at a
     turn (``at``: :func:`turns`; :func:`gaitcap.gait.passes.paused_at_turns`). A subject who stops
     and pivots steps round on the spot there: the feet's fore-aft order along the walking line then
-    follows the pivot, not a stride's rhythm."""
+    follows the pivot, not a stride's rhythm. None without a turn (nor without a pelvis: no turn)."""
+    if not len(at):
+        return np.zeros(len(points), bool)
     return passes.paused_at_turns(points[:, names.index("pelvis"), :2], rate_hz, at)
 
 
