@@ -19,10 +19,11 @@ EXACT = GaitOptions(lowpass_hz=0.0, refine=False)  # as test_gait_events: the wa
 RATE = 100.0
 
 
-def _up_and_down(pivot_s: float = 1.0) -> tuple[Trajectory, list[GaitEvent], int, int]:
+def _up_and_down(pivot_s: float = 1.0, drift_m: float = 0.0) -> tuple[Trajectory, list[GaitEvent], int, int]:
     """The walker up the room (4 s at 30 degrees), a pivot of 180 degrees on the spot about the pelvis
-    (``pivot_s``; the last pose turned, feet sliding), and the walker back from the pivot's end (4 s):
-    the trajectory, the true events of both walks, and the pivot's first and last frames."""
+    (``pivot_s``; the last pose turned, feet sliding; the whole body drifting ``drift_m`` further up
+    the room meanwhile, as a tracked pelvis can), and the walker back from the pivot's end (4 s): the
+    trajectory, the true events of both walks, and the pivot's first and last frames."""
     up = Walker(duration=4.0, heading_deg=30.0)
     a = up.trajectory()
     pel = a.points[-1, a.names.index("pelvis")]
@@ -30,6 +31,10 @@ def _up_and_down(pivot_s: float = 1.0) -> tuple[Trajectory, list[GaitEvent], int
     angles = np.pi * (1 - np.cos(np.linspace(0, np.pi, n_pivot + 1)[1:])) / 2
     centre = pel * [1.0, 1.0, 0.0]
     pivot = (a.points[-1] - centre) @ Rotation.from_euler("z", angles[:, None]).as_matrix().transpose(0, 2, 1) + centre
+    heading = np.radians(30.0)
+    drift = drift_m * np.linspace(0, 1, n_pivot)[:, None] * [np.cos(heading), np.sin(heading), 0.0]
+    pivot = pivot + drift[:, None, :]
+    pel = pivot[-1, a.names.index("pelvis")]
     down = Walker(duration=4.0, heading_deg=210.0, origin=(float(pel[0]), float(pel[1])))
     b = down.trajectory()
     shift = (len(a.points) + n_pivot) / RATE
@@ -60,6 +65,16 @@ def test_a_walk_up_and_down_is_two_passes_without_the_pivot():
     paused = np.flatnonzero(paused_at_turns(xy, RATE))
     assert first <= paused[0] <= first + 20 and last - 20 <= paused[-1] <= last
     assert (a1, b0) == (paused[0] - 20, paused[-1] + 21)
+
+
+def test_the_pause_is_found_where_the_turn_falls_at_its_edge():
+    """A pelvis drifting 8 mm up the room while it stands (a tracked one can) goes furthest at the
+    pivot's end, so the turn falls at the pause's edge: the pause is still the pivot."""
+    tr, _, first, last = _up_and_down(drift_m=0.008)
+    xy = tr.point("pelvis")[:, :2]
+    assert turns(xy)[0] >= last - 2  # the furthest point: the pivot's end
+    paused = np.flatnonzero(paused_at_turns(xy, RATE))
+    assert first <= paused[0] <= first + 20 and last - 20 <= paused[-1] <= last
 
 
 def test_a_walk_up_and_down_gets_its_events_and_strides_pass_by_pass():

@@ -69,20 +69,28 @@ def pelvis_velocity(xy: np.ndarray, rate_hz: float) -> np.ndarray:
 
 def paused_at_turns(xy: np.ndarray, rate_hz: float, at: np.ndarray | None = None) -> np.ndarray:
     """(T,) bool: the frames of the pelvis path xy (T, 2) where it pauses at a turn (``at``:
-    :func:`turns`, found when not given): either side of each turn, the frames moving at less than
-    :data:`MIN_SPEED_M_S` (:func:`pelvis_velocity`), up to the first that moves or has no velocity."""
+    :func:`turns`, found when not given): the run of frames moving at less than
+    :data:`MIN_SPEED_M_S` (:func:`pelvis_velocity`) that holds the still frame nearest each turn,
+    within :data:`SPEED_SPAN_S` of it. The turn's frame is where the pelvis goes furthest, which a
+    tracked pelvis drifting a few millimetres while it stands can put at the pause's edge or just past
+    it."""
     at = turns(xy) if at is None else at
     out = np.zeros(len(xy), bool)
     if not len(at):
         return out
     with np.errstate(invalid="ignore"):
         still = np.linalg.norm(pelvis_velocity(xy, rate_hz), axis=1) < MIN_SPEED_M_S
+    reach = max(1, round(SPEED_SPAN_S * rate_hz))
     for k in at:
-        for frames in (range(k - 1, -1, -1), range(k, len(xy))):
-            for i in frames:
-                if not still[i]:
-                    break
-                out[i] = True
+        near = [i for i in range(k - reach, k + reach) if 0 <= i < len(xy) and still[i]]
+        if not near:
+            continue
+        lo = hi = min(near, key=lambda i: abs(i - (k - 0.5)))  # the turn lies between frames k - 1 and k
+        while lo > 0 and still[lo - 1]:
+            lo -= 1
+        while hi + 1 < len(xy) and still[hi + 1]:
+            hi += 1
+        out[lo : hi + 1] = True
     return out
 
 
