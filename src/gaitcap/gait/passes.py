@@ -5,9 +5,9 @@ A subject walking up and down a room turns back at each end, often stopping to p
 horizontal positions) with a prominence of :data:`TURN_M`: the pelvis went that far one way and as
 far back. A walk never takes the pelvis backwards (the tracked pelvis of the suite's walks goes back
 1 cm at most: docs/validation.md), and a walk on the spot (a treadmill, the pelvis travelling less
-than :data:`MIN_TRAVEL_M`) has no turns. Around each turn, the frames whose pelvis moves at less than
-:data:`MIN_SPEED_M_S` (its displacement over :data:`SPEED_SPAN_S`) *pause* there: a pivot, where the
-feet step round and follow no stride.
+than :data:`MIN_TRAVEL_M`) has no turns. At each turn, the run of frames whose pelvis moves at less
+than :data:`MIN_SPEED_M_S` (its displacement over :data:`SPEED_SPAN_S`) nearest the turn is its
+*pause*: a pivot, where the feet step round and follow no stride.
 
 A *pass* is the stretch between two turns (or a clip's end), its pauses left out: a straight walk
 with its own direction of progression, as a gait lab's clip of one crossing is. Everything here reads
