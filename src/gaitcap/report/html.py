@@ -178,7 +178,7 @@ def render_fit_report(traj: Trajectory, view: FitView, problem: str, title: str 
 
 
 def _passes_note(analysis: GaitAnalysis) -> str:
-    """", in N passes along the walkway (frames ...), each along its own direction" for a walk that
+    """"; N passes along the walkway (frames ...), each along its own direction" for a walk that
     turns, else nothing."""
     if len(analysis.passes) < 2:
         return ""
