@@ -9,11 +9,11 @@ import pytest
 from gait_walker import Walker
 from scipy.spatial.transform import Rotation
 
-from gaitcap.gait.analysis import analyse, angles_by_pass, parameters_by_pass
+from gaitcap.gait.analysis import analyse, angles_by_pass, parameters_by_pass, within
 from gaitcap.gait.events import detect_events
 from gaitcap.gait.options import GaitOptions
 from gaitcap.gait.passes import paused_at_turns, turns, walk_passes
-from gaitcap.trajectory import GaitEvent, Trajectory
+from gaitcap.trajectory import TOE_RELEASES, GaitEvent, Trajectory
 
 EXACT = GaitOptions(lowpass_hz=0.0, refine=False)  # as test_gait_events: the walker's extrema are exact
 RATE = 100.0
@@ -123,3 +123,18 @@ def test_a_walk_up_and_down_keeps_its_pelvis_angles_on_the_way_back():
 def _nearest(event: GaitEvent, events: list[GaitEvent]) -> float:
     same = [e.time_s for e in events if (e.side, e.event) == (event.side, event.event)]
     return min((abs(t - event.time_s) for t in same), default=np.inf)
+
+
+def test_a_pass_is_a_slice_on_the_clip_s_time_axis():
+    """within: the pass's frames alone (a view: a long clip's passes hold its frames once), its
+    times the clip's, its per-frame meta and toe releases (frame indices) cut and shifted alike."""
+    tr, _, _, _ = _up_and_down()
+    T = tr.n_frames
+    sigma = np.arange(T * len(tr.names), dtype=float).reshape(T, len(tr.names))
+    tr = replace(tr, t0_s=0.5, meta={"uncertainty": sigma, TOE_RELEASES: {"left": [10.5, 250.0, 700.2]}, "source": "x"})
+    part = within(tr, 200, 300)
+    assert part.n_frames == 100 and np.shares_memory(part.points, tr.points)
+    np.testing.assert_allclose(part.times(), tr.times()[200:300])
+    np.testing.assert_array_equal(part.meta["uncertainty"], sigma[200:300])
+    assert part.meta[TOE_RELEASES] == {"left": [50.0]} and part.meta["source"] == "x"
+    assert within(tr, 0, T) is tr

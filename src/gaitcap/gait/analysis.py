@@ -40,17 +40,19 @@ class WalkPass:
 
 
 def within(traj: Trajectory, start: int, stop: int) -> Trajectory:
-    """``traj`` with its points NaN outside frames start..stop-1 (same frames and times) and its toe
-    releases (``meta[TOE_RELEASES]``) kept inside them; ``traj`` itself when that is every frame."""
+    """Frames start..stop-1 of ``traj`` as a trajectory of their own, on the same time axis (its
+    ``t0_s`` moved to frame ``start``: events found on it are on ``traj``'s times), with the meta's
+    per-frame arrays (first axis of length T) and toe releases (``meta[TOE_RELEASES]``, frame
+    indices) cut and shifted alike; ``traj`` itself when that is every frame. A slice, not a copy
+    of the whole clip: the passes of a long clip hold its frames once."""
     if (start, stop) == (0, traj.n_frames):
         return traj
-    points = np.full_like(traj.points, np.nan)
-    points[start:stop] = traj.points[start:stop]
-    meta = dict(traj.meta)
+    meta = {k: v[start:stop] if isinstance(v, np.ndarray) and v.ndim and len(v) == traj.n_frames else v
+            for k, v in traj.meta.items()}  # fmt: skip
     if TOE_RELEASES in meta:
-        meta[TOE_RELEASES] = {side: [f for f in frames if start <= f < stop]
+        meta[TOE_RELEASES] = {side: [f - start for f in frames if start <= f < stop]
                               for side, frames in meta[TOE_RELEASES].items()}  # fmt: skip
-    return replace(traj, points=points, meta=meta)
+    return replace(traj, points=traj.points[start:stop], t0_s=traj.t0_s + start / traj.rate_hz, meta=meta)
 
 
 def forward_by_frame(passes: Sequence[WalkPass], n_frames: int) -> np.ndarray:
@@ -72,7 +74,7 @@ def angles_by_pass(traj: Trajectory, passes: Sequence[WalkPass]) -> tuple[dict[s
         angles, pass_notes = joint_angles(within(traj, p.start, p.stop), p.direction)
         notes = notes or pass_notes
         for name, values in angles.items():
-            out.setdefault(name, np.full(traj.n_frames, np.nan))[p.start : p.stop] = values[p.start : p.stop]
+            out.setdefault(name, np.full(traj.n_frames, np.nan))[p.start : p.stop] = values
     return out, notes
 
 
@@ -80,11 +82,11 @@ def parameters_by_pass(traj: Trajectory, events: Sequence[GaitEvent], passes: Se
                        ranges: PlausibleRanges | None = None) -> GaitParameters:  # fmt: skip
     """:func:`~gaitcap.gait.parameters.compute_parameters` of ``events`` (e.g. a file's recorded
     events), each pass's own (by time) against its own direction, put together."""
-    times = traj.times()
     parts = []
     for p in passes:
-        lo, hi = times[p.start] - 0.5 / traj.rate_hz, times[p.stop - 1] + 0.5 / traj.rate_hz
-        parts.append((within(traj, p.start, p.stop), [e for e in events if lo <= e.time_s < hi], p.direction))
+        part = within(traj, p.start, p.stop)
+        lo, hi = part.t0_s - 0.5 / traj.rate_hz, part.times()[-1] + 0.5 / traj.rate_hz
+        parts.append((part, [e for e in events if lo <= e.time_s < hi], p.direction))
     return compute_parameters(traj, events, passes[0].direction, ranges, passes=parts)
 
 

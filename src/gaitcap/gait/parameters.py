@@ -289,9 +289,10 @@ def compute_parameters(
     Args:
         ranges: the plausible range of each parameter (default :class:`PlausibleRanges`).
         passes: a clip walked up and down a walkway, pass by pass (:mod:`gaitcap.gait.analysis`):
-            each pass's trajectory (NaN outside it), events and walking direction; its cycles, strides
-            and steps are its own, and they are summarised together (``events`` and ``direction``
-            then only name the whole clip's events and the first pass's direction in ``info``).
+            each pass's trajectory (its frames alone: :func:`gaitcap.gait.analysis.within`), events
+            and walking direction; its cycles, strides and steps are its own, and they are summarised
+            together (``events`` and ``direction`` then only name the whole clip's events and the
+            first pass's direction in ``info``).
 
     Returns:
         :class:`GaitParameters`; ``status == "not_enough_steps"`` (with the reason, the step-level
