@@ -39,8 +39,7 @@ from bench_suite import SHARED, evaluate_run, external_sessions  # noqa: E402
 
 from gaitcap.evaluation.compare import align  # noqa: E402
 from gaitcap.evaluation.report import read_tracked, read_truth_reference  # noqa: E402
-from gaitcap.gait.analysis import analyse  # noqa: E402
-from gaitcap.gait.angles import joint_angles  # noqa: E402
+from gaitcap.gait.analysis import analyse, angles_by_pass  # noqa: E402
 from gaitcap.pipeline import _finish_points  # noqa: E402
 from gaitcap.tracking.config import SmoothingConfig, TrackingConfig, load_tracking_config  # noqa: E402
 
@@ -78,9 +77,9 @@ def knee_extremes(run: Path, truth: Path) -> tuple[float, float]:
     mean of both knees."""
     ref = read_truth_reference(truth).trajectory
     aligned = align(read_tracked(run), ref)
-    direction = analyse(ref).direction
-    est, _ = joint_angles(aligned.trajectory("est", mask_invalid=True), direction)
-    true, _ = joint_angles(aligned.trajectory("ref"), direction)
+    passes = analyse(ref).passes
+    est, _ = angles_by_pass(aligned.trajectory("est", mask_invalid=True), passes)
+    true, _ = angles_by_pass(aligned.trajectory("ref"), passes)
     high = np.mean([abs(np.nanmax(est[k]) - np.nanmax(true[k])) for k in KNEES])
     low = np.mean([abs(np.nanmin(est[k]) - np.nanmin(true[k])) for k in KNEES])
     return float(high), float(low)

@@ -66,8 +66,6 @@ def forward_by_frame(passes: Sequence[WalkPass], n_frames: int) -> np.ndarray:
 def angles_by_pass(traj: Trajectory, passes: Sequence[WalkPass]) -> tuple[dict[str, np.ndarray], dict[str, str]]:
     """:func:`~gaitcap.gait.angles.joint_angles` of each pass against its own walking direction,
     put together (T,) degrees per angle, NaN in no pass; the notes of the first pass."""
-    if len(passes) == 1 and (passes[0].start, passes[0].stop) == (0, traj.n_frames):
-        return joint_angles(traj, passes[0].direction)
     out: dict[str, np.ndarray] = {}
     notes: dict[str, str] = {}
     for p in passes:
@@ -97,7 +95,8 @@ class GaitAnalysis:
     Attributes:
         trajectory: the analysed trajectory (its own ``events`` are the file's reference events).
         events: events detected from the foot kinematics, sorted by time.
-        direction: the estimated walking direction (of the first pass).
+        passes: the passes along the walkway (one for a clip without a turn), each with its walking
+            direction (:attr:`direction`: the first pass's).
         parameters: spatio-temporal parameters (``parameters.status`` tells if there were enough steps).
         angles: per-frame joint angles, ``"<angle>_l|_r" -> (T,)`` degrees.
         angle_notes: how the frames were built (e.g. the pelvis frame method).
@@ -107,14 +106,17 @@ class GaitAnalysis:
 
     trajectory: Trajectory
     events: list[GaitEvent]
-    direction: WalkingDirection
+    passes: list[WalkPass]
     parameters: GaitParameters
     angles: dict[str, np.ndarray]
     angle_notes: dict[str, str]
     cycles: dict[str, list[GaitCycle]]
     curves: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
-    #: the passes along the walkway (one for a clip without a turn), each with its walking direction
-    passes: list[WalkPass] = field(default_factory=list)
+
+    @property
+    def direction(self) -> WalkingDirection:
+        """The estimated walking direction of the first pass (of the clip, without a turn)."""
+        return self.passes[0].direction
 
     @property
     def reference_events(self) -> tuple[GaitEvent, ...]:
@@ -162,8 +164,7 @@ def analyse(traj: Trajectory, options: GaitOptions | None = None) -> GaitAnalysi
     if len(passes) > 1:
         log.info("%d passes along the walkway (frames %s), each analysed along its own direction", len(passes),
                  ", ".join(f"{p.start}-{p.stop - 1}" for p in passes))  # fmt: skip
-    direction = passes[0].direction
-    params = compute_parameters(traj, events, direction, opt.plausible, passes=parts)
+    params = compute_parameters(traj, events, passes[0].direction, opt.plausible, passes=parts)
     angles, notes = angles_by_pass(traj, passes)
     cycles = {s: [c for _, found, _ in parts for c in find_cycles(found, s)] for s in SIDES}
     times = traj.times()
@@ -176,4 +177,4 @@ def analyse(traj: Trajectory, options: GaitOptions | None = None) -> GaitAnalysi
         }
     if not params.ok:
         log.warning("%s", params.reason)
-    return GaitAnalysis(traj, events, direction, params, angles, notes, cycles, curves, passes)
+    return GaitAnalysis(traj, events, passes, params, angles, notes, cycles, curves)

@@ -76,8 +76,7 @@ def foot_trajectories(analysis: GaitAnalysis) -> bytes:
     t = traj.times()
     pel = pelvis_track(traj)
     # each pass's own direction (a walk up and down a walkway), NaN in the pauses at its turns
-    forward = (forward_by_frame(analysis.passes, traj.n_frames) if analysis.passes
-               else np.broadcast_to(analysis.direction.forward, (traj.n_frames, 3)))  # fmt: skip
+    forward = forward_by_frame(analysis.passes, traj.n_frames)
     fig, (a1, a2) = plt.subplots(2, 1, figsize=(12, 6), sharex=True, layout="constrained")
     for side in SIDES:
         c = COLOURS[side]
