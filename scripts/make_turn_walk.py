@@ -2,6 +2,7 @@
 pivot about the pelvis, then the walk again, turned round, from the frame whose legs match the last one's.
 
     python scripts/make_turn_walk.py -o turn_walk.trc [--turn-seconds 1.0] [--degrees 180] [--turns 1] [--strides 1]
+    python scripts/make_turn_walk.py -o turn_walk.trc --radius 0.75 [--turns 1]
     gaitcap synth turn_walk.trc -o SESSION --seed 3 --height 1.639
     gaitcap track SESSION -o OUT && gaitcap eval OUT --truth SESSION/truth.h5
 
@@ -10,6 +11,13 @@ smooth start and stop (the angle follows half a cosine), so its fastest rate is 
 The walk back starts from the frame at least 0.6 s before the end whose legs, relative to the pelvis,
 are nearest the last frame's (a stride earlier), so that the pose does not jump. The feet slide
 during the pivot: a test of the tracker's heading through a turn, not of a turning gait.
+
+``--radius R``: the turn is walked instead, round a half circle of radius R metres, without a pause:
+the walk (its last stride repeated) is bent along a path of the walk's length, the half circle and as
+long a walk back; each frame's pose is turned about the pelvis by the path's heading where its pelvis
+has come to (the pelvis's sway kept across the path). The feet slide while the heading turns under
+them: a test of the tracker and of the gait analysis through a turn that does not stop, not a model
+of turning gait.
 """
 
 from __future__ import annotations
@@ -59,6 +67,64 @@ def turned_walk(points: np.ndarray, pelvis: int, rate_hz: float, turn_s: float, 
     return np.concatenate(pieces)
 
 
+def walked_turns(points: np.ndarray, pelvis: int, rate_hz: float, radius: float, turns: int = 1) -> np.ndarray:
+    """Points (T, P, 3) of a walk (z up) -> the walk, then ``turns`` times a half circle of ``radius``
+    metres walked without stopping (each turning the same way) and the walk's length walked back:
+    (T', P, 3). The walk's last stride is repeated for as long as the path needs; each frame's pose is
+    turned about the vertical through its pelvis by the path's heading at the pelvis's distance walked,
+    and the pelvis's sway off the walk's line is kept across the path."""
+    # the walk's line: its pelvis's net horizontal travel
+    xy = points[:, pelvis, :2]
+    travel = xy[-1] - xy[0]
+    length = float(np.linalg.norm(travel))
+    line = travel / length
+    normal = np.array([-line[1], line[0]])
+    arc = np.pi * radius
+    total = length + turns * (arc + length)
+    # the walk made long enough: its last stride (from the frame a stride before its end) repeated
+    relative = points - points[:, pelvis : pelvis + 1]
+    earliest = len(points) - max(1, round(MIN_BACK_S * rate_hz))
+    k = int(np.argmin(np.linalg.norm(relative[:earliest] - relative[-1], axis=-1).mean(axis=1)))
+    step = (points[-1, pelvis] - points[k, pelvis]) * [1.0, 1.0, 0.0]
+    pieces = [points]
+    while (pieces[-1][-1, pelvis, :2] - xy[0]) @ line < total:
+        pieces.append(points[k + 1 :] + (len(pieces)) * step)
+    straight = np.concatenate(pieces)
+    along = (straight[:, pelvis, :2] - xy[0]) @ line
+    sway = (straight[:, pelvis, :2] - xy[0]) @ normal
+    straight = straight[: int(np.searchsorted(along, total)) + 1]
+    axes = np.stack([line, normal])  # (along, across) -> world xy, as rows
+    out = straight.copy()
+    for t, frame in enumerate(straight):
+        (u, v), heading = _path(float(along[t]), length, radius)
+        c, s = np.cos(heading), np.sin(heading)
+        rel = (frame[:, :2] - frame[pelvis, :2]) @ axes.T  # (P, 2) along and across the walk
+        turned = rel @ np.array([[c, s], [-s, c]])  # rotated by the heading
+        centre = np.array([u, v]) + sway[t] * np.array([-s, c])
+        out[t, :, :2] = (turned + centre) @ axes + xy[0]
+    return out
+
+
+def _path(s: float, length: float, radius: float) -> tuple[tuple[float, float], float]:
+    """The point (along, across) metres and heading (radians, 0 along the walk) of the path at
+    ``s`` metres: ``length`` straight, a half circle of ``radius`` turning left, ``length`` straight
+    back, and so on."""
+    arc = np.pi * radius
+    u, v, heading = 0.0, 0.0, 0.0
+    while True:
+        if s <= length:
+            return (u + np.cos(heading) * s, v + np.sin(heading) * s), heading
+        u, v = u + np.cos(heading) * length, v + np.sin(heading) * length
+        s -= length
+        cu, cv = u - np.sin(heading) * radius, v + np.cos(heading) * radius  # the circle's centre, on the left
+        if s <= arc:
+            h = heading + s / radius
+            return (cu + np.sin(h) * radius, cv - np.cos(h) * radius), h
+        heading += np.pi
+        u, v = cu + np.sin(heading) * radius, cv - np.cos(heading) * radius
+        s -= arc
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("-o", "--out", type=Path, required=True, help="the TRC to write")
@@ -66,12 +132,20 @@ def main() -> None:
     ap.add_argument("--degrees", type=float, default=180.0, help="the pivot's angle (degrees)")
     ap.add_argument("--turns", type=int, default=1, help="pivots, each followed by the walk again (>= 1)")
     ap.add_argument("--strides", type=int, default=1, help="strides walked after each pivot (>= 1)")
+    ap.add_argument("--radius", type=float, default=None,
+                    help="walk each turn round a half circle of this radius (metres, > 0) instead of a pivot")
     args = ap.parse_args()
     if args.turn_seconds <= 0:
         ap.error("--turn-seconds must be > 0")
     if args.turns < 1 or args.strides < 1:
         ap.error("--turns and --strides must be >= 1")
+    if args.radius is not None and args.radius <= 0:
+        ap.error("--radius must be > 0")
     walk = read_motion(embedded_walk())
+    pelvis = walk.names.index("pelvis")
+    if args.radius is not None:
+        write_walk(args.out, walk, walked_turns(walk.points, pelvis, walk.rate_hz, args.radius, args.turns))
+        return
     write_walk(args.out, walk, turned_walk(walk.points, walk.names.index("pelvis"), walk.rate_hz, args.turn_seconds,
                                            args.degrees, args.turns, args.strides))  # fmt: skip
 

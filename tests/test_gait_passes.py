@@ -138,3 +138,60 @@ def test_a_pass_is_a_slice_on_the_clip_s_time_axis():
     np.testing.assert_array_equal(part.meta["uncertainty"], sigma[200:300])
     assert part.meta[TOE_RELEASES] == {"left": [50.0]} and part.meta["source"] == "x"
     assert within(tr, 0, T) is tr
+
+
+def _walk_round(radius: float = 0.75) -> tuple[Trajectory, list[GaitEvent], int, int]:
+    """The walker bent round a path: 4 s up the room, a half circle of ``radius`` metres to the left,
+    and 4 s back (each frame's pose turned about the pelvis by the path's heading where the pelvis has
+    come to; the feet slide while the heading turns): the trajectory, the walker's true events, and
+    the half circle's first and last frames."""
+    walker = Walker(duration=8.0 + np.pi * radius / Walker().speed, heading_deg=0.0, origin=(0.0, 0.0))
+    tr = walker.trajectory()
+    pelvis = tr.names.index("pelvis")
+    s = tr.points[:, pelvis, 0]  # metres walked
+    straight = walker.speed * 4.0
+    bend = np.clip((s - straight) / radius, 0.0, np.pi)  # the heading
+    beyond = np.clip(s - straight - np.pi * radius, 0.0, None)  # walked back after the circle
+    c, n = np.cos(bend), np.sin(bend)
+    ground = np.stack([np.minimum(s, straight) + radius * n - beyond, radius * (1 - c), np.zeros_like(s)], axis=1)
+    rel = tr.points - tr.points[:, pelvis : pelvis + 1] * [1.0, 1.0, 0.0]
+    turned = np.stack([c[:, None] * rel[..., 0] - n[:, None] * rel[..., 1],
+                       n[:, None] * rel[..., 0] + c[:, None] * rel[..., 1], rel[..., 2]], axis=-1)  # fmt: skip
+    on_circle = np.flatnonzero((bend > 0) & (bend < np.pi))
+    return replace(tr, points=turned + ground[:, None, :]), walker.truth_events(), on_circle[0], on_circle[-1]
+
+
+def test_a_turn_walked_round_belongs_to_no_pass(monkeypatch):
+    """A half circle walked without a stop: the passes end where the pelvis heads more than 20 degrees
+    off their direction, so each pass is a straight walk, with the walk's direction, events, strides
+    and step widths. Cut at the turn alone (the circle's frames left in), each pass took a quarter of
+    the circle, its direction was pulled off the walk's, and its steps were read along it."""
+    tr, truth, first, last = _walk_round()
+    xy = tr.point("pelvis")[:, :2]
+    passes = walk_passes(xy, RATE)
+    assert len(passes) == 2 and passes[0][0] == 0 and passes[1][1] == tr.n_frames
+    # each pass ends within the circle's first 20 degrees (and the velocity span's reach, 0.2 s)
+    reach = round(20 / 180 * (last - first)) + 20
+    assert first - 20 <= passes[0][1] <= first + reach and last - reach <= passes[1][0] <= last + 21
+    a = analyse(tr, EXACT)
+    for p, sign in zip(a.passes, (1.0, -1.0), strict=True):
+        np.testing.assert_allclose(p.direction.forward[:2], [sign, 0.0], atol=np.radians(0.5))
+    kept = [e for e in truth if any(p.start <= e.time_s * RATE < p.stop for p in a.passes)]
+    straight = [e for e in kept if not first - 50 <= e.time_s * RATE <= last + 50]
+    assert len(straight) >= 20 and max(_nearest(e, a.events) for e in straight) <= 0.5 / RATE + 1e-9
+    assert all(any(p.start <= e.time_s * RATE < p.stop for p in a.passes) for e in a.events)
+    p = a.parameters
+    assert p.ok, p.reason
+    walker = Walker()
+    # within 1.5 cm: a stride may reach into the circle's first 20 degrees
+    np.testing.assert_allclose([s.stride_length_m for s in p.strides], walker.stride_length, atol=0.015)
+    # the step widths the walker's, but for a pass's first step, whose other foot came down on the
+    # circle's last 20 degrees (and slid there, as this walker's feet do while the heading turns)
+    widths = np.array([s.step_width_m for s in p.steps])
+    assert np.sum(np.abs(widths - walker.step_width) > 0.01) <= 1 and widths.max() < 0.25
+    # cut at the turn alone: steps on the circle read 0.3-0.5 m wide, a stride there 0.2 m short, and
+    # every step width off by 3 cm (each pass's direction pulled 2.7 degrees off the walk's)
+    monkeypatch.setattr("gaitcap.gait.passes.TURN_HEADING_DEG", 180.0)
+    old = analyse(tr, EXACT).parameters
+    assert max(s.step_width_m for s in old.steps) > 0.3
+    assert min(s.stride_length_m for s in old.strides) < walker.stride_length - 0.1

@@ -1,12 +1,13 @@
 """The gait analysis of one trajectory: events -> cycles -> parameters -> angles -> cycle curves.
 
 A clip of a subject walking up and down a walkway is cut into its passes
-(:func:`gaitcap.gait.passes.walk_passes`: the stretches between turns, the pauses at them left out),
+(:func:`gaitcap.gait.passes.walk_passes`: the stretches between turns, the pauses at them and the
+frames of a turn walked round left out),
 and each pass is analysed on its own, with its own walking direction: along one direction for the
 whole clip, the heel's lead over the pelvis runs the other way after a turn, and the coordinate-based
 events (:mod:`gaitcap.gait.events`) would take every foot off on the way back for a foot strike. The
-events, cycles, strides and steps of the passes are then put together; the frames of a pause belong
-to no pass (no event, no angle there). A clip without a turn is one pass: the analysis as before.
+events, cycles, strides and steps of the passes are then put together; the frames of a pause or of a
+turn walked round belong to no pass (no event, no angle there). A clip without a turn is one pass: the analysis as before.
 """
 
 from __future__ import annotations

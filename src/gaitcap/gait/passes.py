@@ -9,8 +9,10 @@ than :data:`MIN_TRAVEL_M`) has no turns. At each turn, the run of frames whose p
 than :data:`MIN_SPEED_M_S` (its displacement over :data:`SPEED_SPAN_S`) nearest the turn is its
 *pause*: a pivot, where the feet step round and follow no stride.
 
-A *pass* is the stretch between two turns (or a clip's end), its pauses left out: a straight walk
-with its own direction of progression, as a gait lab's clip of one crossing is. Everything here reads
+A *pass* is the stretch between two turns (or a clip's end), its pauses left out, and the frames next
+to a turn where the pelvis heads more than :data:`TURN_HEADING_DEG` off the pass's direction (a turn
+walked round without a stop): a straight walk with its own direction of progression, as a gait lab's
+clip of one crossing is. Everything here reads
 a pelvis path xy (T, 2) metres (NaN frames ignored) sampled at ``rate_hz``; the verdict
 (:mod:`gaitcap.quality`) and the gait analysis (:mod:`gaitcap.gait.analysis`) both use it.
 """
@@ -27,6 +29,9 @@ TURN_M = 0.1
 MIN_SPEED_M_S = 0.2
 #: the pelvis's velocity is its displacement over this span (seconds), centred on the frame
 SPEED_SPAN_S = 0.4
+#: degrees: next to a turn, a pass ends where the pelvis's velocity heads further than this off the
+#: pass's direction (the straight walks of the suite and the held-out draw stay within 17 degrees)
+TURN_HEADING_DEG = 20.0
 
 
 def travel_axis(xy: np.ndarray) -> np.ndarray | None:
@@ -98,7 +103,8 @@ def walk_passes(xy: np.ndarray, rate_hz: float) -> list[tuple[int, int]]:
     """The passes of the pelvis path xy (T, 2): (start, stop) frames of each stretch between turns,
     its pauses at them left out, and half of :data:`SPEED_SPAN_S` more either side of each pause
     (the span's velocity reaches into the pause by up to that: a stop and a pivot's first frames
-    would be taken for walking); stretches of pause alone dropped; [(0, T)] without a turn."""
+    would be taken for walking), and the frames next to a turn that head off the pass's direction
+    (:func:`straight_part`); stretches of pause or turn alone dropped; [(0, T)] without a turn."""
     T = len(xy)
     at = turns(xy)
     if not len(at):
@@ -106,9 +112,41 @@ def walk_passes(xy: np.ndarray, rate_hz: float) -> list[tuple[int, int]]:
     half = max(1, round(SPEED_SPAN_S * rate_hz / 2))
     paused = np.convolve(paused_at_turns(xy, rate_hz, at), np.ones(2 * half + 1), mode="same") > 0
     moving = np.flatnonzero(~paused)
+    velocity = pelvis_velocity(xy, rate_hz)
     out = []
     for a, b in zip([0, *at.tolist()], [*at.tolist(), T], strict=True):
         inside = moving[(moving >= a) & (moving < b)]
         if len(inside):
-            out.append((int(inside[0]), int(inside[-1]) + 1))
+            part = straight_part(xy, velocity, int(inside[0]), int(inside[-1]) + 1, a > 0, b < T)
+            if part is not None:
+                out.append(part)
     return out
+
+
+def straight_part(xy: np.ndarray, velocity: np.ndarray, start: int, stop: int, after_turn: bool,
+                  before_turn: bool) -> tuple[int, int] | None:  # fmt: skip
+    """Frames (start, stop) of the pelvis path xy (T, 2) without the runs of frames at an end next
+    to a turn (``after_turn``: the start, ``before_turn``: the stop) whose velocity (T, 2) m/s
+    (:func:`pelvis_velocity`) heads more than :data:`TURN_HEADING_DEG` off the pass's direction (its
+    pelvis's net displacement, taken again on what is left until nothing more is cut); frames slower
+    than :data:`MIN_SPEED_M_S` or without a velocity are not judged. None when nothing is left."""
+    cos_max = np.cos(np.radians(TURN_HEADING_DEG))
+    for _ in range(8):  # a few rounds: each leaves less of the turn to pull the direction
+        travel = xy[stop - 1] - xy[start]
+        if stop - start < 2 or not np.all(np.isfinite(travel)) or not np.linalg.norm(travel):
+            return (start, stop) if stop > start else None
+        v = velocity[start:stop]
+        speed = np.linalg.norm(v, axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            off = (speed >= MIN_SPEED_M_S) & ((v @ travel) / (speed * np.linalg.norm(travel)) < cos_max)
+        a, b = start, stop
+        while after_turn and a < b and off[a - start]:
+            a += 1
+        while before_turn and b > a and off[b - 1 - start]:
+            b -= 1
+        if (a, b) == (start, stop):
+            return (start, stop)
+        if b <= a:
+            return None
+        start, stop = a, b
+    return (start, stop)

@@ -75,7 +75,7 @@ def foot_trajectories(analysis: GaitAnalysis) -> bytes:
     traj = analysis.trajectory
     t = traj.times()
     pel = pelvis_track(traj)
-    # each pass's own direction (a walk up and down a walkway), NaN in the pauses at its turns
+    # each pass's own direction (a walk up and down a walkway), NaN at its turns (pauses, turns walked round)
     forward = forward_by_frame(analysis.passes, traj.n_frames)
     fig, (a1, a2) = plt.subplots(2, 1, figsize=(12, 6), sharex=True, layout="constrained")
     for side in SIDES:
