@@ -739,3 +739,76 @@ def test_exchanged_legs_finds_the_frames_whose_legs_are_the_other_way_round():
     out = exchanged_legs(a, b, names)
     assert out.dtype == bool and out.shape == (10,)
     np.testing.assert_array_equal(out, [False] * 4 + [True] * 4 + [False] * 2)
+
+
+def _up_and_back(lead: np.ndarray, T1: int, pause: int) -> np.ndarray:
+    """Points (T, 3, 3) of NAMES: T1 frames walking along +x at 1.2 m/s, ``pause`` frames standing
+    (feet side by side), then walking back along -x; ``lead`` (T,) the left ankle's lead in the
+    direction walked (ignored in the pause)."""
+    T = len(lead)
+    v = np.r_[np.full(T1, 1.2), np.zeros(pause), np.full(T - T1 - pause, -1.2)]
+    x = np.r_[0.0, np.cumsum(v[:-1])] / RATE
+    forward = np.sign(v)  # +1, 0, -1: the way walked along x
+    pts = np.zeros((T, 3, 3))
+    pts[:, 0, 0] = x
+    pts[:, 1, 0], pts[:, 1, 1] = x + forward * lead / 2, 0.1
+    pts[:, 2, 0], pts[:, 2, 1] = x - forward * lead / 2, -0.1
+    return pts
+
+
+def test_the_leading_leg_is_ordered_pass_by_pass() -> None:
+    """Up the room, a pause, and back: along one line for the whole run the left ankle's lead changes
+    sign with the walking direction, so one alternation over the run puts one pass's parity wrong.
+    Pass by pass (``pipeline._passes``: cut at the turn), a stretch the forward pass exchanged on the
+    way up takes the backward pass, which leads as it must; one both passes exchanged on the way back
+    is tracked again (on the run's own frames); no other frame changes."""
+    from gaitcap import pipeline
+
+    T1, pause, T2 = 70, 40, 110  # the pass back the longer: it outvotes the pass up over the whole run
+    T = T1 + pause + T2
+    lead = np.r_[_lead(T1), np.zeros(pause), _lead(T2, phase=0.3 + np.pi)]
+    truth = _up_and_back(lead, T1, pause)
+    a, b, _ = alternating_stretches(lead[:T1], lead[:T1], lead[:T1], RATE, 0.1, 0.03)[2]
+    c, d, _ = alternating_stretches(lead[-T2:], lead[-T2:], lead[-T2:], RATE, 0.1, 0.03)[3]
+    c, d = c + T - T2, d + T - T2
+    wrong = lead.copy()
+    wrong[a:b] *= -1  # the forward pass exchanged the legs over a stretch on the way up ...
+    wrong[c:d] *= -1  # ... and over one on the way back, where the backward pass did so too
+    forward = _up_and_back(wrong, T1, pause)
+    back = [_Est(np.full(2, 2.0), p, 0.80) for p in _up_and_back(np.where(np.arange(T) < T1, lead, wrong), T1, pause)]
+    calls = []
+
+    class Tracker:
+        class model:
+            point_names = NAMES
+
+        @staticmethod
+        def mirrored(q):
+            return -q
+
+    def again(q0, i, j, backwards):  # a stretch tracked again: the truth, on the run's frames i..j-1
+        calls.append((i, j))
+        return [_Est(np.full(2, 3.0), p, 0.80) for p in truth[i:j]]
+
+    def refine(q0, t):  # a frame searched again fits far worse: never taken
+        return _Est(np.full(2, 4.0), forward[t], 0.5)
+
+    cfg = load_tracking_config()
+    (s1, e1), (s2, e2) = pipeline._passes(forward, NAMES, RATE)
+    assert s1 == 0 and T1 <= e1 == s2 <= T1 + pause and e2 == T  # cut at the turn, the pause kept
+    fit, poses = np.full(T, 0.80), np.ones((T, 2))
+    for by_pass in (False, True):
+        chosen: dict = {}
+        calls.clear()
+        spans = pipeline._passes(forward, NAMES, RATE) if by_pass else [(0, T)]
+        for s, e in spans:
+            pipeline._order_pass(chosen, s, e, forward, fit, poses, back, Tracker, RATE, again, refine, cfg)
+        if by_pass:
+            assert sorted(chosen) == [*range(a, b), *range(c, d)]
+            assert all(chosen[t] is back[t] for t in range(a, b))  # the backward pass
+            assert all(chosen[t].q[0] == 3.0 for t in range(c, d))  # tracked again, on the run's frames
+            # (and so are short stretches of the pause, where no ankle leads: not taken)
+            assert (c, d) in calls and all(T1 <= i < j <= T1 + pause for i, j in set(calls) - {(c, d)})
+            np.testing.assert_array_equal([chosen[t].points for t in range(c, d)], truth[c:d])
+        else:
+            assert not set(range(a, b)) <= set(chosen)  # one alternation over the run: left exchanged

@@ -65,6 +65,8 @@ def test_a_walk_up_and_down_is_two_passes_without_the_pivot():
     paused = np.flatnonzero(paused_at_turns(xy, RATE))
     assert first <= paused[0] <= first + 20 and last - 20 <= paused[-1] <= last
     assert (a1, b0) == (paused[0] - 20, paused[-1] + 21)
+    # the pauses kept (the tracker's leg order): cut at the turn
+    assert walk_passes(xy, RATE, pauses=False) == [(0, at[0]), (at[0], tr.n_frames)]
 
 
 def test_the_pause_is_found_where_the_turn_falls_at_its_edge():
@@ -173,6 +175,7 @@ def test_a_turn_walked_round_belongs_to_no_pass(monkeypatch):
     # each pass ends within the circle's first 20 degrees (and the velocity span's reach, 0.2 s)
     reach = round(20 / 180 * (last - first)) + 20
     assert first - 20 <= passes[0][1] <= first + reach and last - reach <= passes[1][0] <= last + 21
+    assert walk_passes(xy, RATE, pauses=False) == passes  # no pause to keep
     a = analyse(tr, EXACT)
     for p, sign in zip(a.passes, (1.0, -1.0), strict=True):
         np.testing.assert_allclose(p.direction.forward[:2], [sign, 0.0], atol=np.radians(0.5))

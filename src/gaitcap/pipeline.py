@@ -36,6 +36,7 @@ from gaitcap.body.model import BodyModel, load_body_model
 from gaitcap.body.recorded import recorded_model
 from gaitcap.camera import CameraRig
 from gaitcap.errors import ConfigError, InputError, OutputError, TrackingError
+from gaitcap.gait.passes import walk_passes
 from gaitcap.io.atomic import write_text_atomic
 from gaitcap.io.silhouettes_h5 import SILHOUETTES_FILE, SilhouetteWriter
 from gaitcap.io.spool import FrameSpool
@@ -1086,9 +1087,44 @@ def _merge_run(tracker, spool: FrameSpool, raw: np.ndarray, poses: np.ndarray, f
         def refine(q0: np.ndarray, t: int):  # frame t searched from q0 alone
             return tracker.refine(Observation.from_arrays(spool.read(s + t)), q0)
 
-        order_legs(chosen, raw[s:e], fit[s:e], poses[s:e], back, tracker.model.point_names, rate_hz, again,
-                   tracker.mirrored, cfg.backward, cfg.verdict.exchanged_margin_m, refine)  # fmt: skip
+        passes = _passes(raw[s:e], tracker.model.point_names, rate_hz)
+        if len(passes) > 1:  # order_legs's own messages count the frames from each pass's first
+            log.debug("frames %d-%d: the leading leg ordered pass by pass, frames %s", s, e - 1,
+                      ", ".join(f"{s + a}-{s + b - 1}" for a, b in passes))  # fmt: skip
+        for a, b in passes:
+            _order_pass(chosen, a, b, raw[s:e], fit[s:e], poses[s:e], back, tracker, rate_hz, again, refine, cfg)
     return chosen
+
+
+def _passes(points: np.ndarray, names: tuple[str, ...], rate_hz: float) -> list[tuple[int, int]]:
+    """The passes (start, stop) of a run's points (T, P, 3) along the walkway, as the leg order
+    takes them (:func:`gaitcap.gait.passes.walk_passes` of its pelvis with its pauses: the stretches
+    between turns, less the turns walked round; a pivot on the spot keeps its frames, whose steps
+    still alternate); [(0, T)] without a turn or a pelvis."""
+    if "pelvis" not in names:
+        return [(0, len(points))]
+    return walk_passes(points[:, names.index("pelvis"), :2], rate_hz, pauses=False)
+
+
+def _order_pass(chosen: dict, a: int, b: int, forward: np.ndarray, fit: np.ndarray, poses: np.ndarray, back: list,
+                tracker, rate_hz: float, again: Callable, refine: Callable, cfg: TrackingConfig) -> None:  # fmt: skip
+    """:func:`~gaitcap.tracking.backward.order_legs` over the frames a..b-1 of a run (one pass along
+    the walkway, with its own walking line and its own alternation of the leading leg: a turn breaks
+    both), ``chosen`` (frame of the run -> estimate) updated in place; the run's ``forward`` points,
+    ``fit``, ``poses`` and ``back`` estimates, and ``again`` and ``refine`` on the run's frames."""
+    if (a, b) == (0, len(forward)):
+        order_legs(chosen, forward, fit, poses, back, tracker.model.point_names, rate_hz, again, tracker.mirrored,
+                   cfg.backward, cfg.verdict.exchanged_margin_m, refine)  # fmt: skip
+        return
+    part = {t - a: est for t, est in chosen.items() if a <= t < b}
+    order_legs(part, forward[a:b], fit[a:b], poses[a:b], back[a:b], tracker.model.point_names, rate_hz,
+               lambda q0, i, j, backwards: again(q0, a + i, a + j, backwards), tracker.mirrored, cfg.backward,
+               cfg.verdict.exchanged_margin_m, lambda q0, t: refine(q0, a + t))  # fmt: skip
+    for t in range(a, b):
+        if t - a in part:
+            chosen[t] = part[t - a]
+        else:
+            chosen.pop(t, None)
 
 
 #: the random stream of a mirror's backward pass (:func:`_mirror_run`) is the tracker seed's with this

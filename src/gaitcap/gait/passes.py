@@ -99,18 +99,22 @@ def paused_at_turns(xy: np.ndarray, rate_hz: float, at: np.ndarray | None = None
     return out
 
 
-def walk_passes(xy: np.ndarray, rate_hz: float) -> list[tuple[int, int]]:
+def walk_passes(xy: np.ndarray, rate_hz: float, pauses: bool = True) -> list[tuple[int, int]]:
     """The passes of the pelvis path xy (T, 2): (start, stop) frames of each stretch between turns,
     its pauses at them left out, and half of :data:`SPEED_SPAN_S` more either side of each pause
     (the span's velocity reaches into the pause by up to that: a stop and a pivot's first frames
     would be taken for walking), and the frames next to a turn that head off the pass's direction
-    (:func:`straight_part`); stretches of pause or turn alone dropped; [(0, T)] without a turn."""
+    (:func:`straight_part`); stretches of pause or turn alone dropped; [(0, T)] without a turn.
+    ``pauses`` False: the pauses kept in the passes (a stretch then ends at its turn, or where a turn
+    walked round begins)."""
     T = len(xy)
     at = turns(xy)
     if not len(at):
         return [(0, T)]
     half = max(1, round(SPEED_SPAN_S * rate_hz / 2))
-    paused = np.convolve(paused_at_turns(xy, rate_hz, at), np.ones(2 * half + 1), mode="same") > 0
+    paused = np.zeros(T, bool)
+    if pauses:
+        paused = np.convolve(paused_at_turns(xy, rate_hz, at), np.ones(2 * half + 1), mode="same") > 0
     moving = np.flatnonzero(~paused)
     velocity = pelvis_velocity(xy, rate_hz)
     out = []
