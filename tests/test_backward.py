@@ -794,15 +794,16 @@ def test_the_leading_leg_is_ordered_pass_by_pass() -> None:
         return _Est(np.full(2, 4.0), forward[t], 0.5)
 
     cfg = load_tracking_config()
-    (s1, e1), (s2, e2) = pipeline._passes(forward, NAMES, RATE)
+    (s1, e1, lines1), (s2, e2, lines2) = pipeline._passes(forward, NAMES, RATE)
     assert s1 == 0 and T1 <= e1 == s2 <= T1 + pause and e2 == T  # cut at the turn, the pause kept
+    assert lines1 is None and lines2 is None  # straight passes: one walking line each
     fit, poses = np.full(T, 0.80), np.ones((T, 2))
     for by_pass in (False, True):
         chosen: dict = {}
         calls.clear()
-        spans = pipeline._passes(forward, NAMES, RATE) if by_pass else [(0, T)]
-        for s, e in spans:
-            pipeline._order_pass(chosen, s, e, forward, fit, poses, back, Tracker, RATE, again, refine, cfg)
+        spans = pipeline._passes(forward, NAMES, RATE) if by_pass else [(0, T, None)]
+        for s, e, lines in spans:
+            pipeline._order_pass(chosen, s, e, lines, forward, fit, poses, back, Tracker, RATE, again, refine, cfg)
         if by_pass:
             assert sorted(chosen) == [*range(a, b), *range(c, d)]
             assert all(chosen[t] is back[t] for t in range(a, b))  # the backward pass
@@ -812,3 +813,49 @@ def test_the_leading_leg_is_ordered_pass_by_pass() -> None:
             np.testing.assert_array_equal([chosen[t].points for t in range(c, d)], truth[c:d])
         else:
             assert not set(range(a, b)) <= set(chosen)  # one alternation over the run: left exchanged
+
+
+def _round(lead: np.ndarray, straight: int, radius: float = 0.75) -> tuple[np.ndarray, np.ndarray]:
+    """Points (T, 3, 3) of NAMES walking ``straight`` frames along +x at 1.2 m/s, then round a circle
+    of ``radius`` metres to the left, the left ankle leading by ``lead`` (T,) along the way walked;
+    and each frame's walking direction (T, 2)."""
+    T = len(lead)
+    s = 1.2 * np.arange(T) / RATE
+    bend = np.clip((s - s[straight]) / radius, 0.0, None)
+    c, n = np.cos(bend), np.sin(bend)
+    pelvis = np.stack([np.minimum(s, s[straight]) + radius * n, radius * (1 - c)], axis=1)
+    heading = np.stack([c, n], axis=1)
+    left = np.stack([-n, c], axis=1)
+    pts = np.zeros((T, 3, 3))
+    pts[:, 0, :2] = pelvis
+    pts[:, 1, :2] = pelvis + heading * lead[:, None] / 2 + 0.1 * left
+    pts[:, 2, :2] = pelvis - heading * lead[:, None] / 2 - 0.1 * left
+    return pts, heading
+
+
+def test_order_legs_reads_the_order_along_each_frame_s_direction_on_a_turn_walked_round() -> None:
+    """Walking round a quarter circle, the order along one line for the pass says nothing on the
+    circle (the lead turns across it); along each frame's own direction (``lines``) a stretch the
+    forward pass exchanged there takes the backward pass, which leads as it must."""
+    straight, T = 50, 80
+    lead = _lead(T)
+    truth, heading = _round(lead, straight)
+    a, b, _ = alternating_stretches(lead, lead, lead, RATE, 0.1, 0.03)[-2]
+    assert a > straight + 10  # on the circle, over 25 degrees round
+    wrong = lead.copy()
+    wrong[a:b] *= -1
+    forward, _ = _round(wrong, straight)
+    back = [_Est(np.full(2, 2.0), p, 0.80) for p in truth]
+    cfg = load_tracking_config().backward
+
+    def again(q0, i, j, backwards):  # tracked again: the forward pass's legs, no help
+        return [_Est(np.full(2, 3.0), p, 0.80) for p in forward[i:j]]
+
+    for lines in (None, heading):
+        chosen: dict = {}
+        order_legs(chosen, forward, np.full(T, 0.80), np.ones((T, 2)), back, NAMES, RATE, again, lambda q: -q, cfg,
+                   0.03, None, lines)  # fmt: skip
+        if lines is None:
+            assert not set(range(a, b)) <= set(chosen)  # one line: left exchanged
+        else:
+            assert sorted(chosen) == list(range(a, b)) and all(chosen[t] is back[t] for t in chosen)

@@ -198,3 +198,28 @@ def test_a_turn_walked_round_belongs_to_no_pass(monkeypatch):
     old = analyse(tr, EXACT).parameters
     assert max(s.step_width_m for s in old.steps) > 0.3
     assert min(s.stride_length_m for s in old.strides) < walker.stride_length - 0.1
+
+
+def test_the_tracker_s_leg_order_takes_a_turn_walked_round_frame_by_frame():
+    """``pipeline._passes`` (the leg order's passes): cut at the turn, the circle kept, each frame of
+    it with its pelvis's direction of travel (within 2 degrees of the path's), the straight (up to 20
+    degrees round the circle, as the gait analysis's pass) with the pass's own; a walk with a pivot
+    instead is cut at the turn with one line per pass."""
+    from gaitcap import pipeline
+
+    tr, _, first, last = _walk_round()
+    (a0, b0, lines0), (a1, b1, lines1) = pipeline._passes(tr.points, tr.names, RATE)
+    turn = turns(tr.point("pelvis")[:, :2])[0]
+    assert (a0, b0, a1, b1) == (0, turn, turn, tr.n_frames)
+    path = np.unwrap(np.arctan2(*np.diff(tr.point("pelvis")[:, :2], axis=0).T[::-1]))  # the heading walked
+    straight = walk_passes(tr.point("pelvis")[:, :2], RATE)
+    for (a, lines), (p, q) in zip(((a0, lines0), (a1, lines1)), straight, strict=True):
+        assert lines is not None
+        assert np.ptp(lines[p - a : q - a], axis=0).max() == 0.0  # one line on the straight
+        t = np.arange(a, a + len(lines) - 1)
+        off = np.degrees(np.abs(np.angle(np.exp(1j * (np.arctan2(lines[:-1, 1], lines[:-1, 0]) - path[t])))))
+        on_circle = (t < p) | (t >= q)
+        assert on_circle.sum() > 40 and off[on_circle].max() < 2.0 and off.max() < 21.0
+    up, _, _, _ = _up_and_down()
+    spans = pipeline._passes(up.points, up.names, RATE)
+    assert len(spans) == 2 and all(lines is None for _, _, lines in spans)

@@ -293,8 +293,9 @@ APART = 0.5
 
 def fore_aft(points: np.ndarray, names: tuple[str, ...], line: np.ndarray) -> np.ndarray:
     """(T,) metres: the left ankle's lead over the right one along the unit horizontal ``line`` (2,),
-    from points (T, P, 3); NaN where a point is missing."""
-    return (points[:, names.index("ankle_l"), :2] - points[:, names.index("ankle_r"), :2]) @ line
+    or each frame's own (T, 2), from points (T, P, 3); NaN where a point is missing."""
+    apart = points[:, names.index("ankle_l"), :2] - points[:, names.index("ankle_r"), :2]
+    return apart @ line if line.ndim == 1 else np.einsum("tk,tk->t", apart, line)
 
 
 def _sinusoids(t: np.ndarray, hz: float | np.ndarray) -> np.ndarray:

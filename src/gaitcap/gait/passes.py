@@ -72,6 +72,15 @@ def pelvis_velocity(xy: np.ndarray, rate_hz: float) -> np.ndarray:
     return velocity
 
 
+def headings(xy: np.ndarray, rate_hz: float) -> np.ndarray:
+    """(T, 2): the unit direction of the pelvis path xy (T, 2)'s velocity (:func:`pelvis_velocity`)
+    where it moves at :data:`MIN_SPEED_M_S` or more, NaN elsewhere."""
+    velocity = pelvis_velocity(xy, rate_hz)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        speed = np.linalg.norm(velocity, axis=1, keepdims=True)
+        return np.where(speed >= MIN_SPEED_M_S, velocity / speed, np.nan)
+
+
 def paused_at_turns(xy: np.ndarray, rate_hz: float, at: np.ndarray | None = None) -> np.ndarray:
     """(T,) bool: the frames of the pelvis path xy (T, 2) where it pauses at a turn (``at``:
     :func:`turns`, found when not given): the run of frames moving at less than

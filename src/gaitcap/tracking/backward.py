@@ -298,7 +298,8 @@ def order_legs(chosen: dict[int, _Estimate], forward: np.ndarray, fit: np.ndarra
                back: list[_Estimate], names: tuple[str, ...], rate_hz: float,
                again: Callable[[np.ndarray, int, int, bool], list[_Estimate]], mirrored: Callable[[np.ndarray], np.ndarray],
                cfg: BackwardConfig, margin_m: float,
-               refine: Callable[[np.ndarray, int], _Estimate] | None = None) -> None:  # fmt: skip
+               refine: Callable[[np.ndarray, int], _Estimate] | None = None,
+               lines: np.ndarray | None = None) -> None:  # fmt: skip
     """Put right, in ``chosen``, the stretches of a merged run whose leading ankle does not alternate.
 
     Between the feet's passings (:func:`alternating_stretches`), a stretch of the merged passes whose
@@ -326,20 +327,26 @@ def order_legs(chosen: dict[int, _Estimate], forward: np.ndarray, fit: np.ndarra
         margin_m: the ankles lead where they are further apart than this (metres).
         refine: (pose (D,), frame t of the run) -> frame t's estimate searched from that pose alone (no
             other hypothesis; :meth:`gaitcap.tracking.base.Tracker.refine`); None: not tried.
+        lines: (n, 2) each frame's walking direction, the fore-aft order read along it (a turn walked
+            round); None: one walking line for the run (:func:`gaitcap.quality.walking_line`).
     """
-    line = walking_line(forward, names)
-    if line is None:
+    line = walking_line(forward, names) if lines is None else None
+    if lines is None and line is None:
         return
-    d_forward = fore_aft(forward, names, line)
-    d_back = fore_aft(np.array([b.points for b in back]), names, line)
+
+    def along(points: np.ndarray, a: int) -> np.ndarray:  # the fore-aft order of frames a.. (points (k, P, 3))
+        return fore_aft(points, names, line if line is not None else lines[a : a + len(points)])
+
+    d_forward = along(forward, 0)
+    d_back = along(np.array([b.points for b in back]), 0)
     # the merge as it enters (``chosen`` holds backward estimates only); stretches do not overlap, so
     # a stretch's frames are still so when it is reached
     merged = np.array([t in chosen for t in range(len(forward))], bool)
     d_merged = np.where(merged, d_back, d_forward)
     fit_merged = np.where(merged, [x.fit for x in back], fit)
 
-    def lead(ests: list[_Estimate]) -> tuple[int, bool]:
-        return order_sign(fore_aft(np.array([x.points for x in ests]), names, line), margin_m)
+    def lead(ests: list[_Estimate], a: int) -> tuple[int, bool]:  # estimates of frames a..
+        return order_sign(along(np.array([x.points for x in ests]), a), margin_m)
 
     def merged_pose(t: int) -> np.ndarray:  # frame t's pose in the merge as it stands
         return chosen[t].q if t in chosen else poses[t]
@@ -358,13 +365,13 @@ def order_legs(chosen: dict[int, _Estimate], forward: np.ndarray, fit: np.ndarra
             # the feet passed before it (forwards), or after it for a first stretch (backwards)
             at = a - 1 if a > 0 else b
             redone = again(mirrored(merged_pose(at)), a, b, a == 0)
-            if lead(redone) == (sign, True):
+            if lead(redone, a) == (sign, True):
                 steady.append((float(np.mean([x.fit for x in redone])), redone))
         if not steady and refine is not None:  # the merge, its frames that lead the wrong way exchanged
             ests, fits, d = [chosen.get(t) for t in range(a, b)], fit_merged[a:b].copy(), d_merged[a:b].copy()
             for k in np.flatnonzero(d * sign < -margin_m):
                 x = refine(mirrored(merged_pose(a + k)), a + k)
-                ests[k], fits[k], d[k] = x, x.fit, fore_aft(x.points[None], names, line)[0]
+                ests[k], fits[k], d[k] = x, x.fit, along(x.points[None], a + k)[0]
             leads, throughout = order_sign(d, margin_m)
             if leads == sign:
                 (steady if throughout else mostly).append((float(np.mean(fits)), ests))
