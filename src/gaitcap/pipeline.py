@@ -36,7 +36,7 @@ from gaitcap.body.model import BodyModel, load_body_model
 from gaitcap.body.recorded import recorded_model
 from gaitcap.camera import CameraRig
 from gaitcap.errors import ConfigError, InputError, OutputError, TrackingError
-from gaitcap.gait.passes import headings, turns, walk_passes
+from gaitcap.gait.passes import directed_passes
 from gaitcap.io.atomic import write_text_atomic
 from gaitcap.io.silhouettes_h5 import SILHOUETTES_FILE, SilhouetteWriter
 from gaitcap.io.spool import FrameSpool
@@ -1098,36 +1098,12 @@ def _merge_run(tracker, spool: FrameSpool, raw: np.ndarray, poses: np.ndarray, f
 
 
 def _passes(points: np.ndarray, names: tuple[str, ...], rate_hz: float) -> list[tuple[int, int, np.ndarray | None]]:
-    """The passes of a run's points (T, P, 3) along the walkway, as the leg order takes them: (start,
-    stop, lines), the stretches between the turns of its pelvis (:func:`gaitcap.gait.passes.turns`;
-    a pivot on the spot keeps its frames, whose steps still alternate), ``lines`` None where the pass
-    is straight (one walking line), else (stop - start, 2) each frame's walking direction: that of
-    its pelvis where it walks round a turn (:func:`gaitcap.gait.passes.walk_passes` leaves those frames
-    out), the pass's own on the straight. [(0, T, None)] without a turn or a pelvis."""
-    T = len(points)
+    """:func:`gaitcap.gait.passes.directed_passes` of the pelvis of a run's points (T, P, 3): the
+    passes the leg order takes, (start, stop, each frame's walking direction or None); [(0, T, None)]
+    without a pelvis."""
     if "pelvis" not in names:
-        return [(0, T, None)]
-    xy = points[:, names.index("pelvis"), :2]
-    at = turns(xy).tolist()
-    if not at:
-        return [(0, T, None)]
-    straight = walk_passes(xy, rate_hz, pauses=False)
-    heading = headings(xy, rate_hz)
-    out: list[tuple[int, int, np.ndarray | None]] = []
-    for a, b in zip([0, *at], [*at, T], strict=True):
-        inner = [(p, q) for p, q in straight if a <= p and q <= b]
-        if not inner or inner[0] == (a, b):
-            out.append((a, b, None))
-            continue
-        p, q = inner[0]
-        travel = xy[q - 1] - xy[p]
-        lines = np.tile(travel / max(float(np.linalg.norm(travel)), 1e-9), (b - a, 1))
-        turning = np.ones(b - a, bool)
-        turning[p - a : q - a] = False
-        turning &= np.all(np.isfinite(heading[a:b]), axis=1)
-        lines[turning] = heading[a:b][turning]
-        out.append((a, b, lines))
-    return out
+        return [(0, len(points), None)]
+    return directed_passes(points[:, names.index("pelvis"), :2], rate_hz)
 
 
 def _order_pass(chosen: dict, a: int, b: int, lines: np.ndarray | None, forward: np.ndarray, fit: np.ndarray,
@@ -1138,10 +1114,6 @@ def _order_pass(chosen: dict, a: int, b: int, lines: np.ndarray | None, forward:
     alternation of the leading leg: a turn breaks both), ``chosen`` (frame of the run -> estimate)
     updated in place; the run's ``forward`` points, ``fit``, ``poses`` and ``back`` estimates, and
     ``again`` and ``refine`` on the run's frames."""
-    if (a, b) == (0, len(forward)) and lines is None:
-        order_legs(chosen, forward, fit, poses, back, tracker.model.point_names, rate_hz, again, tracker.mirrored,
-                   cfg.backward, cfg.verdict.exchanged_margin_m, refine)  # fmt: skip
-        return
     part = {t - a: est for t, est in chosen.items() if a <= t < b}
     order_legs(part, forward[a:b], fit[a:b], poses[a:b], back[a:b], tracker.model.point_names, rate_hz,
                lambda q0, i, j, backwards: again(q0, a + i, a + j, backwards), tracker.mirrored, cfg.backward,

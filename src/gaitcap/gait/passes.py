@@ -116,42 +116,75 @@ def walk_passes(xy: np.ndarray, rate_hz: float, pauses: bool = True) -> list[tup
     (:func:`straight_part`); stretches of pause or turn alone dropped; [(0, T)] without a turn.
     ``pauses`` False: the pauses kept in the passes (a stretch then ends at its turn, or where a turn
     walked round begins)."""
+    at = turns(xy)
+    if not len(at):
+        return [(0, len(xy))]
+    return _passes_between(xy, rate_hz, at, pauses, headings(xy, rate_hz))
+
+
+def directed_passes(xy: np.ndarray, rate_hz: float) -> list[tuple[int, int, np.ndarray | None]]:
+    """The passes of the pelvis path xy (T, 2) as the tracker's leg order takes them (``gaitcap.
+    pipeline``): (start, stop, lines), the stretches between turns (:func:`turns`; a pivot on the spot
+    keeps its frames, whose steps still alternate), ``lines`` None where the stretch is straight (one
+    walking line), else (stop - start, 2) each frame's walking direction: its :func:`headings` where
+    it walks round a turn (the frames :func:`walk_passes` leaves out), the pass's net displacement's
+    on the straight. [(0, T, None)] without a turn."""
     T = len(xy)
     at = turns(xy)
     if not len(at):
-        return [(0, T)]
-    half = max(1, round(SPEED_SPAN_S * rate_hz / 2))
-    paused = np.zeros(T, bool)
+        return [(0, T, None)]
+    heading = headings(xy, rate_hz)
+    straight = _passes_between(xy, rate_hz, at, False, heading)
+    out: list[tuple[int, int, np.ndarray | None]] = []
+    for a, b in zip([0, *at.tolist()], [*at.tolist(), T], strict=True):
+        inner = [(p, q) for p, q in straight if a <= p and q <= b]
+        if not inner or inner[0] == (a, b):
+            out.append((a, b, None))
+            continue
+        p, q = inner[0]
+        travel = xy[q - 1] - xy[p]
+        lines = np.tile(travel / max(float(np.linalg.norm(travel)), 1e-9), (b - a, 1))
+        turning = np.ones(b - a, bool)
+        turning[p - a : q - a] = False
+        turning &= np.all(np.isfinite(heading[a:b]), axis=1)
+        lines[turning] = heading[a:b][turning]
+        out.append((a, b, lines))
+    return out
+
+
+def _passes_between(xy: np.ndarray, rate_hz: float, at: np.ndarray, pauses: bool,
+                    heading: np.ndarray) -> list[tuple[int, int]]:  # fmt: skip
+    """:func:`walk_passes` of the pelvis path xy (T, 2) given its turns ``at`` (K,) and its
+    :func:`headings` (T, 2)."""
+    T = len(xy)
+    moving = np.arange(T)
     if pauses:
-        paused = np.convolve(paused_at_turns(xy, rate_hz, at), np.ones(2 * half + 1), mode="same") > 0
-    moving = np.flatnonzero(~paused)
-    velocity = pelvis_velocity(xy, rate_hz)
+        half = max(1, round(SPEED_SPAN_S * rate_hz / 2))
+        moving = np.flatnonzero(np.convolve(paused_at_turns(xy, rate_hz, at), np.ones(2 * half + 1), mode="same") == 0)
     out = []
     for a, b in zip([0, *at.tolist()], [*at.tolist(), T], strict=True):
         inside = moving[(moving >= a) & (moving < b)]
         if len(inside):
-            part = straight_part(xy, velocity, int(inside[0]), int(inside[-1]) + 1, a > 0, b < T)
+            part = straight_part(xy, heading, int(inside[0]), int(inside[-1]) + 1, a > 0, b < T)
             if part is not None:
                 out.append(part)
     return out
 
 
-def straight_part(xy: np.ndarray, velocity: np.ndarray, start: int, stop: int, after_turn: bool,
+def straight_part(xy: np.ndarray, heading: np.ndarray, start: int, stop: int, after_turn: bool,
                   before_turn: bool) -> tuple[int, int] | None:  # fmt: skip
     """Frames (start, stop) of the pelvis path xy (T, 2) without the runs of frames at an end next
-    to a turn (``after_turn``: the start, ``before_turn``: the stop) whose velocity (T, 2) m/s
-    (:func:`pelvis_velocity`) heads more than :data:`TURN_HEADING_DEG` off the pass's direction (its
-    pelvis's net displacement, taken again on what is left until nothing more is cut); frames slower
-    than :data:`MIN_SPEED_M_S` or without a velocity are not judged. None when nothing is left."""
+    to a turn (``after_turn``: the start, ``before_turn``: the stop) whose :func:`headings` (T, 2)
+    point more than :data:`TURN_HEADING_DEG` off the pass's direction (its pelvis's net displacement,
+    taken again on what is left until nothing more is cut); frames without a heading (slower than
+    :data:`MIN_SPEED_M_S`, or no velocity) are not judged. None when nothing is left."""
     cos_max = np.cos(np.radians(TURN_HEADING_DEG))
     for _ in range(8):  # a few rounds: each leaves less of the turn to pull the direction
         travel = xy[stop - 1] - xy[start]
         if stop - start < 2 or not np.all(np.isfinite(travel)) or not np.linalg.norm(travel):
             return (start, stop) if stop > start else None
-        v = velocity[start:stop]
-        speed = np.linalg.norm(v, axis=1)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            off = (speed >= MIN_SPEED_M_S) & ((v @ travel) / (speed * np.linalg.norm(travel)) < cos_max)
+        with np.errstate(invalid="ignore"):
+            off = heading[start:stop] @ (travel / np.linalg.norm(travel)) < cos_max
         a, b = start, stop
         while after_turn and a < b and off[a - start]:
             a += 1
