@@ -1,0 +1,120 @@
+"""Where each walk's floor is: the ankle's height above z = 0 with the foot flat, against anatomy.
+
+A synthetic session keeps its walk's z = 0 as the rendered floor and draws the shoe from the sole
+points, so an ankle the walk carries low is drawn low inside the shoe. Prints, for each walk of the
+shared data (``gaitcap.markers.motion.read_motion``'s joint centres):
+the ankle centre's median height above z = 0 in the frames where a foot is flat on it, as millimetres
+and as a fraction of the leg (hip -> knee -> ankle), and the toe marker's own height in those frames
+(the sole rule lowers it by that much); then, for each session folder given (``truth.h5`` or a truth
+folder's ``joints.csv``), the ankle's height above z = 0 (the rendered floor) in the frames where heel
+and toe are both near their lowest, as a fraction of the subject's height. Anatomy for comparison:
+the ankle (malleolus) 0.039 H above the floor barefoot, the leg (hip to ankle) 0.49 H (Winter 2009,
+Fig. 4.1, as body.yaml): 0.080 of the leg barefoot, more with a shoe's sole under it.
+
+Usage:
+    python scripts/check_walk_floor.py [--data ../shared/data] [SESSION_DIR ...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(REPO / "src"))
+
+from gaitcap.markers.motion import read_motion  # noqa: E402
+
+DEFAULT_DATA = REPO.parent / "shared" / "data"
+WALKS = {
+    "vicon": ("walking/vicon_pig_lowerbody/walk.c3d", "LTOE", "RTOE"),
+    "opensim": ("walking/opensim_gait2354_subject01/subject01_walk1.trc", "L.Toe.Tip", "R.Toe.Tip"),
+    "c3dorg": ("walking/c3d_org_sample03/gait-pig.c3d", "LTOE", "RTOE"),
+}
+FLAT_M = 0.02  # a foot whose heel and toe (at the sole) are both this close to z = 0 (metres) is flat
+FLAT_H = 0.012  # ... in a session: as a fraction of the subject's height
+
+
+def walk_row(path: Path, toes: tuple[str, str]) -> str:
+    traj = read_motion(path)
+    raw = _raw_markers(path)
+    ankle_mm, ratio, toe_mm, frames = [], [], [], 0
+    for side, toe in zip("lr", toes):
+        ankle = traj.point(f"ankle_{side}")
+        still = (traj.point(f"heel_{side}")[:, 2] < FLAT_M) & (traj.point(f"toe_{side}")[:, 2] < FLAT_M)
+        frames += int(still.sum())
+        knee, hip = traj.point(f"knee_{side}"), traj.point(f"hip_{side}")
+        leg = np.nanmedian(np.linalg.norm(hip - knee, axis=1) + np.linalg.norm(knee - ankle, axis=1))
+        ankle_mm.append(np.nanmedian(ankle[still, 2]) * 1000)
+        ratio.append(np.nanmedian(ankle[still, 2]) / leg)
+        marker = _marker(raw, toe)
+        toe_mm.append(np.nanmedian(marker[still, 2]) * 1000 if marker is not None else np.nan)
+    return (f"{path.name:24s} frames {frames:4d}  ankle {np.mean(ankle_mm):5.0f} mm = {np.mean(ratio):.3f} of the leg"
+            f"  toe marker {np.nanmean(toe_mm):5.1f} mm")  # fmt: skip
+
+
+def _raw_markers(path: Path):
+    if path.suffix.lower() == ".c3d":
+        from gaitcap.io.c3d import read_c3d_markers
+
+        return read_c3d_markers(path)
+    from gaitcap.io.trc import read_trc
+
+    return read_trc(path)
+
+
+def _marker(raw, name: str) -> np.ndarray | None:
+    """A raw marker (T, 3), metres, z up, by its label with or without a subject prefix."""
+    for i, label in enumerate(raw.names):
+        if label.split(":")[-1] == name:
+            points = raw.points[:, i]
+            return points if raw.meta.get("up_axis") in (None, "z") else points[:, [2, 0, 1]]
+    return None
+
+
+def session_row(folder: Path) -> str:
+    if (folder / "truth.h5").exists():
+        import h5py
+
+        with h5py.File(folder / "truth.h5", "r") as f:
+            names = [n.decode() if isinstance(n, bytes) else str(n) for n in f["points"].attrs["names"]]
+            points, height = f["points"][:], float(f.attrs["height_m"])
+        z = {n: points[:, names.index(n), 2] for n in names}
+    else:
+        import yaml
+
+        table = np.genfromtxt(folder / "truth" / "joints.csv", delimiter=",", names=True)
+        z = {n[:-2]: table[n] for n in table.dtype.names if n.endswith("_z")}
+        height = float(yaml.safe_load((folder / "session.yaml").read_text())["subject"]["height_m"])
+    heights = []
+    for s in "lr":
+        heel, toe = z[f"heel_{s}"], z[f"toe_{s}"]
+        flat = (heel - np.nanmin(heel) < FLAT_H * height) & (toe - np.nanmin(toe) < FLAT_H * height)
+        heights.append(z[f"ankle_{s}"][flat])
+    h = np.concatenate(heights)
+    ankle = np.median(h) / height if h.size else np.nan
+    heel = min(np.nanmin(z["heel_l"]), np.nanmin(z["heel_r"])) * 1000
+    return (f"{folder.name:24s} H {height:.2f} m  flat frames {h.size:3d}  ankle {ankle:.3f} H"
+            f"  lowest heel point {heel:3.0f} mm")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--data", type=Path, default=DEFAULT_DATA)
+    ap.add_argument("sessions", nargs="*", type=Path, help="session folders with their truth")
+    args = ap.parse_args()
+    print("walk (joint centres as gaitcap reads them; heel and toe at the sole within 2 cm of z = 0)")
+    for rel, *toes in WALKS.values():
+        path = args.data / rel
+        print(walk_row(path, tuple(toes)) if path.exists() else f"{rel}: missing")
+    if args.sessions:
+        print("sessions (truth; heel and toe within 0.012 H of their lowest)")
+        for folder in args.sessions:
+            print(session_row(folder))
+
+
+if __name__ == "__main__":
+    main()
