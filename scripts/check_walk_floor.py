@@ -44,14 +44,14 @@ def walk_row(path: Path, toes: tuple[str, str]) -> str:
     ankle_mm, ratio, toe_mm, frames = [], [], [], 0
     for side, toe in zip("lr", toes):
         ankle = traj.point(f"ankle_{side}")
-        still = (traj.point(f"heel_{side}")[:, 2] < FLAT_M) & (traj.point(f"toe_{side}")[:, 2] < FLAT_M)
-        frames += int(still.sum())
+        flat = (traj.point(f"heel_{side}")[:, 2] < FLAT_M) & (traj.point(f"toe_{side}")[:, 2] < FLAT_M)
+        frames += int(flat.sum())
         knee, hip = traj.point(f"knee_{side}"), traj.point(f"hip_{side}")
         leg = np.nanmedian(np.linalg.norm(hip - knee, axis=1) + np.linalg.norm(knee - ankle, axis=1))
-        ankle_mm.append(np.nanmedian(ankle[still, 2]) * 1000)
-        ratio.append(np.nanmedian(ankle[still, 2]) / leg)
+        ankle_mm.append(np.nanmedian(ankle[flat, 2]) * 1000)
+        ratio.append(np.nanmedian(ankle[flat, 2]) / leg)
         marker = _marker(raw, toe)
-        toe_mm.append(np.nanmedian(marker[still, 2]) * 1000 if marker is not None else np.nan)
+        toe_mm.append(np.nanmedian(marker[flat, 2]) * 1000 if marker is not None else np.nan)
     return (f"{path.name:24s} frames {frames:4d}  ankle {np.mean(ankle_mm):5.0f} mm = {np.mean(ratio):.3f} of the leg"
             f"  toe marker {np.nanmean(toe_mm):5.1f} mm")  # fmt: skip
 
