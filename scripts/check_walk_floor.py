@@ -2,14 +2,15 @@
 
 A synthetic session keeps its walk's z = 0 as the rendered floor and draws the shoe from the sole
 points, so an ankle the walk carries low is drawn low inside the shoe. Prints, for each walk of the
-shared data (``gaitcap.markers.motion.read_motion``'s joint centres):
-the ankle centre's median height above z = 0 in the frames where a foot is flat on it, as millimetres
-and as a fraction of the leg (hip -> knee -> ankle), and the toe marker's own height in those frames
-(the sole rule lowers it by that much); then, for each session folder given (``truth.h5`` or a truth
-folder's ``joints.csv``), the ankle's height above z = 0 (the rendered floor) in the frames where heel
-and toe are both near their lowest, as a fraction of the subject's height. Anatomy for comparison:
-the ankle (malleolus) 0.039 H above the floor barefoot, the leg (hip to ankle) 0.49 H (Winter 2009,
-Fig. 4.1, as body.yaml): 0.080 of the leg barefoot, more with a shoe's sole under it.
+shared data (``gaitcap.markers.motion.read_motion``'s joint centres): the ankle centre's median height
+above z = 0 in the frames where a foot is flat on it, as millimetres and as a fraction of the leg (hip
+-> knee -> ankle), and the toe marker's own height in those frames (the sole rule lowers it by that
+much); then, for each session folder given (its ``truth.h5``, or a truth folder, itself or its
+``truth/``, as ``gaitcap eval`` reads them; the height from ``session.yaml``), the ankle's height above
+z = 0 (the rendered floor) in the frames where heel and toe are both near their lowest, as a fraction of
+the subject's height. Anatomy for comparison: the ankle (malleolus) 0.039 H above the floor barefoot,
+the leg (hip to ankle) 0.49 H (Winter 2009, Fig. 4.1, as body.yaml): 0.080 of the leg barefoot, more
+with a shoe's sole under it.
 
 Usage:
     python scripts/check_walk_floor.py [--data ../shared/data] [SESSION_DIR ...]
@@ -26,7 +27,11 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "src"))
 
-from gaitcap.markers.motion import read_motion  # noqa: E402
+from gaitcap.config import load_yaml_model  # noqa: E402
+from gaitcap.errors import InputError  # noqa: E402
+from gaitcap.evaluation.report import read_truth_trajectory  # noqa: E402
+from gaitcap.markers.motion import read_markers, read_motion  # noqa: E402
+from gaitcap.session import SESSION_FILE, SessionInfo  # noqa: E402
 
 DEFAULT_DATA = REPO.parent / "shared" / "data"
 WALKS = {
@@ -40,7 +45,7 @@ FLAT_H = 0.012  # ... in a session: as a fraction of the subject's height
 
 def walk_row(path: Path, toes: tuple[str, str]) -> str:
     traj = read_motion(path)
-    raw = _raw_markers(path)
+    raw = read_markers(path)
     ankle_mm, ratio, toe_mm, frames = [], [], [], 0
     for side, toe in zip("lr", toes):
         ankle = traj.point(f"ankle_{side}")
@@ -50,53 +55,24 @@ def walk_row(path: Path, toes: tuple[str, str]) -> str:
         leg = np.nanmedian(np.linalg.norm(hip - knee, axis=1) + np.linalg.norm(knee - ankle, axis=1))
         ankle_mm.append(np.nanmedian(ankle[flat, 2]) * 1000)
         ratio.append(np.nanmedian(ankle[flat, 2]) / leg)
-        marker = _marker(raw, toe)
-        toe_mm.append(np.nanmedian(marker[flat, 2]) * 1000 if marker is not None else np.nan)
+        toe_mm.append(np.nanmedian(raw.point(toe)[flat, 2]) * 1000 if raw.has(toe) else np.nan)
     return (f"{path.name:24s} frames {frames:4d}  ankle {np.mean(ankle_mm):5.0f} mm = {np.mean(ratio):.3f} of the leg"
             f"  toe marker {np.nanmean(toe_mm):5.1f} mm")  # fmt: skip
 
 
-def _raw_markers(path: Path):
-    if path.suffix.lower() == ".c3d":
-        from gaitcap.io.c3d import read_c3d_markers
-
-        return read_c3d_markers(path)
-    from gaitcap.io.trc import read_trc
-
-    return read_trc(path)
-
-
-def _marker(raw, name: str) -> np.ndarray | None:
-    """A raw marker (T, 3), metres, z up, by its label with or without a subject prefix."""
-    for i, label in enumerate(raw.names):
-        if label.split(":")[-1] == name:
-            points = raw.points[:, i]
-            return points if raw.meta.get("up_axis") in (None, "z") else points[:, [2, 0, 1]]
-    return None
-
-
 def session_row(folder: Path) -> str:
-    if (folder / "truth.h5").exists():
-        import h5py
-
-        with h5py.File(folder / "truth.h5", "r") as f:
-            names = [n.decode() if isinstance(n, bytes) else str(n) for n in f["points"].attrs["names"]]
-            points, height = f["points"][:], float(f.attrs["height_m"])
-        z = {n: points[:, names.index(n), 2] for n in names}
-    else:
-        import yaml
-
-        table = np.genfromtxt(folder / "truth" / "joints.csv", delimiter=",", names=True)
-        z = {n[:-2]: table[n] for n in table.dtype.names if n.endswith("_z")}
-        height = float(yaml.safe_load((folder / "session.yaml").read_text())["subject"]["height_m"])
+    truth = read_truth_trajectory(folder / "truth" if (folder / "truth").is_dir() else folder)
+    height = load_yaml_model(SessionInfo, folder / SESSION_FILE).subject.height_m
+    if height is None:
+        raise InputError(f"{folder / SESSION_FILE}: no subject.height_m")
     heights = []
     for s in "lr":
-        heel, toe = z[f"heel_{s}"], z[f"toe_{s}"]
+        heel, toe = truth.point(f"heel_{s}")[:, 2], truth.point(f"toe_{s}")[:, 2]
         flat = (heel - np.nanmin(heel) < FLAT_H * height) & (toe - np.nanmin(toe) < FLAT_H * height)
-        heights.append(z[f"ankle_{s}"][flat])
+        heights.append(truth.point(f"ankle_{s}")[flat, 2])
     h = np.concatenate(heights)
     ankle = np.median(h) / height if h.size else np.nan
-    heel = min(np.nanmin(z["heel_l"]), np.nanmin(z["heel_r"])) * 1000
+    heel = min(np.nanmin(truth.point(f"heel_{s}")[:, 2]) for s in "lr") * 1000
     return (f"{folder.name:24s} H {height:.2f} m  flat frames {h.size:3d}  ankle {ankle:.3f} H"
             f"  lowest heel point {heel:3.0f} mm")
 
@@ -113,7 +89,10 @@ def main() -> None:
     if args.sessions:
         print("sessions (truth; heel and toe within 0.012 H of their lowest)")
         for folder in args.sessions:
-            print(session_row(folder))
+            try:
+                print(session_row(folder))
+            except InputError as e:
+                sys.exit(f"error: {e}")
 
 
 if __name__ == "__main__":
