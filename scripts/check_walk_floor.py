@@ -4,13 +4,13 @@ A synthetic session keeps its walk's z = 0 as the rendered floor and draws the s
 points, so an ankle the walk carries low is drawn low inside the shoe. Prints, for each walk of the
 shared data (``gaitcap.markers.motion.read_motion``'s joint centres): the ankle centre's median height
 above z = 0 in the frames where a foot is flat on it, as millimetres and as a fraction of the leg (hip
--> knee -> ankle), and the toe marker's own height in those frames (the sole rule lowers it by that
-much); then, for each session folder given (its ``truth.h5``, or a truth folder, itself or its
-``truth/``, as ``gaitcap eval`` reads them; the height from ``session.yaml``), the ankle's height above
-z = 0 (the rendered floor) in the frames where heel and toe are both near their lowest, as a fraction of
-the subject's height. Anatomy for comparison: the ankle (malleolus) 0.039 H above the floor barefoot,
-the leg (hip to ankle) 0.49 H (Winter 2009, Fig. 4.1, as body.yaml): 0.080 of the leg barefoot, more
-with a shoe's sole under it.
+-> knee -> ankle, as ``gaitcap eval`` measures it: ``gaitcap.body.measures.segment_lengths``), and the
+toe marker's own height in those frames (the sole rule lowers it by that much); then, for each session
+folder given (its ``truth.h5``, or a truth folder, itself or its ``truth/``, as ``gaitcap eval`` reads
+them; the height from ``session.yaml``), the ankle's height above z = 0 (the rendered floor) in the
+frames where heel and toe are both near their lowest, as a fraction of the subject's height. Anatomy for
+comparison: the ankle (malleolus) 0.039 H above the floor barefoot, the leg (hip to ankle) 0.49 H
+(Winter 2009, Fig. 4.1, as body.yaml): 0.080 of the leg barefoot, more with a shoe's sole under it.
 
 Usage:
     python scripts/check_walk_floor.py [--data ../shared/data] [SESSION_DIR ...]
@@ -27,6 +27,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "src"))
 
+from gaitcap.body.measures import segment_lengths  # noqa: E402
 from gaitcap.config import load_yaml_model  # noqa: E402
 from gaitcap.errors import InputError  # noqa: E402
 from gaitcap.evaluation.report import read_truth_trajectory  # noqa: E402
@@ -46,17 +47,15 @@ FLAT_H = 0.012  # ... in a session: as a fraction of the subject's height
 def walk_row(path: Path, toes: tuple[str, str]) -> str:
     traj = read_motion(path)
     raw = read_markers(path)
-    ankle_mm, ratio, toe_mm, frames = [], [], [], 0
+    leg = segment_lengths(traj.names, traj.points)["leg"]  # as gaitcap eval measures it
+    ankle_mm, toe_mm, frames = [], [], 0
     for side, toe in zip("lr", toes):
-        ankle = traj.point(f"ankle_{side}")
         flat = (traj.point(f"heel_{side}")[:, 2] < FLAT_M) & (traj.point(f"toe_{side}")[:, 2] < FLAT_M)
         frames += int(flat.sum())
-        knee, hip = traj.point(f"knee_{side}"), traj.point(f"hip_{side}")
-        leg = np.nanmedian(np.linalg.norm(hip - knee, axis=1) + np.linalg.norm(knee - ankle, axis=1))
-        ankle_mm.append(np.nanmedian(ankle[flat, 2]) * 1000)
-        ratio.append(np.nanmedian(ankle[flat, 2]) / leg)
+        ankle_mm.append(np.nanmedian(traj.point(f"ankle_{side}")[flat, 2]) * 1000)
         toe_mm.append(np.nanmedian(raw.point(toe)[flat, 2]) * 1000 if raw.has(toe) else np.nan)
-    return (f"{path.name:24s} frames {frames:4d}  ankle {np.mean(ankle_mm):5.0f} mm = {np.mean(ratio):.3f} of the leg"
+    ankle = np.mean(ankle_mm)
+    return (f"{path.name:24s} frames {frames:4d}  ankle {ankle:5.0f} mm = {ankle / 1000 / leg:.3f} of the leg"
             f"  toe marker {np.nanmean(toe_mm):5.1f} mm")  # fmt: skip
 
 
