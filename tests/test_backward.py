@@ -5,6 +5,7 @@ from __future__ import annotations
 import itertools
 from dataclasses import dataclass
 
+import h5py
 import numpy as np
 import pytest
 
@@ -17,6 +18,7 @@ from gaitcap.tracking.backward import (
     choose_backward,
     crossing_frames,
     leg_points,
+    mean_pose,
     merge_passes,
     order_legs,
     order_sign,
@@ -147,6 +149,73 @@ def test_spool_gives_every_frame_back_bit_for_bit() -> None:
             assert all(np.array_equal(a, b) and b.dtype == np.float32 for a, b in zip(frames[t], back))
         with pytest.raises(ValueError, match="frame 7"):
             spool.append([np.zeros((24, 32), np.float32)])
+
+
+def test_mean_pose_is_halfway_and_takes_the_heading_the_shorter_way_round() -> None:
+    wrap = np.array([False, True, False])
+    a = np.array([0.1, np.radians(179.0), -0.4])
+    b = np.array([0.3, np.radians(-179.0), -0.2])
+    m = mean_pose(a, b, wrap)
+    assert np.allclose(m[[0, 2]], [0.2, -0.3])
+    assert np.isclose(abs(m[1]), np.pi)  # 180 degrees, not the 0 of the plain mean
+    r = mean_pose(b, a, wrap)  # the other way round: the same mean
+    assert np.allclose(r[[0, 2]], m[[0, 2]]) and np.isclose(abs(r[1]), np.pi)
+    assert np.allclose(mean_pose(a, a, wrap), a)
+    c = np.array([0.0, np.radians(10.0), 0.0])
+    assert np.isclose(mean_pose(c, -c, wrap)[1], 0.0)  # +10 and -10 degrees: 0
+
+
+def test_agreeing_frames_take_the_mean_of_the_two_passes(tmp_path, monkeypatch) -> None:
+    """``backward.average``: a frame whose merged estimate is one pass's and agrees with the other's
+    takes their mean pose, its points and fit computed for it and its uncertainty kept; a frame
+    where the passes disagree, or whose estimate is neither pass's (the leg order's), is left."""
+    from gaitcap import pipeline
+    from gaitcap.body.model import load_body_model
+    from gaitcap.tracking.base import Estimate
+    from gaitcap.tracking.projector import PoseProjector
+
+    model = load_body_model()
+    knee = model.dof_index("knee_flexion_l")
+
+    class Tracker:  # what _average_agreeing reads of a tracker; the fit of a pose: its knee flexion
+        def __init__(self) -> None:
+            self.model, self.projector = model, PoseProjector(model, [])
+
+        def full_fit(self, obs, q):
+            return -1.0, float(q[knee])
+
+    monkeypatch.setattr(pipeline.Observation, "from_arrays", staticmethod(lambda arrays: None))
+    tracker, T = Tracker(), 4
+    forward = np.repeat(model.neutral_pose()[None], T, axis=0)
+    forward[:, knee] = 0.4
+    backward = forward.copy()
+    backward[:, knee] = [0.5, 0.5, 2.0, 0.5]  # frame 2: the knee 1.6 rad apart, the passes disagree
+    back = [Estimate(q=q, points=tracker.projector.points(q[None])[0], uncertainty=np.full(model.n_points, 0.02),
+                     log_likelihood=0.0, fit=0.0, evaluations=0) for q in backward]  # fmt: skip
+    other = Estimate(q=forward[3] + 0.01, points=back[3].points, uncertainty=back[3].uncertainty,
+                     log_likelihood=0.0, fit=0.0, evaluations=0)  # fmt: skip
+    chosen = {1: back[1], 3: other}  # frame 1 took the backward pass, frame 3 another estimate
+    writer = TrackWriter(tmp_path / "t.h5", model.point_names, model.dof_names, 25.0, {})
+    for t in range(T):
+        est = chosen.get(t)
+        q = forward[t] if est is None else est.q
+        writer.append(tracker.projector.points(q[None])[0], np.full(model.n_points, 0.01), q, -2.0, 0.7, QUALITY_OK)
+
+    class Spool:
+        def read(self, t):
+            return []
+
+    cfg = load_tracking_config()
+    pipeline._average_agreeing(tracker, Spool(), writer, forward, back, chosen, 0, T, cfg)
+    poses, fit = writer.read_poses(), writer.read_fit()
+    assert np.allclose(poses[[0, 1], knee], 0.45) and np.allclose(fit[[0, 1]], 0.45)  # the mean, its own fit
+    raw, _ = writer.read_back()
+    assert np.allclose(raw[0], tracker.projector.points(poses[0][None])[0])
+    assert poses[2, knee] == 0.4 and fit[2] == 0.7  # the passes disagree: the forward pass's, as written
+    assert np.array_equal(poses[3], other.q) and fit[3] == 0.7  # the leg order's estimate: left as it is
+    writer.finish(raw, "none")
+    with h5py.File(tmp_path / "t.h5") as f:
+        assert np.allclose(f["uncertainty"][()], 0.01)  # every frame's uncertainty kept
 
 
 def test_writer_replace_overwrites_one_frame(tmp_path) -> None:
@@ -481,6 +550,7 @@ def test_a_second_hypothesis_only_for_a_run_in_doubt_and_kept_if_no_worse(monkey
 
     T, P = 6, 4
     cfg = load_tracking_config()
+    cfg.backward.average = False  # the merge's decisions alone (the mean of agreeing frames: its own test)
     doubt = iter(doubts)
     monkeypatch.setattr(pipeline, "legs_in_doubt", lambda points, names, rate, vcfg: next(doubt))
     monkeypatch.setattr(pipeline, "pivots", lambda points, names, rate: paused)
@@ -530,6 +600,7 @@ def test_a_fresh_start_begun_beside_the_merge_is_used_only_if_the_merged_run_is_
 
     T, P = 6, 4
     cfg = load_tracking_config()
+    cfg.backward.average = False  # the merge's decisions alone (the mean of agreeing frames: its own test)
     doubt = iter(doubts)
     monkeypatch.setattr(pipeline, "legs_in_doubt", lambda points, names, rate, vcfg: next(doubt))
     monkeypatch.setattr(pipeline, "facing_in_doubt", lambda points, names, rate: facing)
@@ -700,6 +771,7 @@ def test_a_run_no_camera_views_obliquely_is_tracked_from_its_mirror(monkeypatch,
 
     T, P = 6, 4
     cfg = load_tracking_config()
+    cfg.backward.average = False  # the merge's decisions alone (the mean of agreeing frames: its own test)
     cfg.backward.mirror_run = enabled
     monkeypatch.setattr(pipeline, "legs_in_doubt", lambda points, names, rate, vcfg: 0)
     monkeypatch.setattr(pipeline, "_merge_run", lambda *a: {})

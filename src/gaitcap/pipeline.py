@@ -53,8 +53,8 @@ from gaitcap.silhouette.joint import JointExtractor, floor_check
 from gaitcap.silhouette.run import Source, camera_attrs, file_attrs, prepare_extractor, quality_row
 from gaitcap.timeseries import finite_runs
 from gaitcap.track_summary import TrackSummary, is_finished, write_track_json
-from gaitcap.tracking.backward import (choose_backward, exchanged_legs, leg_points, legs_apart, merge_passes,
-                                       order_legs)
+from gaitcap.tracking.backward import (choose_backward, exchanged_legs, leg_points, legs_apart, mean_pose,
+                                       merge_passes, order_legs)
 from gaitcap.tracking.condensation import Condensation
 from gaitcap.tracking.config import TrackingConfig, load_tracking_config
 from gaitcap.tracking.factored_ipf import FactoredIPF
@@ -1064,7 +1064,35 @@ def _merge_back(tracker, spool: FrameSpool, writer: TrackWriter, raw: np.ndarray
             notes.append(note)
     for i, b in chosen.items():
         writer.replace(s + i, b.points, b.uncertainty, b.q, b.log_likelihood, b.fit, _fit_quality(b.fit, cfg))
+    if cfg.backward.average:
+        _average_agreeing(tracker, spool, writer, poses, back, chosen, s, e, cfg)
     return len(chosen)
+
+
+def _average_agreeing(tracker, spool: FrameSpool, writer: TrackWriter, poses: np.ndarray, back: list, chosen: dict,
+                      s: int, e: int, cfg: TrackingConfig) -> None:  # fmt: skip
+    """``backward.average``: each frame of the run s..e-1 whose merged estimate is one pass's (the
+    forward pass's ``poses`` (T, D), or the backward pass's ``back``, e - s estimates, where ``chosen``
+    took it) and agrees with the other's (``backward.agree_m``) takes the mean of the two poses
+    (:func:`~gaitcap.tracking.backward.mean_pose`), its points, log-likelihood and fit computed for it,
+    its uncertainty kept."""
+    legs, wrap = leg_points(tracker.model.point_names), tracker.model.wrap
+    averaged = 0
+    for i, b in enumerate(back):
+        if i in chosen and chosen[i] is not b:
+            continue  # another estimate (the leg order's, the mirror's): no second pass of it
+        forward = poses[s + i]
+        if not (np.all(np.isfinite(forward)) and np.all(np.isfinite(b.q))):
+            continue
+        one, other = (b.q, forward) if i in chosen else (forward, b.q)
+        pts = tracker.projector.points(np.stack([one, other]))
+        if legs_apart(pts[0, legs], pts[1, legs]) >= cfg.backward.agree_m:
+            continue
+        q = mean_pose(one, other, wrap)
+        ll, fit = tracker.full_fit(Observation.from_arrays(spool.read(s + i)), q)
+        writer.replace(s + i, tracker.projector.points(q[None])[0], None, q, ll, fit, _fit_quality(fit, cfg))
+        averaged += 1
+    log.debug("frames %d-%d: %d frames where the passes agree take the mean of their poses", s, e - 1, averaged)
 
 
 def _merge_run(tracker, spool: FrameSpool, raw: np.ndarray, poses: np.ndarray, fit: np.ndarray, back: list, s: int,

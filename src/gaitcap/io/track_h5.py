@@ -86,14 +86,16 @@ class TrackWriter:
         self.n += 1
         self.replace(i, points, uncertainty, pose, likelihood, fit, quality)
 
-    def replace(self, i: int, points: np.ndarray, uncertainty: np.ndarray, pose: np.ndarray, likelihood: float,
-                fit: float, quality: int) -> None:  # fmt: skip
-        """Overwrite frame ``i`` (already written) with another estimate, as :meth:`append` takes it."""
+    def replace(self, i: int, points: np.ndarray, uncertainty: np.ndarray | None, pose: np.ndarray,
+                likelihood: float, fit: float, quality: int) -> None:  # fmt: skip
+        """Overwrite frame ``i`` (already written) with another estimate, as :meth:`append` takes it
+        (``uncertainty`` None: the frame's is kept)."""
         if not 0 <= i < self.n:
             raise IndexError(f"frame {i} not written yet ({self.n} frames)")
         for key, value in (("points_unfiltered", points), ("spread", uncertainty), ("poses", pose),
                            ("likelihood", likelihood), ("fit", fit), ("quality", quality)):  # fmt: skip
-            self._ds[key][i] = value
+            if value is not None:
+                self._ds[key][i] = value
 
     def read_back(self) -> tuple[np.ndarray, np.ndarray]:
         """(points_unfiltered (T, P, 3), quality (T,)) written so far."""

@@ -11,7 +11,10 @@ are merged where they disagree:
 and every run of frames where they do not agree takes the pass whose fit, summed over the run, is
 the higher (a whole leg assignment, never a mixture within the run); a frame where they agree
 takes the better fit of the two. This is the choice a clip-level smoother makes between two
-hypotheses, with the silhouettes as the only judge.
+hypotheses, with the silhouettes as the only judge. Once every choice is made, a frame whose
+estimate agrees with the other pass's (with ``backward.average``) takes the mean of the two poses
+(:func:`mean_pose`): two searches with their own random draws, whose mean scatters less than
+either, where picking the better fit of two near-equal ones picks a draw.
 
 Where the silhouettes cannot judge (every camera beside or along the walkway: the two legs'
 assignments fit alike), both passes can keep the same leg ahead where the feet meet, a bounce
@@ -78,6 +81,18 @@ def legs_apart(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """The mean distance (metres) between two sets of leg points, (..., K, 3) each -> (...): two
     passes agree on a frame when it is below ``backward.agree_m``."""
     return np.linalg.norm(a - b, axis=-1).mean(axis=-1)
+
+
+def mean_pose(a: np.ndarray, b: np.ndarray, wrap: np.ndarray) -> np.ndarray:
+    """The mean of two poses (D,) of one frame: every DOF halfway between them, a wrapped one (``wrap``
+    (D,) bool: the heading) the shorter way round, so that headings of +179 and -179 degrees average
+    to 180 and not to 0."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    d = b - a
+    d[wrap] = (d[wrap] + np.pi) % (2 * np.pi) - np.pi
+    out = a + d / 2
+    out[wrap] = (out[wrap] + np.pi) % (2 * np.pi) - np.pi
+    return out
 
 
 def exchanged_legs(a: np.ndarray, b: np.ndarray, names: tuple[str, ...]) -> np.ndarray:

@@ -276,6 +276,8 @@ class BackwardConfig(Strict):
     #: mirror, forwards and backwards and merged the same way; the mirror's run replaces it whole if it
     #: holds the legs the other way round and fits better (gaitcap.pipeline._mirror_run)
     mirror_run: bool = True
+    #: where the merged estimate and the other pass agree (agree_m), the frame takes their mean pose
+    average: bool = True
 
 
 class LegGapConfig(Strict):
