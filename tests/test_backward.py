@@ -206,14 +206,15 @@ def test_agreeing_frames_take_the_mean_of_the_two_passes(tmp_path, monkeypatch) 
             return []
 
     cfg = load_tracking_config()
-    pipeline._average_agreeing(tracker, Spool(), writer, forward, back, chosen, 0, T, cfg)
+    raw = tracker.projector.points(forward)  # the forward pass's points
+    pipeline._average_agreeing(tracker, Spool(), writer, raw, forward, back, chosen, 0, T, cfg)
     poses, fit = writer.read_poses(), writer.read_fit()
     assert np.allclose(poses[[0, 1], knee], 0.45) and np.allclose(fit[[0, 1]], 0.45)  # the mean, its own fit
-    raw, _ = writer.read_back()
-    assert np.allclose(raw[0], tracker.projector.points(poses[0][None])[0])
+    written, _ = writer.read_back()
+    assert np.allclose(written[0], tracker.projector.points(poses[0][None])[0])
     assert poses[2, knee] == 0.4 and fit[2] == 0.7  # the passes disagree: the forward pass's, as written
     assert np.array_equal(poses[3], other.q) and fit[3] == 0.7  # the leg order's estimate: left as it is
-    writer.finish(raw, "none")
+    writer.finish(written, "none")
     with h5py.File(tmp_path / "t.h5") as f:
         assert np.allclose(f["uncertainty"][()], 0.01)  # every frame's uncertainty kept
 

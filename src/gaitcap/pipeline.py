@@ -1065,30 +1065,27 @@ def _merge_back(tracker, spool: FrameSpool, writer: TrackWriter, raw: np.ndarray
     for i, b in chosen.items():
         writer.replace(s + i, b.points, b.uncertainty, b.q, b.log_likelihood, b.fit, _fit_quality(b.fit, cfg))
     if cfg.backward.average:
-        _average_agreeing(tracker, spool, writer, poses, back, chosen, s, e, cfg)
+        _average_agreeing(tracker, spool, writer, raw, poses, back, chosen, s, e, cfg)
     return len(chosen)
 
 
-def _average_agreeing(tracker, spool: FrameSpool, writer: TrackWriter, poses: np.ndarray, back: list, chosen: dict,
-                      s: int, e: int, cfg: TrackingConfig) -> None:  # fmt: skip
+def _average_agreeing(tracker, spool: FrameSpool, writer: TrackWriter, raw: np.ndarray, poses: np.ndarray, back: list,
+                      chosen: dict, s: int, e: int, cfg: TrackingConfig) -> None:  # fmt: skip
     """``backward.average``: each frame of the run s..e-1 whose merged estimate is one pass's (the
-    forward pass's ``poses`` (T, D), or the backward pass's ``back``, e - s estimates, where ``chosen``
-    took it) and agrees with the other's (``backward.agree_m``) takes the mean of the two poses
+    forward pass's: ``raw`` points (T, P, 3) and ``poses`` (T, D); or the backward pass's ``back``, e - s
+    estimates, where ``chosen`` took it) and agrees with the other's (``backward.agree_m``, as
+    :func:`~gaitcap.tracking.backward.choose_backward` compares them) takes the mean of the two poses
     (:func:`~gaitcap.tracking.backward.mean_pose`), its points, log-likelihood and fit computed for it,
     its uncertainty kept."""
-    legs, wrap = leg_points(tracker.model.point_names), tracker.model.wrap
+    legs = leg_points(tracker.model.point_names)
+    apart = legs_apart(raw[s:e, legs], np.array([b.points[legs] for b in back]))  # NaN: a pass not tracked
     averaged = 0
-    for i, b in enumerate(back):
+    for i in np.flatnonzero(apart < cfg.backward.agree_m):
+        b, forward = back[i], poses[s + i]
         if i in chosen and chosen[i] is not b:
             continue  # another estimate (the leg order's, the mirror's): no second pass of it
-        forward = poses[s + i]
-        if not (np.all(np.isfinite(forward)) and np.all(np.isfinite(b.q))):
-            continue
         one, other = (b.q, forward) if i in chosen else (forward, b.q)
-        pts = tracker.projector.points(np.stack([one, other]))
-        if legs_apart(pts[0, legs], pts[1, legs]) >= cfg.backward.agree_m:
-            continue
-        q = mean_pose(one, other, wrap)
+        q = mean_pose(one, other, tracker.model.wrap)
         ll, fit = tracker.full_fit(Observation.from_arrays(spool.read(s + i)), q)
         writer.replace(s + i, tracker.projector.points(q[None])[0], None, q, ll, fit, _fit_quality(fit, cfg))
         averaged += 1
