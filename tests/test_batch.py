@@ -3,6 +3,7 @@ from __future__ import annotations
 import json
 import logging
 import os
+from functools import partial
 from pathlib import Path
 
 import pytest
@@ -88,6 +89,23 @@ def test_task_options_reach_the_task_and_progress_is_off_in_parallel(tmp_path):
     run_batch(sessions, tmp_path / "out", task=fake_track, tracker="factored_ipf")
     log_a = (tmp_path / "out" / "a" / "track.log").read_text()
     assert "tracker=factored_ipf, progress=True" in log_a
+
+
+def test_quiet_cli_batch_shows_no_progress(tmp_path, monkeypatch):
+    """``gaitcap -q track FOLDER`` in one process: no progress bars (warnings only); without -q, shown."""
+    from click.testing import CliRunner
+
+    import gaitcap.cli.track as track_cli
+    from gaitcap.cli.main import cli
+
+    monkeypatch.setattr(track_cli, "run_batch", partial(run_batch, task=fake_track))
+    make_sessions(tmp_path / "in", ["a"])
+    log_a = tmp_path / "out" / "a" / "track.log"
+    for flags, shown in ((["-q"], False), ([], True)):
+        result = CliRunner().invoke(cli, [*flags, "track", str(tmp_path / "in"), "-o", str(tmp_path / "out"), "--force"])
+        assert result.exit_code == 0, result.output
+        runs = [line for line in log_a.read_text().splitlines() if "fake tracking of a" in line]
+        assert runs[-1].endswith(f"progress={shown})")
 
 
 def test_parallel_processes(tmp_path):

@@ -78,6 +78,8 @@ def command(ctx: click.Context, source: Path, out: Path, tracker: str | None, co
                 click.echo(f"note: {note}")
             click.echo(f"results: {out}")
         return
+    if quiet:  # -q: no progress bars (in one process the batch shows them by default)
+        kwargs["progress"] = False
     summaries = run_batch(find_sessions(source), out, jobs=jobs, force=force, scheduler=scheduler, **kwargs)
     click.echo(format_summary(summaries))
     if any_failed(summaries):
