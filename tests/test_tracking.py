@@ -2,6 +2,7 @@ from __future__ import annotations
 
 import csv
 import json
+import pickle
 import re
 import time
 
@@ -1670,6 +1671,13 @@ def test_stages_leave_an_inner_stage_out_of_the_outer_one():
     assert list(stages) == ["inner", "outer"]
     assert 0.06 <= stages["inner"] < 0.5
     assert 0.02 <= stages["outer"] < 0.05 + 0.02  # not the 0.07 s it was open
+
+
+def test_a_run_summary_crosses_to_the_batch_process(tracked_session):
+    """``gaitcap track FOLDER --jobs N`` returns each worker's summary to the parent pickled."""
+    _, _, summary = tracked_session
+    again = pickle.loads(pickle.dumps(summary))
+    assert again == summary and "tracking" in again.stages and again.verdict == summary.verdict
 
 
 def test_track_json_holds_the_verdict(tracked_session):

@@ -599,7 +599,8 @@ def _finish_run(run: TrackedRun, notes: tuple[str, ...]) -> TrackSummary:
                            message=f"{cfg.tracker}: {run.tracked} frames, {n_flagged} flagged, "
                                    f"{1000 * timing.tracking_s / max(timing.searched, 1):.0f} ms/frame tracking "
                                    f"({timing.searched} frames searched), "
-                                   f"{run.tracked / seconds:.1f} frames/s end to end", stages=stages,
+                                   f"{run.tracked / seconds:.1f} frames/s end to end",
+                           stages=dict(stages),  # a plain dict: a batch's worker process pickles the summary
                            verdict=judged.verdict.verdict, verdict_reasons=list(judged.verdict.reasons),
                            verdict_notes=[*notes, *run.backward_notes, *judged.verdict.notes],
                            body={"height_m": round(float(run.height), 4), "height_source": run.height_source,
