@@ -114,22 +114,28 @@ def long_session(source: Path, target: Path, n_frames: int, fps: float) -> Path:
     return target
 
 
-def track_in_child(session: Path, out: Path, extra: list[str]) -> tuple[float, float, dict]:
-    """Run ``python -m gaitcap -q track`` on ``session``: (peak RSS MB, wall s, track.json)."""
+def gaitcap_in_child(args: list[str]) -> tuple[float, float]:
+    """Run ``python -m gaitcap -q ARGS`` with this checkout's modules, its output (a batch's summary)
+    left out of the table: (peak RSS MB, wall s)."""
     env = dict(os.environ, PYTHONPATH=str(REPO / "src") + os.pathsep + os.environ.get("PYTHONPATH", ""))
     # the checkout's modules compiled once, as `pip install .` compiles an installed package's: with
     # PYTHONDONTWRITEBYTECODE set, every run would compile them again, a start-up no user pays
     env.pop("PYTHONDONTWRITEBYTECODE", None)
-    cmd = [sys.executable, "-m", "gaitcap", "-q", "track", str(session), "-o", str(out), "--force", *extra]
+    cmd = [sys.executable, "-m", "gaitcap", "-q", *args]
     t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, env=env)
+    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL)
     _, status, usage = os.wait4(proc.pid, 0)
     wall = time.perf_counter() - t0
     proc.returncode = os.waitstatus_to_exitcode(status)
     if proc.returncode != 0:
         raise SystemExit(f"{' '.join(cmd)} failed with exit code {proc.returncode}")
-    summary = json.loads((out / "track.json").read_text())
-    return usage.ru_maxrss / 1024.0, wall, summary  # ru_maxrss is in KiB on Linux
+    return usage.ru_maxrss / 1024.0, wall  # ru_maxrss is in KiB on Linux
+
+
+def track_in_child(session: Path, out: Path, extra: list[str]) -> tuple[float, float, dict]:
+    """Run ``python -m gaitcap -q track`` on ``session``: (peak RSS MB, wall s, track.json)."""
+    rss, wall = gaitcap_in_child(["track", str(session), "-o", str(out), "--force", *extra])
+    return rss, wall, json.loads((out / "track.json").read_text())
 
 
 def main() -> None:

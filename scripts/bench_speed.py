@@ -1,7 +1,7 @@
 """End-to-end speed of ``gaitcap track`` on short and long clips, stage by stage, against its floor.
 
     PYTHONPATH=src python scripts/bench_speed.py [--runs 3] [--seconds 2.5 5 20] [--fps 25] [--reuse-body]
-        [--walk turns|ping-pong] [--work /tmp/gaitcap-bench] [-- extra gaitcap track options]
+        [--batch K] [--walk turns|ping-pong] [--work /tmp/gaitcap-bench] [-- extra gaitcap track options]
 
 The clips (2 cameras, 640x480, ``gaitcap synth``'s defaults, rendered once into --work):
 
@@ -33,6 +33,13 @@ the table gives the medians of:
 - with ``--reuse-body``, each clip is also tracked ``--runs`` times with the body its first run
   calibrated (``gaitcap track --body``: a lab's further clips of the same subject, no shape
   calibration), in a row of its own marked "--body"; the stages it skips show 0;
+- with ``--batch K``, each clip is also copied K times (symbolic links) into a folder tracked by one
+  ``python -m gaitcap -q track FOLDER --body BODY`` (BODY: the clip's first run, as ``--reuse-body``):
+  a lab's further clips of one subject in one process, whose start-up and kernels are paid once.
+  Its row ("batch") gives the medians over the copies 2 to K (the first also loads the kernels):
+  each copy's stages from its track.json, wall its own seconds plus an even share of the process's
+  start-up (the process's wall minus the copies' seconds, shown as start-up), and the floor of
+  the clip's other runs;
 - floor: in this process, the same decoding and silhouettes alone (gaitcap.pipeline's
   observation stream: background fitting, decoding, extraction and preparation of every frame of
   both cameras, side by side as in a run), and wall / floor; floor CPU ms/frame: the process's
@@ -46,7 +53,9 @@ the table gives the medians of:
 from __future__ import annotations
 
 import argparse
+import json
 import math
+import os
 import shutil
 import statistics
 import sys
@@ -55,7 +64,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from bench_memory import base_session, long_session, track_in_child, turn_session  # noqa: E402
+from bench_memory import base_session, gaitcap_in_child, long_session, track_in_child, turn_session  # noqa: E402
 from bench_suite import evaluate_run  # noqa: E402
 
 from gaitcap.pipeline import Stages, _observations  # noqa: E402
@@ -107,6 +116,30 @@ def measure(session: Path, out: Path, extra: list[str]) -> dict[str, float]:
     return row
 
 
+def measure_batch(session: Path, work: Path, body: Path, k: int, extra: list[str], floor: float,
+                  floor_cpu: float) -> list[dict[str, float]]:  # fmt: skip
+    """``k`` copies of ``session`` tracked by one ``gaitcap track FOLDER --body BODY`` process: the
+    rows of copies 2 to k (the table's quantities; the floor given, measured on the clip's runs)."""
+    folder, out = work / f"{session.name}-batch{k}", work / f"{session.name}-batch{k}-out"
+    names = [f"copy{i + 1:02d}" for i in range(k)]
+    for name in names:
+        if not (folder / name).is_dir():
+            shutil.copytree(session, folder / name, copy_function=os.symlink)
+    _, wall = gaitcap_in_child(["track", str(folder), "-o", str(out), "--force", "--body", str(body), *extra])
+    summaries = [json.loads((out / name / "track.json").read_text()) for name in names]
+    start_up = (wall - sum(s["seconds"] for s in summaries)) / k
+    rows = []
+    for name, summary in zip(names[1:], summaries[1:], strict=True):
+        stages = summary.get("stages_s", {})
+        row = {"frames": summary["n_frames"], "wall": summary["seconds"] + start_up, "start-up": start_up,
+               "lower mm": lower_limb_mm(session, out / name), "run verdict": summary.get("verdict", "?"),
+               "floor": floor, "floor CPU ms/frame": floor_cpu}  # fmt: skip
+        row |= {label: stages.get(key, float("nan")) for key, label in STAGES.items()}
+        row["background"] = stages.get("background", float("nan"))
+        rows.append(row)
+    return rows
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--runs", type=int, default=3, help="runs per clip (the table gives their medians)")
@@ -115,6 +148,8 @@ def main() -> None:
     ap.add_argument("--work", type=Path, default=Path("/tmp/gaitcap-bench"))
     ap.add_argument("--reuse-body", action="store_true",
                     help="also time each clip tracked with the body its first run calibrated (gaitcap track --body)")
+    ap.add_argument("--batch", type=int, default=0, metavar="K",
+                    help="also time K copies of each clip tracked in one process with its first run's body")
     ap.add_argument("--walk", choices=["turns", "ping-pong"], default="turns",
                     help="the clips: the walk up and down a walkway, or its videos played forwards and backwards")
     ap.add_argument("extra", nargs="*", help="options passed on to gaitcap track (after --)")
@@ -139,10 +174,16 @@ def main() -> None:
                 runs.append(measure(session, out, extra))
                 print(f"<!-- {seconds:g} s{label}, run {k + 1}: wall {runs[-1]['wall']:.1f} s, "
                       f"floor {runs[-1]['floor']:.2f} s -->", flush=True)  # fmt: skip
-                if args.reuse_body and not label and k == 0:  # the body the first run calibrated
+                if (args.reuse_body or args.batch) and not label and k == 0:  # the body the first run calibrated
                     shutil.rmtree(body, ignore_errors=True)
                     shutil.copytree(out, body)
             print_row(f"{seconds:g}{label}", runs, cols)
+            if not label:
+                floor = tuple(statistics.median(r[c] for r in runs) for c in ("floor", "floor CPU ms/frame"))
+        if args.batch > 1:
+            batch = [row for _ in range(args.runs) for row in measure_batch(session, args.work, body, args.batch,
+                                                                            args.extra, *floor)]  # fmt: skip
+            print_row(f"{seconds:g} (batch of {args.batch}, --body)", batch, cols)
 
 
 def print_row(label: str, runs: list[dict[str, float]], cols: list[str]) -> None:
