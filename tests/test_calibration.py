@@ -266,6 +266,16 @@ def test_cli_images_of_different_sizes(tmp_path):
     assert r.exit_code == 1 and "small.jpg" in r.output and "differs" in r.output
 
 
+def test_cli_refuses_an_existing_output_before_the_work(tmp_path):
+    out = tmp_path / "left.toml"
+    out.write_text("# a calibration of before\n")
+    for args in (("intrinsics", CHESS / "left01.jpg"), ("stereo", CHESS, CHESS)):
+        r = _run(*args, "--board", "9x6", "--square", "25mm", "-o", out)
+        assert r.exit_code == 1 and "left.toml: exists already (use --force" in r.output
+        assert "views used" not in r.output and "pairs:" not in r.output  # refused before detecting any board
+    assert out.read_text() == "# a calibration of before\n"
+
+
 def test_cli_check_missing_key(tmp_path):
     bad = tmp_path / "calibration.toml"
     bad.write_text('[cam1]\nname = "cam1"\nsize = [640, 480]\nmatrix = [[500,0,320],[0,500,240],[0,0,1]]\n'
@@ -317,8 +327,11 @@ def test_cli_extrinsics_from_floor_board(tmp_path):
         cv2.imwrite(str(session / "extrinsics" / f"{c.name}.png"), render_board_view(c, board, rng=rng))
     from gaitcap.camera import CameraRig
     write_calibration(session / "calibration.toml", CameraRig(tuple(Camera(c.name, c.size, c.matrix, c.dist) for c in truth)))
+    before = (session / "calibration.toml").read_text()
     r = _run("extrinsics", session, "--board", "9x6", "--square", "120mm")
     assert r.exit_code == 0, r.output
+    assert (session / "calibration.toml.bak").read_text() == before  # the calibration it replaced, kept
+    assert "previous one kept as calibration.toml.bak" in r.output
     rig = read_calibration(session / "calibration.toml")
     for est, true in zip(rig, truth):
         assert np.linalg.norm(est.center - true.center) < 0.005

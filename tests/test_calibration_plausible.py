@@ -65,6 +65,16 @@ def test_cameras_below_the_floor() -> None:
     assert "'c0' (z = -1.20 m)" in problem and "below the floor" in problem and "z axis" in problem
 
 
+def test_a_stereo_calibration_has_no_floor() -> None:
+    """A stereo pair's frame is its first camera's (``calibrate stereo``): named as such, not as a camera below
+    the floor (its partner sits at z = -0.00 m)."""
+    left = Camera("left", (320, 240), np.array([[260.0, 0, 160], [0, 260, 120], [0, 0, 1]]))
+    right = replace(left, name="right", tvec=np.array([-0.0836, 0.0, -1e-4]))
+    (problem,) = geometry_problems(CameraRig((left, right)))
+    assert "'left' is the world frame itself" in problem and "calibrate extrinsics" in problem
+    assert "below the floor" not in problem
+
+
 def test_a_camera_looking_up_cannot_see_the_feet() -> None:
     rig = _rig(2)
     up = Camera.look_at("sky", (4.0, 0.0, 1.2), (0.0, 0.0, 6.0), size=(320, 240), focal_px=260.0)

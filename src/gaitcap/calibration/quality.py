@@ -55,9 +55,11 @@ def geometry_problems(rig: CameraRig) -> list[str]:
     1. a camera farther than ``MAX_CAMERA_DISTANCE_M`` from the origin: when every far camera
        would stand 0.3-30 m away with its translation divided by 1000, the translations are in
        millimetres (a common slip: the cameras then stand kilometres away);
-    2. a camera below the floor (``C_z < 0``): the world's z axis points down, or the floor is not
+    2. a camera that is the world frame itself (zero rotation and translation: a stereo or one-camera
+       calibration, whose frame is its first camera's, not the floor's);
+    3. a camera below the floor (``C_z < 0``): the world's z axis points down, or the floor is not
        z = 0 (gaitcap needs z up, the floor at z = 0);
-    3. a camera that looks away from the floor: no ray of its image meets z = 0 within
+    4. a camera that looks away from the floor: no ray of its image meets z = 0 within
        ``MAX_CAMERA_DISTANCE_M`` (looking up, or a y-up world), so it cannot see the feet.
     """
     dist = {cam.name: float(np.linalg.norm(cam.center)) for cam in rig}
@@ -69,6 +71,11 @@ def geometry_problems(rig: CameraRig) -> list[str]:
                     "(divide them by 1000; gaitcap reads metres)"]  # fmt: skip
         return [f"camera(s) {listing} from the origin, farther than {MAX_CAMERA_DISTANCE_M:g} m: the origin is not on the "
                 "walkway or the translations are not in metres"]  # fmt: skip
+    own = [cam.name for cam in rig if not cam.rvec.any() and not cam.tvec.any()]
+    if own:
+        return [f"camera {own[0]!r} is the world frame itself (at the origin, its axes the world's): a stereo or "
+                "one-camera calibration, with no floor; place the cameras on the floor with `gaitcap calibrate "
+                "extrinsics` (gaitcap needs z up, the floor at z = 0)"]  # fmt: skip
     below = ", ".join(f"{cam.name!r} (z = {cam.center[2]:.2f} m)" for cam in rig if cam.center[2] < 0)
     if below:
         return [f"camera(s) {below} below the floor: the world's z axis must point up with the floor at z = 0 "

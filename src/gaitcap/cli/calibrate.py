@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import shutil
 import sys
 from pathlib import Path
 
@@ -56,9 +57,27 @@ def read_cameras(path: Path) -> list[Camera]:
     raise CalibrationError(f"{path}: unknown calibration format (expected .toml, .yml, .xml or .qca.txt)")
 
 
-def write_cameras(path: Path, rig: CameraRig, metadata: dict, force: bool) -> None:
+def check_new(path: Path, force: bool) -> None:
+    """Refuse an existing output unless ``force``: called before the work too, so that nothing computed is lost."""
     if path.exists() and not force:
         raise OutputError(f"{path}: exists already (use --force to overwrite)")
+
+
+def keep_previous(path: Path) -> Path | None:
+    """Copy an existing ``path`` to ``path.bak`` (replacing an older copy) before it is overwritten;
+    returns the copy (None: nothing to keep)."""
+    if not path.exists():
+        return None
+    backup = path.with_name(path.name + ".bak")
+    try:
+        shutil.copy2(path, backup)
+    except OSError as e:
+        raise OutputError(f"{backup}: cannot keep the previous {path.name} ({e.strerror}); nothing written") from e
+    return backup
+
+
+def write_cameras(path: Path, rig: CameraRig, metadata: dict, force: bool) -> None:
+    check_new(path, force)
     if path.suffix.lower() in (".yml", ".yaml", ".xml"):
         if len(rig) != 1:
             raise OutputError(f"{path}: an OpenCV file holds one camera; use `gaitcap calibrate export` for a rig")
@@ -99,6 +118,7 @@ def intrinsics_cmd(inputs, board_size, square, charuco, marker, dictionary, outp
         gaitcap calibrate intrinsics calib/left*.jpg --board 9x6 --square 25mm --fix-aspect-ratio -o left.toml
         gaitcap calibrate intrinsics cam01_board.mp4 --board 4x7 --square 60mm -o cam01.toml
     """
+    check_new(output, force)
     board = make_board(board_size, square, charuco, marker, dictionary)
     views = detect_views(inputs, board, video_step=video_step, max_blur=max_blur)
     for source, reason in views.rejected.items():
@@ -133,12 +153,14 @@ def _default_views(session: Path, name: str) -> Path:
 @click.option("--views", "views_opt", multiple=True, metavar="CAMERA=PATH",
               help="Board image, video or image folder of a camera (repeatable); default SESSION/extrinsics/<camera>.*")
 @click.option("--points", type=click.Path(path_type=Path, dir_okay=False), default=None,
-              help="Scene calibration: YAML of known 3D points and their pixels per camera (instead of a board).")
+              help="Scene calibration instead of a board: a YAML file with 'points' (name: [x, y, z], metres, z up, "
+                   "floor z = 0; at least 4) and 'pixels' (camera: {name: [u, v], or null where not seen}).")
 @click.option("--video-step", type=int, default=1, show_default=True, help="Read every n-th video frame.")
 @click.option("--no-adjust", is_flag=True, help="Skip the joint refinement (bundle adjustment).")
 @handle_errors
 def extrinsics_cmd(session, board_size, square, charuco, marker, dictionary, intrinsics_files, views_opt, points, video_step, no_adjust):
-    """Place every camera in the floor frame (metres, z up, floor z = 0) and write calibration.toml.
+    """Place every camera in the floor frame (metres, z up, floor z = 0) and write calibration.toml
+    (an existing one is kept as calibration.toml.bak).
 
     With a board lying on the floor: origin at its first corner, x along its rows. With --points:
     the frame of the given coordinates.
@@ -179,8 +201,9 @@ def extrinsics_cmd(session, board_size, square, charuco, marker, dictionary, int
         c = cam.center
         click.echo(f"{cam.name}: position {c[0]:.3f} {c[1]:.3f} {c[2]:.3f} m, reprojection RMS {res.rms_px[cam.name]:.3f} px")
     click.echo(f"3D check: {res.check_mm:.2f} mm RMS ({res.method}, {res.n_positions} position(s), adjusted={res.adjusted})")
+    kept = keep_previous(target)
     write_calibration(target, res.rig, res.metadata())
-    click.echo(f"wrote {target}")
+    click.echo(f"wrote {target}" + (f" (the previous one kept as {kept.name})" if kept else ""))
 
 
 @command.command("stereo")
@@ -200,6 +223,7 @@ def stereo_cmd(left, right, board_size, square, charuco, marker, dictionary, fix
     Example:
         gaitcap calibrate stereo pairs/left pairs/right --board 9x6 --square 25mm -o stereo.toml
     """
+    check_new(output, force)
     board = make_board(board_size, square, charuco, marker, dictionary)
     vl, vr = detect_views([left], board), detect_views([right], board)
     cl = calibrate_intrinsics(vl.detections, board, "left", fix_aspect_ratio).camera
