@@ -222,7 +222,7 @@ def test_cli_reference_mode_and_output_option(tmp_path, truth):
     assert doc["events_method_baseline"] is None
 
 
-def test_cli_usage_and_input_errors(tmp_path, session, truth):
+def test_cli_usage_and_input_errors(tmp_path, session, truth, monkeypatch):
     runner = CliRunner()
     out = write_out(tmp_path / "OUT", tracked(truth, truth.points))
     neither = runner.invoke(cli, ["eval", str(out)])
@@ -233,9 +233,30 @@ def test_cli_usage_and_input_errors(tmp_path, session, truth):
     assert missing.exit_code == 1 and "nothing: file not found" in missing.output
     no_truth = runner.invoke(cli, ["eval", str(out), "--truth", str(tmp_path / "t.h5")])
     assert no_truth.exit_code == 1 and "t.h5: truth file not found" in no_truth.output
-    assert runner.invoke(cli, ["eval", str(out), "--truth", str(session)]).exit_code == 0
+    first = runner.invoke(cli, ["eval", str(out), "--truth", str(session)])
+    assert first.exit_code == 0 and "MPJPE" in first.output
+    import gaitcap.evaluation
+
+    calls = []
+    monkeypatch.setattr(gaitcap.evaluation, "evaluate", lambda *a, **k: calls.append(a))
     again = runner.invoke(cli, ["eval", str(out), "--truth", str(session)])
     assert again.exit_code == 1 and "eval.json: exists already (use --force to overwrite)" in again.output
+    assert calls == []  # refused before the evaluation, not after it
+
+
+def test_cli_names_a_truth_from_another_session(tmp_path, session, truth):
+    """The run's track.json names the session it tracked: a truth from elsewhere is pointed out, not refused
+    (a session may have moved); the truth of its own session, as a file or as the folder, is not."""
+    runner = CliRunner()
+    out = write_out(tmp_path / "OUT", tracked(truth, truth.points))
+    for tracked_session, named in ((tmp_path / "elsewhere", True), (session, False)):
+        (out / "track.json").write_text(json.dumps({"status": "ok", "session": str(tracked_session)}))
+        for given in (session, session / "truth.h5"):
+            res = runner.invoke(cli, ["eval", str(out), "--truth", str(given), "--force"])
+            assert res.exit_code == 0, res.output
+            doc = json.loads((out / "eval.json").read_text())
+            assert ("is it the right truth?" in res.output) is named
+            assert any("elsewhere, track.json): is it the right truth?" in n for n in doc["notes"]) is named
 
 
 def _turned(points: np.ndarray, angle: float) -> np.ndarray:

@@ -84,6 +84,20 @@ def out_masks(path: str | Path) -> Path | None:
     return masks if masks.is_file() else None
 
 
+def other_session(truth: str | Path, tracked_session: str | None) -> str | None:
+    """A note when a truth given to ``gaitcap eval`` is not the tracked session's (``tracked_session``:
+    track.json's ``session``): the truth is that session's folder, a file or folder in it, or none of
+    its kind; None when they match or the run does not say. A moved session also differs: a note,
+    not an error."""
+    if not tracked_session:
+        return None
+    truth, session = Path(truth).resolve(), Path(tracked_session).resolve()
+    if session in (truth, truth.parent):
+        return None
+    return (f"the truth {truth} is not from the session this run tracked ({session}, track.json): "
+            "is it the right truth?")
+
+
 def write_evaluation(path: str | Path, ev: Evaluation, force: bool = False) -> Path:
     """Write ``eval.json`` atomically; an existing file is kept unless ``force``."""
     path = Path(path)
