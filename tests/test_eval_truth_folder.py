@@ -177,6 +177,13 @@ def test_track_save_masks_streams_the_silhouettes(embedded_session, tmp_path):
     run_track(ses, tmp_path / "out", config=config, progress=False, max_frames=4, save_masks=True, force=True)
     assert read_masks(h5, cams[0]).shape == (4, 480, 640)
     assert not list((tmp_path / "out").glob(".*.part*"))
-    # again without --save-masks: the older run's silhouettes go, eval must not score them as this run's
-    run_track(ses, tmp_path / "out", config=config, progress=False, max_frames=3, force=True)
+    # again without --save-masks: the older run's silhouettes go, eval must not score them as this run's;
+    # its evaluation and gait report go too (read as this run's), anything else stays
+    out = tmp_path / "out"
+    (out / "gait").mkdir()
+    for name in ("eval.json", "gait/report.html", "notes.txt"):
+        (out / name).write_text("of the run before\n")
+    run_track(ses, out, config=config, progress=False, max_frames=3, force=True)
     assert not h5.exists()
+    assert not (out / "eval.json").exists() and not (out / "gait").exists()
+    assert (out / "notes.txt").read_text() == "of the run before\n"

@@ -16,6 +16,7 @@ from __future__ import annotations
 import csv
 import io
 import logging
+import shutil
 import sys
 import threading
 import time
@@ -52,7 +53,7 @@ from gaitcap.silhouette.config import SilhouetteConfig
 from gaitcap.silhouette.joint import JointExtractor, floor_check
 from gaitcap.silhouette.run import Source, camera_attrs, file_attrs, prepare_extractor, quality_row
 from gaitcap.timeseries import finite_runs
-from gaitcap.track_summary import TrackSummary, is_finished, write_track_json
+from gaitcap.track_summary import EVAL_FILE, GAIT_DIR, TRACK_JSON, TrackSummary, is_finished, write_track_json
 from gaitcap.tracking.backward import (choose_backward, exchanged_legs, leg_points, legs_apart, mean_pose,
                                        merge_passes, order_legs)
 from gaitcap.tracking.condensation import Condensation
@@ -122,14 +123,26 @@ def _check_out(out: Path, force: bool) -> None:
 
 def _prepare_out(out: Path, save_masks: bool = False) -> None:
     """Create the output folder; a previous run in it is no longer finished, and its silhouettes,
-    unless this run saves its own, are removed (``gaitcap eval`` would score them as this run's)."""
+    unless this run saves its own, are removed (``gaitcap eval`` would score them as this run's),
+    as are its evaluation and gait report (they would be read as this run's)."""
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as e:
         raise OutputError(f"{out}: cannot create the output folder ({e.strerror})") from e
-    (out / "track.json").unlink(missing_ok=True)  # the old run is no longer finished
+    (out / TRACK_JSON).unlink(missing_ok=True)  # the old run is no longer finished
     if not save_masks:
         (out / SILHOUETTES_FILE).unlink(missing_ok=True)
+    derived = [p for p in (out / EVAL_FILE, out / GAIT_DIR) if p.exists()]
+    for path in derived:
+        try:
+            if path.is_dir():
+                shutil.rmtree(path)
+            else:
+                path.unlink()
+        except OSError as e:
+            raise OutputError(f"{path}: cannot remove the replaced run's {path.name} ({e.strerror})") from e
+    if derived:
+        log.info("%s: removed the replaced run's %s", out, " and ".join(p.name for p in derived))
     for stale in out.glob(".*.part*"):  # temporary files of a run that was killed
         stale.unlink(missing_ok=True)
 

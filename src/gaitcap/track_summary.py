@@ -37,6 +37,10 @@ from gaitcap.io.atomic import write_text_atomic
 log = logging.getLogger(__name__)
 
 TRACK_JSON = "track.json"
+#: what other commands derive from a tracking run, in its output folder: ``gaitcap eval``'s results and
+#: ``gaitcap report``'s folder. A run tracked again there removes them: they describe the run it replaces
+EVAL_FILE = "eval.json"
+GAIT_DIR = "gait"
 STATUS_OK = "ok"
 STATUS_FAILED = "failed"
 STATUS_SKIPPED = "skipped"

@@ -20,7 +20,7 @@ from gaitcap.report.fit import FitRecord, angle_bands, load_fit_record, select_f
 from gaitcap.report.html import FitView, render_fit_report, render_report
 from gaitcap.report.plots import FLEXION_ANGLES
 from gaitcap.report.sheet import contact_sheet
-from gaitcap.track_summary import Verdict, read_track_json, read_verdict
+from gaitcap.track_summary import GAIT_DIR, Verdict, read_track_json, read_verdict
 from gaitcap.trajectory import SIDES, GaitEvent, Trajectory, side_suffix
 
 log = logging.getLogger("gaitcap.report")
@@ -137,7 +137,7 @@ def run_report(
     videos (``session``: the session folder, when not where the run recorded it)."""
     path = resolve_input(Path(source))
     traj = load_trajectory(path, mapping, subject)
-    out = Path(out_dir) if out_dir is not None else (Path(source) if Path(source).is_dir() else path.parent) / "gait"
+    out = Path(out_dir) if out_dir is not None else (Path(source) if Path(source).is_dir() else path.parent) / GAIT_DIR
     try:
         a = analyse(traj, options)
     except InputError as e:
