@@ -122,3 +122,26 @@ def test_the_program_waits_for_a_thread_still_running(tmp_path):
     run = _child(code, tmp_path)
     assert run.returncode == 0 and __version__ in run.stdout
     assert (tmp_path / "done").exists()
+
+
+def test_track_says_its_verdict_and_notes_once(runner, embedded_session, tmp_path):
+    """The run logs its verdict and notes; the command adds only where the results are."""
+    import yaml
+
+    from gaitcap.config import default_config_path
+
+    data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
+    data["shape"]["enabled"] = False
+    data["factored_ipf"].update(particles=40, root_particles=80)
+    config = tmp_path / "tracking.yaml"
+    config.write_text(yaml.safe_dump(data))
+    out = tmp_path / "out"
+    result = runner.invoke(cli, ["track", str(embedded_session.session), "-o", str(out), "--max-frames", "3",
+                                 "-c", str(config)])  # fmt: skip
+    assert result.exit_code == 0, result.output
+    lines = result.output.splitlines()
+    track = json.loads((out / "track.json").read_text())
+    assert [line for line in lines if line.startswith("verdict: ")] == [f"verdict: {track['verdict']}"]
+    for note in track["verdict_notes"]:
+        assert sum(note in line for line in lines) == 1
+    assert lines[-1] == f"results: {out}"

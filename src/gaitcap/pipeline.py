@@ -53,7 +53,8 @@ from gaitcap.silhouette.config import SilhouetteConfig
 from gaitcap.silhouette.joint import JointExtractor, floor_check
 from gaitcap.silhouette.run import Source, camera_attrs, file_attrs, prepare_extractor, quality_row
 from gaitcap.timeseries import finite_runs
-from gaitcap.track_summary import EVAL_FILE, GAIT_DIR, TRACK_JSON, TrackSummary, is_finished, write_track_json
+from gaitcap.track_summary import (EVAL_FILE, GAIT_DIR, TRACK_JSON, TrackSummary, format_verdict, is_finished,
+                                   write_track_json)  # fmt: skip
 from gaitcap.tracking.backward import (choose_backward, exchanged_legs, leg_points, legs_apart, mean_pose,
                                        merge_passes, order_legs)
 from gaitcap.tracking.condensation import Condensation
@@ -598,7 +599,8 @@ def _finish_run(run: TrackedRun, notes: tuple[str, ...]) -> TrackSummary:
     except BaseException as e:
         writer.abort(e)
         raise
-    log.info("verdict: %s%s", judged.verdict.verdict, "".join(f"; {r}" for r in judged.verdict.reasons))
+    verdict = f"verdict: {format_verdict(judged.verdict.verdict, judged.verdict.reasons)}"
+    log.log(logging.INFO if judged.verdict.verdict == "ok" else logging.WARNING, "%s", verdict)  # -q shows a doubt
     for line in judged.verdict.notes:
         log.info("note: %s", line)
     traj = Trajectory(names, points, videos.fps)

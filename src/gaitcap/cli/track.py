@@ -11,7 +11,6 @@ import click
 from gaitcap.batch import any_failed, find_sessions, format_summary, is_session, run_batch
 from gaitcap.cli.options import force_option, handle_errors
 from gaitcap.pipeline import TRACKERS, run_track
-from gaitcap.track_summary import format_verdict
 
 log = logging.getLogger("gaitcap")
 
@@ -66,16 +65,9 @@ def command(ctx: click.Context, source: Path, out: Path, tracker: str | None, co
     kwargs = {"config": config, "tracker": tracker, "height_m": height_m, "max_frames": max_frames,
               "save_masks": save_masks, "body": body}
     if is_session(source) and scheduler is None:
-        summary = run_track(source, out, force=force, progress=not quiet, **kwargs)
+        summary = run_track(source, out, force=force, progress=not quiet, **kwargs)  # logs its verdict and notes
         log.info("%s", summary.message)
-        verdict = f"verdict: {format_verdict(summary.verdict, summary.verdict_reasons)}"
-        if summary.verdict not in (None, "ok"):
-            log.warning("%s", verdict)  # shown with -q too
-        elif not quiet:
-            click.echo(verdict)
         if not quiet:
-            for note in summary.verdict_notes:
-                click.echo(f"note: {note}")
             click.echo(f"results: {out}")
         return
     if quiet:  # -q: no progress bars (in one process the batch shows them by default)
