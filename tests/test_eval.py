@@ -314,3 +314,17 @@ def test_walking_frame_on_the_spot_and_unknown():
         pts[:, 0, 0] = sway * np.linspace(0, 1, frames)
         assert walking_frame(pts, names) == pytest.approx([-1.0, 0.0], abs=1e-9)
     assert walking_frame(np.full((frames, 1, 3), np.nan), ("knee_l",)) is None
+
+
+def test_the_gait_analyses_messages_say_which_trajectory(truth, caplog):
+    """eval analyses OUT and the reference alike: each of the gait analysis's messages names which it is about,
+    and the labels are gone afterwards."""
+    import logging
+
+    caplog.set_level(logging.INFO, logger="gaitcap")
+    evaluate(tracked(truth, truth.points), truth)
+    gait = [r.getMessage() for r in caplog.records if r.name.startswith("gaitcap.gait")]
+    assert any(m.startswith("OUT: detected") for m in gait) and any(m.startswith("the reference: detected") for m in gait)
+    assert all(m.startswith(("OUT: ", "the reference: ")) for m in gait)
+    assert not any(logging.getLogger(name).filters for name in logging.Logger.manager.loggerDict
+                   if name.startswith("gaitcap.gait"))  # fmt: skip

@@ -31,6 +31,8 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -350,9 +352,36 @@ def _parameters(
     return doc
 
 
+class _Labelled(logging.Filter):
+    """Prefixes the records of the loggers it is added to with ``label: ``."""
+
+    def __init__(self, label: str) -> None:
+        super().__init__()
+        self.label = label
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        record.msg = f"{self.label}: {record.msg}"
+        return True
+
+
+@contextmanager
+def _logs_labelled(label: str, prefix: str = "gaitcap.gait") -> Iterator[None]:
+    """The messages of the loggers under ``prefix`` (the gait analysis's) say which trajectory they are about."""
+    loggers = [logging.getLogger(name) for name in list(logging.Logger.manager.loggerDict) if name.startswith(prefix)]
+    labelled = _Labelled(label)
+    for logger in loggers:
+        logger.addFilter(labelled)
+    try:
+        yield
+    finally:
+        for logger in loggers:
+            logger.removeFilter(labelled)
+
+
 def _analyse(traj: Trajectory, what: str, options: GaitOptions | None, notes: list[str]) -> GaitAnalysis | None:
     try:
-        return analyse(traj, options)
+        with _logs_labelled(what):  # the same messages come for OUT and for the reference
+            return analyse(traj, options)
     except InputError as e:
         notes.append(f"gait analysis of {what} failed: {e}")
         return None
