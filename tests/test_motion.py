@@ -166,6 +166,28 @@ def test_static_trial_passed_explicitly_or_missing(tmp_path):
     assert joints.has("knee_l") and not joints.events  # no force-plate file beside it
 
 
+def test_static_trial_given_on_the_command_line(tmp_path):
+    """A walk copied without its static trial: markers and report say to give it with --static, and take it."""
+    from click.testing import CliRunner
+
+    from gaitcap.cli.main import cli
+
+    walk = tmp_path / "trial.trc"
+    shutil.copyfile(OPENSIM_WALK, walk)
+    runner = CliRunner()
+    missing = runner.invoke(cli, ["markers", str(walk)])
+    assert missing.exit_code == 1 and "needs a static trial" in missing.output and "--static FILE" in missing.output
+    given = runner.invoke(cli, ["markers", str(walk), "--static", str(OPENSIM_STATIC)])
+    assert given.exit_code == 0 and f"static trial: {OPENSIM_STATIC}" in given.output
+    beside = runner.invoke(cli, ["markers", str(OPENSIM_WALK)])
+    assert beside.exit_code == 0 and "static trial: " in beside.output and "subject01_static.trc" in beside.output
+    refused = runner.invoke(cli, ["report", str(walk), "-o", str(tmp_path / "r")])
+    assert refused.exit_code == 1 and "give it with --static FILE" in refused.output
+    report = runner.invoke(cli, ["report", str(walk), "-o", str(tmp_path / "r"), "--static", str(OPENSIM_STATIC)])
+    assert report.exit_code == 0, report.output
+    assert (tmp_path / "r" / "report.html").is_file()
+
+
 def _cv(traj, a, b):
     length = np.linalg.norm(traj.point(a) - traj.point(b), axis=1)
     return np.nanstd(length) / np.nanmean(length)

@@ -6,15 +6,16 @@ from pathlib import Path
 
 import click
 
-from gaitcap.cli.options import handle_errors, mapping_option, subject_option
+from gaitcap.cli.options import handle_errors, mapping_option, static_option, subject_option
 
 
 @click.command("markers")
 @click.argument("motion", type=click.Path(dir_okay=False, path_type=Path))
 @mapping_option
 @subject_option
+@static_option
 @handle_errors
-def command(motion: Path, mapping: str | None, subject: str | None) -> None:
+def command(motion: Path, mapping: str | None, subject: str | None, static: Path | None) -> None:
     """Show how gaitcap reads a marker file: the mapping that fits, where each joint centre comes
     from, which markers are missing and why the other mappings do not fit.
 
@@ -27,7 +28,7 @@ def command(motion: Path, mapping: str | None, subject: str | None) -> None:
     """
     from gaitcap.markers.inspect import describe_file
 
-    text = describe_file(motion, mapping, subject)
+    text = describe_file(motion, mapping, subject, static)
     click.echo(text)
     if "does NOT fit" in text.splitlines()[1]:
         raise SystemExit(1)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import functools
 import logging
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any, TypeVar
 
 import click
@@ -45,6 +46,14 @@ def subject_option(func: F) -> F:
     return click.option("--subject", default=None, metavar="NAME",
                         help="Subject of a marker file with several (label prefix, e.g. A22; "
                              "default: the one with the most markers).")(func)  # fmt: skip
+
+
+def static_option(func: F) -> F:
+    """``--static``: the static trial of a marker file whose mapping needs one."""
+    return click.option("--static", "static", default=None, metavar="FILE",
+                        type=click.Path(exists=True, dir_okay=False, path_type=Path),
+                        help="The static trial of a .c3d/.trc input whose mapping needs one (its cluster rules; "
+                             "default: the file the mapping names beside it, e.g. *_static.trc).")(func)  # fmt: skip
 
 
 def seed_option(func: F) -> F:

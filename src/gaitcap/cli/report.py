@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from gaitcap.cli.options import handle_errors, mapping_option, subject_option
+from gaitcap.cli.options import handle_errors, mapping_option, static_option, subject_option
 from gaitcap.config import load_yaml_model
 from gaitcap.gait.options import GaitOptions
 
@@ -28,9 +28,10 @@ EXIT_IMPLAUSIBLE = 4
                    "no longer where track.json says.")  # fmt: skip
 @mapping_option
 @subject_option
+@static_option
 @handle_errors
 def command(source: Path, out_dir: Path | None, config: Path | None, session: Path | None, mapping: str | None,
-            subject: str | None) -> None:  # fmt: skip
+            subject: str | None, static: Path | None) -> None:  # fmt: skip
     """Gait events, spatio-temporal parameters, joint angles and report.html from trajectories.
 
     SOURCE is a tracking output folder holding trajectories.h5, a trajectories.h5 file, or a
@@ -50,12 +51,13 @@ def command(source: Path, out_dir: Path | None, config: Path | None, session: Pa
         gaitcap report OUT --session sessions/walk01
         gaitcap report walk.c3d -o walk_report
         gaitcap report walk.c3d --mapping my_lab.yaml
+        gaitcap report subject01_walk1.trc --static subject01_static.trc
     """
     from gaitcap.gait.parameters import STATUS_IMPLAUSIBLE, STATUS_NOT_ENOUGH_STEPS
     from gaitcap.report.pipeline import run_report
 
     options = load_yaml_model(GaitOptions, config) if config is not None else None
-    result = run_report(source, out_dir, options, mapping, subject, session)
+    result = run_report(source, out_dir, options, mapping, subject, session, static)
     if result.verdict is not None:
         click.echo(result.verdict.line())
     p = result.analysis.parameters

@@ -7,7 +7,8 @@ from pathlib import Path
 
 import click
 
-from gaitcap.cli.options import force_option, handle_errors, mapping_option, seed_option, subject_option
+from gaitcap.cli.options import (force_option, handle_errors, mapping_option, seed_option, static_option,
+                                 subject_option)  # fmt: skip
 from gaitcap.data import embedded_walk
 from gaitcap.io.video_write import CODECS
 from gaitcap.synth.session import SynthOptions, synthesize
@@ -53,14 +54,15 @@ def parse_floats(_ctx: click.Context, _param: click.Parameter, value: str | None
               help="mp4v (.mp4, lossy), ffv1 (.mkv, lossless) or mjpg (.avi).")
 @mapping_option
 @subject_option
+@static_option
 @seed_option
 @force_option
 @click.pass_context
 @handle_errors
 def command(ctx: click.Context, motion: Path | None, out: Path, cameras: int, size: tuple[int, int], fps: float,
             shadow: bool, distortion: bool, azimuths: tuple[float, ...] | None, height_m: float | None,
-            subject_height_m: float | None, codec: str, mapping: str | None, subject: str | None, seed: int,
-            force: bool) -> None:
+            subject_height_m: float | None, codec: str, mapping: str | None, subject: str | None,
+            static: Path | None, seed: int, force: bool) -> None:
     """Render a synthetic session with ground truth from a real walk (C3D or TRC).
 
     MOTION defaults to the embedded Plug-in-Gait walk. The person (build, clothes, skin, hair),
@@ -81,7 +83,7 @@ def command(ctx: click.Context, motion: Path | None, out: Path, cameras: int, si
         codec=codec, seed=seed, height_m=height_m, subject_height_m=subject_height_m,
     )  # fmt: skip
     result = synthesize(motion or embedded_walk(), out, options, force=force, progress=not ctx.obj.get("quiet"),
-                        mapping=mapping, subject=subject)  # fmt: skip
+                        mapping=mapping, subject=subject, static=static)  # fmt: skip
     residual = {k: round(v * 1000, 1) for k, v in result.fit.residual_m.items()}
     log.info("session %s: %d frames x %d cameras (%s)", result.session, result.n_frames, len(result.cameras),
              ", ".join(result.cameras))

@@ -4,8 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from gaitcap.errors import InputError
 from gaitcap.markers.mapping import Mapping, Resolution, load_mapping
-from gaitcap.markers.motion import read_raw_markers, resolve_shipped
+from gaitcap.markers.motion import find_static_trial, read_raw_markers, resolve_shipped
 from gaitcap.trajectory import Trajectory
 
 
@@ -36,9 +37,11 @@ def _used_markers(resolution: Resolution, markers: Trajectory) -> set[str]:
     return used
 
 
-def describe_file(path: str | Path, mapping: Mapping | str | Path | None = None, subject: str | None = None) -> str:
+def describe_file(path: str | Path, mapping: Mapping | str | Path | None = None, subject: str | None = None,
+                  static: str | Path | None = None) -> str:  # fmt: skip
     """A readable account of a .c3d/.trc file: markers, the fitting mapping and each point's
-    source, what is missing, and why the other shipped mappings do not fit."""
+    source, what is missing (the static trial of a mapping that needs one: ``static``, else the
+    one its pattern finds beside the file), and why the other shipped mappings do not fit."""
     raw = read_raw_markers(path, subject)
     lines = [f"{path}: {raw.n_frames} frames at {raw.rate_hz:g} Hz, {len(raw.names)} markers"
              + (f" (subject {raw.meta['subject']})" if raw.meta.get("subject") else "")
@@ -47,7 +50,17 @@ def describe_file(path: str | Path, mapping: Mapping | str | Path | None = None,
     main = load_mapping(mapping).resolve(raw.names) if isinstance(mapping, (str, Path)) else (
         mapping.resolve(raw.names) if mapping is not None else shipped[0])  # fmt: skip
     state = "fits" if main.fits else f"does NOT fit: missing {', '.join(main.missing_required())}"
+    static_line = None
+    if main.fits and main.mapping.needs_static():
+        try:
+            pattern = main.mapping.static_trial or "*_static.*"
+            found = Path(static) if static is not None else find_static_trial(Path(path), pattern)
+            static_line = f"  static trial: {found}"
+        except InputError as e:
+            state = f"does NOT fit: {str(e).split(': ', 1)[1]}"
     lines.append(f"mapping {main.mapping.name}: {state}")
+    if static_line:
+        lines.append(static_line)
     for name in main.mapping.points:
         tag = " (optional)" if name in main.mapping.optional else ""
         lines.append(f"  {name:<11} {explain_point(main, name)}{tag}")

@@ -214,10 +214,11 @@ def find_static_trial(motion_path: Path, pattern: str) -> Path:
     """The single file matching ``pattern`` (e.g. ``*_static.trc``) beside the motion file."""
     found = sorted(p for p in motion_path.parent.glob(pattern) if p != motion_path)
     if not found:
-        raise InputError(f"{motion_path}: the mapping needs a static trial ({pattern} beside it); pass it explicitly")
+        raise InputError(f"{motion_path}: the mapping needs a static trial ({pattern} beside it): none there; "
+                         "give it with --static FILE")
     if len(found) > 1:
         names = ", ".join(p.name for p in found)
-        raise InputError(f"{motion_path}: several static trials match {pattern} ({names}); pass one explicitly")
+        raise InputError(f"{motion_path}: several static trials match {pattern} ({names}): give one with --static FILE")
     return found[0]
 
 

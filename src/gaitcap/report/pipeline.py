@@ -51,16 +51,17 @@ def resolve_input(source: Path) -> Path:
     return source
 
 
-def load_trajectory(path: Path, mapping: str | Path | None = None, subject: str | None = None) -> Trajectory:
+def load_trajectory(path: Path, mapping: str | Path | None = None, subject: str | None = None,
+                    static: Path | None = None) -> Trajectory:  # fmt: skip
     """A trajectories.h5 file, or a .c3d/.trc motion file (joint centres through read_motion, with
-    ``mapping`` and ``subject`` when given)."""
+    ``mapping``, ``subject`` and ``static`` when given)."""
     suffix = path.suffix.lower()
     if suffix in (".h5", ".hdf5"):
         return read_trajectory(path)
     if suffix in MOTION_SUFFIXES:
         from gaitcap.markers.motion import read_markers, read_motion
 
-        joints = read_motion(path, mapping=mapping, subject=subject)
+        joints = read_motion(path, mapping=mapping, static=static, subject=subject)
         return with_pelvis_markers(joints, read_markers(path, mapping=mapping, subject=subject))
     raise InputError(f"{path}: unknown trajectory file type (expected trajectories.h5, .c3d or .trc)")
 
@@ -129,14 +130,15 @@ def run_report(
     mapping: str | Path | None = None,
     subject: str | None = None,
     session: Path | None = None,
+    static: Path | None = None,
 ) -> ReportResult:
     """Analyse ``source`` and write ``events.csv``, ``parameters.json``/``.csv``, ``strides.csv``,
     ``angles.csv``, ``cycles.h5``, ``trajectories.c3d`` and ``report.html`` into ``out_dir``
-    (default: ``<source folder>/gait``); ``mapping``/``subject`` for a .c3d/.trc source. For a
+    (default: ``<source folder>/gait``); ``mapping``/``subject``/``static`` for a .c3d/.trc source. For a
     tracking run, report.html also shows the verdict of its track.json and how the model fits its
     videos (``session``: the session folder, when not where the run recorded it)."""
     path = resolve_input(Path(source))
-    traj = load_trajectory(path, mapping, subject)
+    traj = load_trajectory(path, mapping, subject, static)
     out = Path(out_dir) if out_dir is not None else (Path(source) if Path(source).is_dir() else path.parent) / GAIT_DIR
     try:
         a = analyse(traj, options)

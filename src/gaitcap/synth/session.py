@@ -140,17 +140,17 @@ def _floor_mat(points: np.ndarray, direction: np.ndarray, width: float) -> tuple
 
 def synthesize(
     motion: str | Path, out: str | Path, options: SynthOptions = SynthOptions(), force: bool = False, progress: bool = True,
-    mapping: str | Path | None = None, subject: str | None = None,
+    mapping: str | Path | None = None, subject: str | None = None, static: str | Path | None = None,
 ) -> SynthResult:
     """Render a synthetic session from ``motion`` into the folder ``out`` (see the module docstring).
 
-    ``mapping`` and ``subject`` go to :func:`gaitcap.markers.motion.read_motion` (None: the
-    shipped mapping that fits, the subject with the most markers)."""
+    ``mapping``, ``subject`` and ``static`` go to :func:`gaitcap.markers.motion.read_motion` (None: the
+    shipped mapping that fits, the subject with the most markers, the static trial the mapping names)."""
     out = Path(out)
     occupied = out.is_file() or (out.is_dir() and any(out.iterdir()))
     if occupied and not force:
         raise OutputError(f"{out}: already exists (use --force to replace it)")
-    traj = read_motion(motion, mapping=mapping, subject=subject)
+    traj = read_motion(motion, mapping=mapping, static=static, subject=subject)
     source_t0 = traj.t0_s
     if options.height_m and not traj.meta.get("height_m"):
         traj = replace(traj, meta={**traj.meta, "height_m": options.height_m})
