@@ -122,6 +122,15 @@ def test_tracking_config_rejects_unknown_keys(tmp_path):
         load_tracking_config(path)
 
 
+def test_a_config_file_of_a_few_keys_is_told_to_start_from_the_shipped_one(tmp_path):
+    partial = tmp_path / "mine.yaml"
+    partial.write_text("seed: 1\n")
+    with pytest.raises(ConfigError, match=r"mine.yaml: factored_ipf: Field required") as e:
+        load_tracking_config(partial)
+    assert "mine.yaml: a configuration file replaces the shipped one whole" in str(e.value)
+    assert f"start from a copy of {default_config_path('tracking.yaml')}" in str(e.value)
+
+
 def test_shape_refit_budget_below_two_particles_is_rejected(tmp_path):
     data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
     data["shape"]["refit_particles"] = [60, 1]

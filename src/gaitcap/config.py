@@ -117,8 +117,9 @@ def format_validation_error(err: ValidationError, source: str, model: type[BaseM
     return "\n".join(lines)
 
 
-def model_from_mapping(model: type[M], data: Any, source: str) -> M:
-    """Validate ``data`` (a mapping) against ``model``; errors name ``source`` and the key."""
+def model_from_mapping(model: type[M], data: Any, source: str, if_missing: str = "") -> M:
+    """Validate ``data`` (a mapping) against ``model``; errors name ``source`` and the key, and a
+    required key missing adds the line ``source: if_missing`` (when given)."""
     if data is None:
         data = {}
     if not isinstance(data, Mapping):
@@ -126,12 +127,25 @@ def model_from_mapping(model: type[M], data: Any, source: str) -> M:
     try:
         return model.model_validate(dict(data))
     except ValidationError as e:
-        raise ConfigError(format_validation_error(e, source, model)) from e
+        text = format_validation_error(e, source, model)
+        if if_missing and any(item.get("type") == "missing" for item in e.errors()):
+            text += f"\n{source}: {if_missing}"
+        raise ConfigError(text) from e
 
 
 def load_yaml_model(model: type[M], path: str | Path) -> M:
     """Read ``path`` and validate it against ``model``."""
     return model_from_mapping(model, read_yaml(path), str(path))
+
+
+def load_config_file(model: type[M], path: str | Path | None, shipped: str) -> M:
+    """The configuration ``path`` (None: the shipped ``configs/<shipped>``). A file given in place of
+    the shipped one is read whole: one that lacks keys is told to start from a copy of the shipped one."""
+    if path is None:
+        return load_yaml_model(model, default_config_path(shipped))
+    return model_from_mapping(model, read_yaml(path), str(path),
+                              f"a configuration file replaces the shipped one whole (a file of a few keys is not "
+                              f"merged into it): start from a copy of {default_config_path(shipped)}")  # fmt: skip
 
 
 def default_config_path(name: str) -> Path:

@@ -11,7 +11,7 @@ from typing import Literal
 
 from pydantic import Field, model_validator
 
-from gaitcap.config import Strict, default_config_path, load_yaml_model
+from gaitcap.config import Strict, load_config_file
 
 
 class BackgroundConfig(Strict):
@@ -206,4 +206,4 @@ class SilhouetteConfig(Strict):
     @classmethod
     def load(cls, path: str | Path | None = None) -> SilhouetteConfig:
         """Read ``path`` (None: the shipped ``silhouette.yaml``)."""
-        return load_yaml_model(cls, path if path is not None else default_config_path("silhouette.yaml"))
+        return load_config_file(cls, path, "silhouette.yaml")

@@ -10,7 +10,7 @@ import numpy as np
 from pydantic import Field, field_validator
 
 from gaitcap.body.model import BodyModel
-from gaitcap.config import Strict, default_config_path, load_yaml_model
+from gaitcap.config import Strict, default_config_path, load_config_file
 from gaitcap.errors import ConfigError
 from gaitcap.tracking.chain import Subtree, subtrees
 
@@ -421,8 +421,8 @@ def _per_dof(key: str, patterns: dict[str, float], model: BodyModel, required: b
 def load_tracking_config(path: str | Path | None = None, model: BodyModel | None = None) -> TrackingConfig:
     """Load and validate ``tracking.yaml`` (the shipped one by default); with ``model``, also check
     it against the body model's DOF and segments, the file named in any error."""
+    cfg = load_config_file(TrackingConfig, path, "tracking.yaml")
     path = path or default_config_path("tracking.yaml")
-    cfg = load_yaml_model(TrackingConfig, path)
     if model is not None:
         try:
             cfg.check(model)
