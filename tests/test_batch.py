@@ -172,7 +172,7 @@ def test_format_summary_table(tmp_path):
     doc = json.loads((tmp_path / "out" / "walk01" / TRACK_JSON).read_text())
     assert doc["status"] == "ok" and doc["verdict"] == "doubtful" and doc["verdict_reasons"]
     again = format_summary(run_batch(sessions[:1], tmp_path / "out", task=fake_track)).splitlines()
-    assert again[1].split()[:3] == ["walk01", "skipped", "doubtful"]  # a skipped run keeps its verdict
+    assert again[1].split()[:5] == ["walk01", "skipped", "doubtful", str(N_FRAMES), "1"]  # the finished run's
 
 
 def test_dask_local_cluster(tmp_path):

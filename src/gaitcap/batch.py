@@ -193,7 +193,7 @@ def run_session(job: SessionJob) -> TrackSummary:
                 log.error("%s: failed: %s", job.session.name, _message(e))
                 log.info("traceback:\n%s", "".join(traceback.format_exception(e)).rstrip())
                 return _failed(job, time.perf_counter() - start, _message(e))
-            log.info("%s: %s in %.1f s", job.session.name, summary.status, summary.seconds)
+            log.info("%s: %s (%.1f s)", job.session.name, summary.status, summary.seconds)
             return summary
     except OutputError as e:
         return _failed(job, time.perf_counter() - start, _message(e))
@@ -313,7 +313,9 @@ def run_batch(
         out = out_root / session.name
         if not force and is_finished(out):
             before = read_track_json(out) or {}
-            results[i] = TrackSummary(session, out, STATUS_SKIPPED, 0, 0, 0.0, "finished before (use --force to redo)",
+            frames, flagged = int(before.get("n_frames", 0)), int(before.get("n_flagged", 0))  # the finished run's
+            results[i] = TrackSummary(session, out, STATUS_SKIPPED, frames, flagged, 0.0,
+                                      "finished before (use --force to redo)",
                                       verdict=before.get("verdict"), verdict_reasons=before.get("verdict_reasons", []),
                                       verdict_notes=before.get("verdict_notes", []))  # fmt: skip
             log.info("%s: finished before, skipped", session.name)
