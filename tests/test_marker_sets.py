@@ -210,6 +210,8 @@ def test_markers_command_shows_sources_and_missing():
     assert "mapping plugin_gait: fits" in res.output
     assert "harrington(LASI, RASI, SACR)" in res.output and "chord(hjc_l, LTHI, LKNE)" in res.output
     assert "other mapping opensim_gait2354: missing" in res.output
+    # the file's 14 labels that never hold a sample are named, not silently left out of its 13 markers
+    assert "13 markers" in res.output and "14 more labels without any sample: LKD1" in res.output
     res = CliRunner().invoke(cli, ["markers", str(OPENSIM), "--mapping", "plugin_gait"])
     assert res.exit_code == 1 and "does NOT fit" in res.output
 

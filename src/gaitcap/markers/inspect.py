@@ -46,6 +46,8 @@ def describe_file(path: str | Path, mapping: Mapping | str | Path | None = None,
     lines = [f"{path}: {raw.n_frames} frames at {raw.rate_hz:g} Hz, {len(raw.names)} markers"
              + (f" (subject {raw.meta['subject']})" if raw.meta.get("subject") else "")
              + f", {len(raw.events)} events in the file"]  # fmt: skip
+    if raw.meta.get("empty"):
+        lines[0] += f"; {len(raw.meta['empty'])} more labels without any sample: {', '.join(raw.meta['empty'])}"
     shipped = resolve_shipped(raw.names)
     main = load_mapping(mapping).resolve(raw.names) if isinstance(mapping, (str, Path)) else (
         mapping.resolve(raw.names) if mapping is not None else shipped[0])  # fmt: skip

@@ -98,15 +98,15 @@ def select_subject(raw: Trajectory, subject: str | None = None) -> Trajectory:
 
 
 def _without_gaps(raw: Trajectory) -> Trajectory:
-    """Zero samples as NaN; channels with no finite sample left out."""
+    """Zero samples as NaN; channels with no finite sample left out (named in ``meta["empty"]``)."""
     points = raw.points.copy()
     points[(points == 0.0).all(axis=-1)] = np.nan
     alive = np.isfinite(points).all(axis=-1).any(axis=0)
-    if not alive.all():
-        dead = [n for n, ok in zip(raw.names, alive, strict=True) if not ok]
+    dead = [n for n, ok in zip(raw.names, alive, strict=True) if not ok]
+    if dead:
         log.debug("%s: channels without data left out: %s", raw.meta.get("source"), ", ".join(dead))
     names = tuple(n for n, ok in zip(raw.names, alive, strict=True) if ok)
-    return replace(raw, names=names, points=points[:, alive])
+    return replace(raw, names=names, points=points[:, alive], meta={**raw.meta, "empty": dead})
 
 
 def guess_up_axis(points: np.ndarray) -> str | None:
