@@ -274,6 +274,8 @@ def test_cli_refuses_an_existing_output_before_the_work(tmp_path):
         assert r.exit_code == 1 and "left.toml: exists already (use --force" in r.output
         assert "views used" not in r.output and "pairs:" not in r.output  # refused before detecting any board
     assert out.read_text() == "# a calibration of before\n"
+    r = _run("intrinsics", CHESS / "left01.jpg", "--board", "9x6", "--square", "25mm", "-o", tmp_path / "left.txt")
+    assert r.exit_code == 1 and "left.txt: unknown calibration file type" in r.output
 
 
 def test_cli_check_missing_key(tmp_path):

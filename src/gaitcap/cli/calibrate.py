@@ -57,8 +57,16 @@ def read_cameras(path: Path) -> list[Camera]:
     raise CalibrationError(f"{path}: unknown calibration format (expected .toml, .yml, .xml or .qca.txt)")
 
 
+#: the files ``-o`` may name: gaitcap's calibration.toml, or an OpenCV file of one camera
+OUTPUT_SUFFIXES = (".toml", ".yml", ".yaml", ".xml")
+
+
 def check_new(path: Path, force: bool) -> None:
-    """Refuse an existing output unless ``force``: called before the work too, so that nothing computed is lost."""
+    """Refuse an output of an unknown type, or an existing one unless ``force``: called before the work too, so that
+    nothing computed is lost."""
+    if path.suffix.lower() not in OUTPUT_SUFFIXES:
+        raise OutputError(f"{path}: unknown calibration file type: name a .toml (gaitcap) "
+                          "or .yml/.yaml/.xml (OpenCV) file")
     if path.exists() and not force:
         raise OutputError(f"{path}: exists already (use --force to overwrite)")
 
