@@ -189,3 +189,24 @@ def test_disk_full_while_writing_hdf5_leaves_no_partial_file(tmp_path, monkeypat
         write_trajectory(out / "trajectories.h5", small_trajectory())
     assert message(e) == f"{out / 'trajectories.h5'}: write failed (No space left on device)"
     assert _leftovers(out) == []
+
+
+def test_a_corrupt_video_is_named_without_ffmpegs_noise(tmp_path):
+    """The command line's own message, not FFmpeg's and OpenCV's before it."""
+    import subprocess
+    import sys
+
+    root = make_session(tmp_path / "s")
+    whole = tmp_path / "whole.mp4"
+    writer = cv2.VideoWriter(str(whole), cv2.VideoWriter_fourcc(*"mp4v"), 25.0, (64, 48))
+    for _ in range(10):
+        writer.write(np.zeros((48, 64, 3), np.uint8))
+    writer.release()
+    (root / "videos" / "cam1.avi").unlink()
+    (root / "videos" / "cam1.mp4").write_bytes(whole.read_bytes()[:600])  # the header cut: no 'moov' box
+    env = {k: v for k, v in os.environ.items() if not k.startswith("OPENCV_")}
+    res = subprocess.run([sys.executable, "-m", "gaitcap", "-q", "track", str(root), "-o", str(tmp_path / "out")],
+                         capture_output=True, text=True, env=env, timeout=120)  # fmt: skip
+    assert res.returncode == 1, res.stderr
+    assert "cam1.mp4: cannot open as a video" in res.stderr
+    assert "moov" not in res.stderr and "WARN" not in res.stderr, res.stderr

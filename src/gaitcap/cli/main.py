@@ -14,6 +14,12 @@ import click
 
 from gaitcap import __version__
 
+# the command line names an unreadable video in its own words (the file, what is wrong); OpenCV's and
+# FFmpeg's messages about it ("moov atom not found", a cap.cpp warning) only come before that as noise.
+# Set before any command imports OpenCV; a user's own settings of these variables are kept
+os.environ.setdefault("OPENCV_LOG_LEVEL", "ERROR")
+os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # FFmpeg's AV_LOG_QUIET
+
 
 class _ClickHandler(logging.Handler):
     """Log records to stderr through Click, so CliRunner captures them."""
