@@ -68,6 +68,7 @@ def test_c3d_export_is_read_back_by_ezc3d_and_c3d(tmp_path) -> None:
         r = c3d.Reader(f)
         assert r.first_frame == 153 and r.point_rate == tr.rate_hz
         labels = [s.strip() for s in r.get("EVENT:LABELS").string_array]
+        assert r.get_int16("EVENT:USED") == 3  # an integer, as readers take it (it was stored as a float: 0)
         times = r.get("EVENT:TIMES").float_array[:, 1]
         frames = [p for _, p, _ in r.read_frames()]
     assert sorted(labels) == ["Foot Off", "Foot Strike", "Foot Strike"]

@@ -42,7 +42,7 @@ def write_c3d(path: str | Path, traj: Trajectory, subject: str = "") -> None:
     c["header"]["points"]["first_frame"] = max(0, int(round(traj.t0_s * traj.rate_hz)))
     ev = traj.events
     if ev:
-        c.add_parameter("EVENT", "USED", [len(ev)])
+        c.add_parameter("EVENT", "USED", len(ev))  # a scalar: ezc3d stores a list of ints as floats
         c.add_parameter("EVENT", "CONTEXTS", [e.side.capitalize() for e in ev])
         c.add_parameter("EVENT", "LABELS", [_LABELS[e.event] for e in ev])
         c.add_parameter("EVENT", "DESCRIPTIONS", [_DESCRIPTIONS[e.event] for e in ev])
