@@ -76,6 +76,7 @@ def test_demo_runs_end_to_end(runner, tmp_path):
     assert track["n_frames"] == 2 and f"verdict: {track['verdict']}" in result.output
     doc = json.loads((out / "eval.json").read_text())
     assert doc["frames"]["total"] == 2
+    assert doc["verdict"] == track["verdict"] and doc["segment_lengths"]  # what gaitcap eval writes
     mpjpe = re.search(r"lower-limb MPJPE ([0-9.]+) mm", result.output)
     assert mpjpe and float(mpjpe.group(1)) == pytest.approx(doc["positions_mm"]["lower_limb"]["mpjpe_mm"], abs=0.05)
     assert "knee flexion RMSE left" in result.output

@@ -235,10 +235,10 @@ def test_cli_usage_and_input_errors(tmp_path, session, truth, monkeypatch):
     assert no_truth.exit_code == 1 and "t.h5: truth file not found" in no_truth.output
     first = runner.invoke(cli, ["eval", str(out), "--truth", str(session)])
     assert first.exit_code == 0 and "MPJPE" in first.output
-    import gaitcap.evaluation
+    import gaitcap.evaluation.run
 
     calls = []
-    monkeypatch.setattr(gaitcap.evaluation, "evaluate", lambda *a, **k: calls.append(a))
+    monkeypatch.setattr(gaitcap.evaluation.run, "evaluate_output", lambda *a, **k: calls.append(a))
     again = runner.invoke(cli, ["eval", str(out), "--truth", str(session)])
     assert again.exit_code == 1 and "eval.json: exists already (use --force to overwrite)" in again.output
     assert calls == []  # refused before the evaluation, not after it

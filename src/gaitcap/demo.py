@@ -13,8 +13,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from gaitcap.data import embedded_walk
-from gaitcap.evaluation import Evaluation, evaluate
-from gaitcap.evaluation.report import EVAL_FILE, read_tracked, read_truth_trajectory, write_evaluation
+from gaitcap.evaluation import Evaluation
+from gaitcap.evaluation.report import EVAL_FILE, read_truth_reference, write_evaluation
+from gaitcap.evaluation.run import evaluate_output
 from gaitcap.pipeline import run_track
 from gaitcap.report.pipeline import ReportResult, run_report
 from gaitcap.synth.checks import truth_inside_masks
@@ -58,8 +59,7 @@ def run_demo(root: Path, *, max_frames: int | None = None, progress: bool = True
     track = run_track(session, out, force=True, progress=progress, max_frames=max_frames)
     log.info("    %s", track.message)
     log.info("3/4 eval: against the ground truth")
-    ev = evaluate(read_tracked(out), read_truth_trajectory(session / TRUTH_FILE),
-                  out_source=str(out), reference_source=str(session / TRUTH_FILE))  # fmt: skip
+    ev = evaluate_output(out, read_truth_reference(session / TRUTH_FILE), session / TRUTH_FILE)  # as gaitcap eval
     eval_path = write_evaluation(out / EVAL_FILE, ev, force=True)
     log.info("4/4 report: gait events, parameters and angles")
     report = run_report(out)

@@ -2,15 +2,12 @@
 
 from __future__ import annotations
 
-import logging
 from pathlib import Path
 
 import click
 
 from gaitcap.cli.options import force_option, handle_errors
 from gaitcap.errors import OutputError
-
-log = logging.getLogger("gaitcap.cli.eval")
 
 #: exit code when a threshold is exceeded (1, like an error: CI fails either way)
 EXIT_THRESHOLD = 1
@@ -65,44 +62,21 @@ def command(
         gaitcap eval OUT --truth external_sessions/ktk_e/truth
         gaitcap eval OUT --reference OUT_previous
     """
-    from gaitcap.evaluation import Thresholds, check_thresholds, evaluate
-    from gaitcap.evaluation.report import (
-        EVAL_FILE, TruthReference, format_evaluation, other_session, out_masks, read_tracked, read_truth_reference,
-        tracked_path, write_evaluation,
-    )  # fmt: skip
-    from gaitcap.evaluation.compare import compare_lengths
-    from gaitcap.evaluation.silhouettes import silhouette_iou
-    from gaitcap.track_summary import read_track_json, read_verdict
+    from gaitcap.evaluation import Thresholds, check_thresholds
+    from gaitcap.evaluation.report import (EVAL_FILE, TruthReference, format_evaluation, read_tracked,
+                                           read_truth_reference, tracked_path, write_evaluation)  # fmt: skip
+    from gaitcap.evaluation.run import evaluate_output
 
     if (truth is None) == (reference is None):
         raise click.UsageError("give exactly one of --truth and --reference")
     target = output or (out / EVAL_FILE if out.is_dir() else out.parent / EVAL_FILE)
     if target.exists() and not force:  # before the work, so that no result is computed and then refused
         raise OutputError(f"{target}: exists already (use --force to overwrite)")
-    tracked = read_tracked(out)
     if truth is not None:
         ref = read_truth_reference(truth)
     else:
         ref = TruthReference(tracked_path(reference), read_tracked(reference))  # type: ignore[arg-type]
-    ev = evaluate(tracked, ref.trajectory, out_source=str(tracked_path(out)), reference_source=str(ref.source),
-                  reference_parameters=ref.parameters)  # fmt: skip
-    masks = out_masks(out)
-    if ref.masks is not None and masks is not None:
-        ev.silhouettes, notes = silhouette_iou(masks, ref.masks)
-        ev.notes += notes
-    elif ref.masks is not None:
-        ev.notes.append("silhouettes not compared: OUT holds no silhouettes.h5 (track with --save-masks)")
-    record = read_track_json(tracked_path(out).parent) or {}  # the run's track.json
-    mismatch = other_session(truth, record.get("session")) if truth is not None else None
-    if mismatch:
-        ev.notes.append(mismatch)
-        log.warning("%s", mismatch)
-    body = record.get("body") or {}
-    if body.get("segment_lengths_m"):
-        ev.segment_lengths = compare_lengths(body["segment_lengths_m"], ref.trajectory)
-    verdict = read_verdict(record)
-    if verdict is not None:
-        ev.verdict, ev.verdict_reasons = verdict.verdict, list(verdict.reasons)
+    ev = evaluate_output(out, ref, truth)
     ev.failures = check_thresholds(ev, Thresholds(max_mpjpe_mm, max_angle_rmse_deg, max_event_error_frames))
     write_evaluation(target, ev, force=force)
     click.echo(format_evaluation(ev))
