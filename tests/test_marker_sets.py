@@ -3,6 +3,7 @@ joint centres), CAST-like sets, user mappings, readers of real files, `gaitcap m
 
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -259,3 +260,21 @@ def test_sacral_marker_gives_the_anatomical_pelvis_frame():
     hip = read_c3d_angles(PIG).get("LHipAngles")[:, 0]
     ok = np.isfinite(ang["hip_flexion_l"]) & np.isfinite(hip)
     assert np.sqrt(np.mean((ang["hip_flexion_l"][ok] - hip[ok]) ** 2)) < 1.0  # 5.0 deg with the hip centres only
+
+
+def test_report_with_the_files_recorded_events(tmp_path):
+    """--recorded-events: the parameters, cycles and events.csv come from the file's EVENT group; a file that
+    records none is refused by name."""
+    import csv
+
+    res = CliRunner().invoke(cli, ["report", str(PIG), "-o", str(tmp_path / "rec"), "--recorded-events"])
+    assert res.exit_code == 0, res.output
+    recorded = read_motion(PIG).events
+    with open(tmp_path / "rec" / "events.csv") as f:
+        rows = [(r["side"], r["event"], round(float(r["time_s"]), 3)) for r in csv.DictReader(f)]
+    assert sorted(rows) == sorted((e.side, e.event, round(e.time_s, 3)) for e in recorded) and len(rows) == 9
+    lonely = tmp_path / "walk.trc"
+    shutil.copyfile(OPENSIM, lonely)  # no force-plate file beside it: no events
+    res = CliRunner().invoke(cli, ["report", str(lonely), "-o", str(tmp_path / "x"), "--recorded-events",
+                                   "--static", str(OPENSIM.with_name("subject01_static.trc"))])  # fmt: skip
+    assert res.exit_code == 1 and "walk.trc: --recorded-events: the file records no gait event" in res.output

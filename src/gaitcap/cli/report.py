@@ -29,9 +29,12 @@ EXIT_IMPLAUSIBLE = 4
 @mapping_option
 @subject_option
 @static_option
+@click.option("--recorded-events", is_flag=True,
+              help="Use the gait events a marker file records (its EVENT group, or its force plates) for the "
+                   "parameters, cycles and C3D instead of detecting them.")  # fmt: skip
 @handle_errors
 def command(source: Path, out_dir: Path | None, config: Path | None, session: Path | None, mapping: str | None,
-            subject: str | None, static: Path | None) -> None:  # fmt: skip
+            subject: str | None, static: Path | None, recorded_events: bool) -> None:  # fmt: skip
     """Gait events, spatio-temporal parameters, joint angles and report.html from trajectories.
 
     SOURCE is a tracking output folder holding trajectories.h5, a trajectories.h5 file, or a
@@ -51,13 +54,14 @@ def command(source: Path, out_dir: Path | None, config: Path | None, session: Pa
         gaitcap report OUT --session sessions/walk01
         gaitcap report walk.c3d -o walk_report
         gaitcap report walk.c3d --mapping my_lab.yaml
+        gaitcap report walk.c3d --recorded-events
         gaitcap report subject01_walk1.trc --static subject01_static.trc
     """
     from gaitcap.gait.parameters import STATUS_IMPLAUSIBLE, STATUS_NOT_ENOUGH_STEPS
     from gaitcap.report.pipeline import run_report
 
     options = load_yaml_model(GaitOptions, config) if config is not None else None
-    result = run_report(source, out_dir, options, mapping, subject, session, static)
+    result = run_report(source, out_dir, options, mapping, subject, session, static, recorded_events)
     if result.verdict is not None:
         click.echo(result.verdict.line())
     p = result.analysis.parameters

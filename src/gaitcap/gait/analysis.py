@@ -137,14 +137,19 @@ class GaitAnalysis:
         return mean, sd, len(c)
 
 
-def analyse(traj: Trajectory, options: GaitOptions | None = None) -> GaitAnalysis:
+def analyse(traj: Trajectory, options: GaitOptions | None = None, recorded: bool = False) -> GaitAnalysis:
     """Run the gait analysis of one trajectory (never raises for too few steps: see
-    ``result.parameters.status``).
+    ``result.parameters.status``). ``recorded``: the events the trajectory holds (a marker file's EVENT
+    group or force plates) instead of those detected; the passes and their directions are found as
+    otherwise.
 
     Raises:
-        InputError: the trajectory lacks the points needed (pelvis or hips, heels or ankles).
+        InputError: the trajectory lacks the points needed (pelvis or hips, heels or ankles), or
+            ``recorded`` and it holds no event.
     """
     opt = options or GaitOptions()
+    if recorded and not traj.events:
+        raise InputError("no events recorded in the input (its EVENT group, or force plates): they cannot be used")
     passes, parts = [], []
     spans = walk_passes(pelvis_track(traj)[:, :2], traj.rate_hz)
     for start, stop in spans:
@@ -156,12 +161,18 @@ def analyse(traj: Trajectory, options: GaitOptions | None = None) -> GaitAnalysi
                 raise
             log.info("frames %d-%d (a pass along the walkway) not analysed: %s", start, stop - 1, e)
             continue
+        if recorded:  # the file's events of this pass's frames
+            first, last = part.t0_s - 0.5 / traj.rate_hz, part.t0_s + (part.n_frames - 0.5) / traj.rate_hz
+            found = [e for e in traj.events if first <= e.time_s < last]
         passes.append(WalkPass(start, stop, direction))
         parts.append((part, found, direction))
     if not passes:
         raise InputError("no pass along the walkway could be analysed (too few valid pelvis and heel samples in each)")
     events = sorted((e for _, found, _ in parts for e in found), key=lambda e: e.time_s)
-    log.info("detected %d gait events (%s)", len(events), passes[0].direction.method)
+    if recorded:
+        log.info("%d gait events recorded in the input used", len(events))
+    else:
+        log.info("detected %d gait events (%s)", len(events), passes[0].direction.method)
     if len(passes) > 1:
         log.info("%d passes along the walkway (frames %s), each analysed along its own direction", len(passes),
                  ", ".join(f"{p.start}-{p.stop - 1}" for p in passes))  # fmt: skip

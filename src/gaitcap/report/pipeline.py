@@ -131,18 +131,22 @@ def run_report(
     subject: str | None = None,
     session: Path | None = None,
     static: Path | None = None,
+    recorded_events: bool = False,
 ) -> ReportResult:
     """Analyse ``source`` and write ``events.csv``, ``parameters.json``/``.csv``, ``strides.csv``,
     ``angles.csv``, ``cycles.h5``, ``trajectories.c3d`` and ``report.html`` into ``out_dir``
     (default: ``<source folder>/gait``); ``mapping``/``subject``/``static`` for a .c3d/.trc source. For a
     tracking run, report.html also shows the verdict of its track.json and how the model fits its
-    videos (``session``: the session folder, when not where the run recorded it)."""
+    videos (``session``: the session folder, when not where the run recorded it). ``recorded_events``:
+    the events the source holds (a marker file's) instead of those detected."""
     path = resolve_input(Path(source))
     traj = load_trajectory(path, mapping, subject, static)
     out = Path(out_dir) if out_dir is not None else (Path(source) if Path(source).is_dir() else path.parent) / GAIT_DIR
     try:
-        a = analyse(traj, options)
+        a = analyse(traj, options, recorded=recorded_events)
     except InputError as e:
+        if recorded_events and not traj.events:
+            raise InputError(f"{path}: --recorded-events: the file records no gait event") from e
         raise _fit_only(path, traj, out / "report.html", session, e) from e
     files = {
         "events": out / "events.csv", "parameters_json": out / "parameters.json",
