@@ -146,3 +146,19 @@ def test_track_says_its_verdict_and_notes_once(runner, embedded_session, tmp_pat
     for note in track["verdict_notes"]:
         assert sum(note in line for line in lines) == 1
     assert lines[-1] == f"results: {out}"
+
+
+def test_ctrl_c_inside_a_compiled_kernel_is_an_abort_not_a_traceback(runner, monkeypatch):
+    """numba turns a Ctrl-C in a kernel into a SystemError raised from the KeyboardInterrupt."""
+    import gaitcap.markers.inspect as inspect_module
+
+    def interrupted(*args, **kwargs):
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt:
+            raise SystemError("CPUDispatcher(<function capsule_sums_views>) returned a result with an exception set")
+
+    monkeypatch.setattr(inspect_module, "describe_file", interrupted)  # the command imports it when run
+    result = runner.invoke(cli, ["markers", "walk.c3d"])
+    assert result.exit_code == 1 and "Aborted!" in result.output and "SystemError" not in result.output
+    assert not isinstance(result.exception, SystemError)

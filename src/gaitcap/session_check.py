@@ -127,7 +127,7 @@ def _check_fps(videos: dict[str, CameraVideo], allow_mismatch: bool, notes: list
         return first
     listing = ", ".join(f"{cam} {fps:g} fps" for cam, fps in rates.items())
     if not allow_mismatch:
-        raise InputError(f"the cameras' frame rates differ: {listing}; re-encode the videos at one rate (or allow the mismatch)")
+        raise InputError(f"the cameras' frame rates differ: {listing}; re-encode the videos at one rate")
     note = f"frame rates differ ({listing}); using {first:g} fps as allowed"
     log.warning("%s", note)
     notes.append(note)

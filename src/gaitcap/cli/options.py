@@ -18,7 +18,9 @@ log = logging.getLogger("gaitcap")
 
 
 def handle_errors(func: F) -> F:
-    """Turn gaitcap's typed errors into one clear message and exit code 1 (Click uses 2 for usage)."""
+    """Turn gaitcap's typed errors into one clear message and exit code 1 (Click uses 2 for usage); a
+    Ctrl-C that a compiled kernel wrapped (numba raises ``SystemError`` from the ``KeyboardInterrupt``)
+    into the interruption it is, which Click reports as "Aborted!"."""
 
     @functools.wraps(func)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
@@ -26,6 +28,10 @@ def handle_errors(func: F) -> F:
             return func(*args, **kwargs)
         except GaitcapError as e:
             raise click.ClickException(str(e)) from e
+        except SystemError as e:
+            if isinstance(e.__cause__ or e.__context__, KeyboardInterrupt):
+                raise KeyboardInterrupt from None
+            raise
 
     return wrapper  # type: ignore[return-value]
 
