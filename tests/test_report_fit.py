@@ -236,3 +236,20 @@ def test_every_flagged_run_gets_its_worst_frame_before_a_long_run_fills_the_shee
     rec.fit[260:263] = [0.5, 0.4, 0.5]  # a short, milder one
     picked = attention_frames(FitRecord(Path("."), rec), spacing=10)
     assert {120, 261} <= set(picked) and len(picked) == MAX_ATTENTION_FRAMES
+
+
+def test_a_run_without_its_track_json_is_reported_with_a_warning(tracked_session, tmp_path):
+    """A re-run stopped before its end removes track.json and leaves the earlier run's files: report and eval
+    say so instead of reading them as a finished run's."""
+    synth, out, _ = tracked_session
+    run = tmp_path / "run"
+    shutil.copytree(out, run)
+    (run / "track.json").unlink()
+    res = CliRunner().invoke(cli, ["report", str(run), "-o", str(tmp_path / "gait")])
+    assert f"{run}: no finished track.json beside trajectories.h5: a run there did not finish" in res.output
+    res = CliRunner().invoke(cli, ["eval", str(run), "--truth", str(synth.session / "truth.h5")])
+    assert res.exit_code == 0, res.output
+    notes = json.loads((run / "eval.json").read_text())["notes"]
+    assert any("no finished track.json" in n for n in notes)
+    finished = CliRunner().invoke(cli, ["report", str(out), "-o", str(tmp_path / "gait2")])
+    assert "no finished track.json" not in finished.output

@@ -156,6 +156,18 @@ def read_track_json(out: str | Path) -> dict[str, Any] | None:
     return data if isinstance(data, dict) else None
 
 
+def unfinished(trajectories: str | Path) -> str | None:
+    """A warning for a ``trajectories.h5`` whose folder holds no finished ``track.json``: a run there did
+    not finish (a re-run killed before its end leaves the earlier run's files, its track.json removed), or the
+    file is not a ``gaitcap track`` output; None for a finished run's or another kind of file."""
+    path = Path(trajectories)
+    if path.name != "trajectories.h5" or is_finished(path.parent):
+        return None
+    return (f"{path.parent}: no finished {TRACK_JSON} beside {path.name}: a run there did not finish (a re-run "
+            "stopped before its end leaves the earlier run's files) or the file is not gaitcap track's; it is "
+            "read as it is")
+
+
 def is_finished(out: str | Path) -> bool:
     """True when ``out/track.json`` records a successful run."""
     data = read_track_json(out)

@@ -11,7 +11,7 @@ from pathlib import Path
 from gaitcap.evaluation.compare import Evaluation, compare_lengths, evaluate
 from gaitcap.evaluation.report import TruthReference, other_session, out_masks, read_tracked, tracked_path
 from gaitcap.evaluation.silhouettes import silhouette_iou
-from gaitcap.track_summary import read_track_json, read_verdict
+from gaitcap.track_summary import read_track_json, read_verdict, unfinished
 
 log = logging.getLogger(__name__)
 
@@ -28,6 +28,9 @@ def evaluate_output(out: Path, ref: TruthReference, truth: Path | None = None) -
         ev.notes += notes
     elif ref.masks is not None:
         ev.notes.append("silhouettes not compared: OUT holds no silhouettes.h5 (track with --save-masks)")
+    if warning := unfinished(tracked_path(out)):
+        ev.notes.append(warning)
+        log.warning("%s", warning)
     record = read_track_json(tracked_path(out).parent) or {}  # the run's track.json
     mismatch = other_session(truth, record.get("session")) if truth is not None else None
     if mismatch:

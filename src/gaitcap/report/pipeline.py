@@ -20,7 +20,7 @@ from gaitcap.report.fit import FitRecord, angle_bands, load_fit_record, select_f
 from gaitcap.report.html import FitView, render_fit_report, render_report
 from gaitcap.report.plots import FLEXION_ANGLES
 from gaitcap.report.sheet import contact_sheet
-from gaitcap.track_summary import GAIT_DIR, Verdict, read_track_json, read_verdict
+from gaitcap.track_summary import GAIT_DIR, Verdict, read_track_json, read_verdict, unfinished
 from gaitcap.trajectory import SIDES, GaitEvent, Trajectory, side_suffix
 
 log = logging.getLogger("gaitcap.report")
@@ -140,6 +140,8 @@ def run_report(
     videos (``session``: the session folder, when not where the run recorded it). ``recorded_events``:
     the events the source holds (a marker file's) instead of those detected."""
     path = resolve_input(Path(source))
+    if warning := unfinished(path):
+        log.warning("%s", warning)
     traj = load_trajectory(path, mapping, subject, static)
     out = Path(out_dir) if out_dir is not None else (Path(source) if Path(source).is_dir() else path.parent) / GAIT_DIR
     try:
