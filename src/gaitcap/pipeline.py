@@ -63,7 +63,7 @@ from gaitcap.tracking.factored_ipf import FactoredIPF
 from gaitcap.tracking.init import estimate_height, initialise, settle_legs, subject_positions
 from gaitcap.tracking.ipf import IntervalPF
 from gaitcap.tracking.likelihood import SilhouetteLikelihood
-from gaitcap.tracking.observation import Observation, tracking_views
+from gaitcap.tracking.observation import Observation, TrackingView, tracking_views
 from gaitcap.tracking.support import FOOT_SEGMENTS, LEG_SEGMENTS, segment_support
 from gaitcap.tracking.raster import warm_up
 from gaitcap.tracking.shape import ShapeResult, average_shapes, calibrate_shape
@@ -498,14 +498,14 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
     else:
         height, height_source = _height(ses, height_m)
     if height is None:
-        first = head.take(head.limit)
-        pos = subject_positions(views, first)
-        ok = np.where(np.all(np.isfinite(pos), axis=1))[0]
-        est = estimate_height(views, first[ok[0]], pos[ok[0]]) if len(ok) else None
+        est = _silhouette_height(views, head)
         if est is None or not (1.0 < est < 2.3):
             raise TrackingError(f"{session}: cannot estimate the subject's height; give it with --height or in session.yaml")
         height = est
         log.warning("subject height not given: estimated %.2f m from the silhouettes (give --height for accuracy)", height)
+    elif reused is None and (mismatch := _height_mismatch(height, height_source, _silhouette_height(views, head))):
+        log.warning("%s", mismatch)
+        notes = (*notes, mismatch)
     model = load_body_model(height_m=height) if reused is None else reused.model
     filt = _new_tracker(cfg, model, likelihood)
     shape_note = "off" if reused is None else f"reused from {reused.path} (its shape: {reused.shape})"
@@ -628,6 +628,30 @@ def _finish_run(run: TrackedRun, notes: tuple[str, ...]) -> TrackSummary:
 
 #: a session's stated height that differs from a reused body's by more than this (metres) is warned about
 _HEIGHT_MISMATCH_M = 0.02
+
+
+#: a given height this far (a fraction) from the silhouettes' estimate is warned about: the estimate is 9 % low
+#: to 3 % high on the suite's 30 sessions (docs/validation.md), so a slip of a sixth or more is not missed
+HEIGHT_CHECK_TOLERANCE = 0.15
+
+
+def _silhouette_height(views: list[TrackingView], head: Head[Observation]) -> float | None:
+    """The subject's height (m) from the silhouettes' tops in the first frame where every camera places the
+    subject (:func:`estimate_height`), or None."""
+    first = head.take(head.limit)
+    pos = subject_positions(views, first)
+    ok = np.where(np.all(np.isfinite(pos), axis=1))[0]
+    return estimate_height(views, first[ok[0]], pos[ok[0]]) if len(ok) else None
+
+
+def _height_mismatch(height: float, source: str, estimate: float | None) -> str | None:
+    """A note when the given ``height`` is more than :data:`HEIGHT_CHECK_TOLERANCE` from the silhouettes'
+    ``estimate``; None otherwise or without an estimate."""
+    if estimate is None or abs(height / estimate - 1.0) <= HEIGHT_CHECK_TOLERANCE:
+        return None
+    return (f"the subject's height {height:.2f} m ({source}) is {100 * (height / estimate - 1):+.0f} % from the "
+            f"{estimate:.2f} m the silhouettes show: if it is wrong, the body and every length are scaled wrong "
+            "(check --height or session.yaml)")
 
 
 def _check_reused_height(ses: Session, reused: ReusedBody) -> None:
