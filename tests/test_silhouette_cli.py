@@ -85,6 +85,17 @@ def test_existing_output_needs_force(session, tmp_path):
     assert _run(session, "-o", out, "--max-frames", "2", "--force").exit_code == 0
 
 
+def test_a_killed_runs_temporary_files_are_removed_by_the_next(session, tmp_path):
+    out = tmp_path / "out"
+    (out / "overlay").mkdir(parents=True)
+    left = [out / ".silhouettes.h5.x1.h5.part", out / ".silhouettes_quality.csv.x2.part",
+            out / "overlay" / ".cam1.mp4.x3.part.mp4"]
+    for path in left:
+        path.write_bytes(b"a killed run's")
+    assert _run(session, "-o", out, "--max-frames", "2", "--overlay").exit_code == 0
+    assert not any(path.exists() for path in left) and (out / "silhouettes.h5").is_file()
+
+
 def test_corrupt_video_is_one_clear_error(session, tmp_path):
     (session / "videos" / "cam1.avi").write_bytes(b"RIFF\x00\x00\x00\x00AVI garbage" * 50)
     result = _run(session, "-o", tmp_path / "out")

@@ -38,7 +38,7 @@ from gaitcap.body.recorded import recorded_model
 from gaitcap.camera import CameraRig
 from gaitcap.errors import ConfigError, InputError, OutputError, TrackingError
 from gaitcap.gait.passes import directed_passes
-from gaitcap.io.atomic import write_text_atomic
+from gaitcap.io.atomic import remove_stale_parts, write_text_atomic
 from gaitcap.io.silhouettes_h5 import SILHOUETTES_FILE, SilhouetteWriter
 from gaitcap.io.spool import FrameSpool
 from gaitcap.io.track_h5 import (QUALITY_NOT_INITIALISED, QUALITY_OK, QUALITY_OUT_OF_VIEW, QUALITY_POOR_FIT,
@@ -145,8 +145,7 @@ def _prepare_out(out: Path, save_masks: bool = False) -> None:
             raise OutputError(f"{path}: cannot remove the replaced run's {path.name} ({e.strerror})") from e
     if derived:
         log.info("%s: removed the replaced run's %s", out, " and ".join(p.name for p in derived))
-    for stale in out.glob(".*.part*"):  # temporary files of a run that was killed
-        stale.unlink(missing_ok=True)
+    remove_stale_parts(out)  # temporary files of a run that was killed
 
 
 def _height(session: Session, height_m: float | None) -> tuple[float | None, str]:

@@ -30,6 +30,13 @@ def default_dir_mode() -> int:
     return 0o777 & ~_umask()
 
 
+def remove_stale_parts(folder: str | Path) -> None:
+    """Remove the temporary files that :func:`atomic_path` left in ``folder`` when a run was killed
+    (``.<name>.*.part*``); a missing folder has none."""
+    for stale in Path(folder).glob(".*.part*"):
+        stale.unlink(missing_ok=True)
+
+
 @contextlib.contextmanager
 def atomic_path(target: str | Path, suffix: str | None = None) -> Iterator[Path]:
     """Yield a temporary path in ``target``'s folder; on success rename it to ``target``.

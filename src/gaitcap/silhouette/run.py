@@ -23,7 +23,7 @@ import yaml
 
 from gaitcap import __version__
 from gaitcap.errors import InputError, OutputError
-from gaitcap.io.atomic import atomic_path
+from gaitcap.io.atomic import atomic_path, remove_stale_parts
 from gaitcap.io.silhouettes_h5 import SILHOUETTES_FILE, SilhouetteWriter
 from gaitcap.io.video_write import AtomicVideoWriter as VideoWriter
 from gaitcap.camera import Camera
@@ -121,6 +121,10 @@ def prepare_extractor(source: Source, config: SilhouetteConfig) -> tuple[Silhoue
     return extractor, info.fps
 
 
+#: the folder of the overlay videos (``--overlay``), in the output folder
+OVERLAY_DIR = "overlay"
+
+
 def _check_outputs(out: Path, force: bool) -> None:
     targets = [out / H5_NAME, out / CSV_NAME]
     existing = [str(t) for t in targets if t.exists()]
@@ -166,6 +170,8 @@ def run_silhouettes(
     attrs = file_attrs(config)
     # prepare every camera first: bad input fails before anything is written
     prepared = [_Camera(s, *prepare_extractor(s, config)) for s in sources]
+    for folder in (out, out / OVERLAY_DIR):  # temporary files of a run that was killed
+        remove_stale_parts(folder)
     calibrated = all(s.calibration is not None for s in sources)
     groups = [prepared] if calibrated else [[c] for c in prepared]
     with atomic_path(out / CSV_NAME) as csv_tmp, csv_tmp.open("w", newline="") as fh, SilhouetteWriter(
@@ -212,7 +218,7 @@ class _Camera:
             self.png_dir = out / "silhouettes" / cam
             self.png_dir.mkdir(parents=True, exist_ok=True)
         if overlay:
-            self.overlay = stack.enter_context(VideoWriter(out / "overlay" / f"{cam}.mp4", self.fps, (w, h)))
+            self.overlay = stack.enter_context(VideoWriter(out / OVERLAY_DIR / f"{cam}.mp4", self.fps, (w, h)))
 
     def record(self, index: int, frame: np.ndarray, mask: np.ndarray, q: FrameQuality, writer: SilhouetteWriter,
                table: csv.writer) -> None:  # type: ignore[valid-type]  # fmt: skip
