@@ -134,3 +134,22 @@ def test_bad_config_key_is_one_clear_error(session, tmp_path):
 def test_session_and_video_are_exclusive(session, tmp_path):
     result = _run(session, "--video", session / "videos" / "cam0.avi", "-o", tmp_path / "out")
     assert result.exit_code == 2
+
+
+def test_the_overlay_label_is_white_on_a_black_box():
+    """Every white pixel of the quality label lies inside the black box behind it (an outline drawn as thicker
+    text no longer lined up with the text under OpenCV 5)."""
+    from gaitcap.silhouette.extract import FrameQuality
+    from gaitcap.silhouette.overlay import draw_overlay
+
+    frame = np.full((480, 640, 3), 128, np.uint8)
+    out = draw_overlay(frame, np.zeros((480, 640), np.uint8), FrameQuality(100, 0.048, 0.0, 1, None, 0))
+    black = np.all(out == 0, axis=2)
+    ys, xs = np.nonzero(black)
+    assert len(ys) > 0
+    white = np.all(out > 200, axis=2)
+    wy, wx = np.nonzero(white)
+    assert len(wy) > 50  # the text is drawn
+    assert ys.min() <= wy.min() and wy.max() <= ys.max() and xs.min() <= wx.min() and wx.max() <= xs.max()
+    grey = np.all(out == 128, axis=2)
+    assert grey[:, xs.max() + 1:].all() and grey[ys.max() + 1:].all()  # nothing else drawn around it

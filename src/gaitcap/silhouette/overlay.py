@@ -22,7 +22,12 @@ def draw_overlay(frame: np.ndarray, mask: np.ndarray, quality: FrameQuality | No
     cv2.drawContours(out, contours, -1, (0, 0, 255), thick)
     if quality is not None:
         text = f"#{quality.index}  fg {100 * quality.fraction:.1f}%  " + (",".join(quality.flag_names) or "ok")
-        scale = 0.5 * thick
-        cv2.putText(out, text, (8, int(22 * thick)), cv2.FONT_HERSHEY_SIMPLEX, scale, (0, 0, 0), 3 * thick, cv2.LINE_AA)
-        cv2.putText(out, text, (8, int(22 * thick)), cv2.FONT_HERSHEY_SIMPLEX, scale, (255, 255, 255), thick, cv2.LINE_AA)
+        scale, origin = 0.5 * thick, (8, int(22 * thick))
+        # white on a black box: an outline drawn as the same text at a greater thickness is laid out wider by
+        # OpenCV 5, so it no longer lines up with the text
+        (w, h), base = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, scale, thick)
+        pad = 3 * thick
+        cv2.rectangle(out, (origin[0] - pad, origin[1] - h - pad), (origin[0] + w + pad, origin[1] + base + pad),
+                      (0, 0, 0), cv2.FILLED)  # fmt: skip
+        cv2.putText(out, text, origin, cv2.FONT_HERSHEY_SIMPLEX, scale, (255, 255, 255), thick, cv2.LINE_AA)
     return out
