@@ -888,7 +888,8 @@ def _track_frames(filt, likelihood, views, cfg: TrackingConfig, first, stream: I
     initialisations are timed there (``initialisation``), apart from the tracking."""
     model = filt.model
     stages = Stages() if stages is None else stages
-    bar = tqdm(total=n_frames, desc=f"tracking ({cfg.tracker})", unit="frame", disable=not progress, leave=False)
+    bar = tqdm(total=n_frames, desc=f"tracking ({cfg.tracker})", unit="frame", leave=False,
+               disable=None if progress else True)  # None: off when stderr is not a terminal (a log file)
     lost = True
     pending = list(first)
 

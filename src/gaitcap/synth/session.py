@@ -221,7 +221,8 @@ def _write_session(
                  for c in rig}  # fmt: skip
         writers = [AtomicVideoWriter(root / VIDEOS_DIR / f"{c.name}{ext}", options.fps, options.size, options.codec) for c in rig]
         try:
-            for t in tqdm(range(T), desc="rendering", unit="frame", disable=not progress, leave=False):
+            # disable=None: no bar when stderr is not a terminal (a log file)
+            for t in tqdm(range(T), desc="rendering", unit="frame", disable=None if progress else True, leave=False):
                 for (img, mask), cam, writer in zip(renderer.render(truth.points[t], t), rig, writers):
                     writer.write(img)
                     masks[cam.name][t] = mask
