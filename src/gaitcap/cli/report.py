@@ -69,8 +69,6 @@ def command(source: Path, out_dir: Path | None, config: Path | None, session: Pa
     o = p.overall
     click.echo(f"cadence {_value(o['cadence_steps_per_min'], '.1f')} steps/min, speed {_value(o['speed_m_s'], '.2f')} m/s, "
                f"stride {_value(o['stride_length_m'], '.3f')} m, step {_value(o['step_length_m'], '.3f')} m")  # fmt: skip
-    if p.reason:
-        click.echo(p.reason, err=True)
     if p.status == STATUS_NOT_ENOUGH_STEPS:
         raise SystemExit(EXIT_NOT_ENOUGH_STEPS)
     if p.status == STATUS_IMPLAUSIBLE:
