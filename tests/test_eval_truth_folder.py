@@ -187,3 +187,31 @@ def test_track_save_masks_streams_the_silhouettes(embedded_session, tmp_path):
     assert not h5.exists()
     assert not (out / "eval.json").exists() and not (out / "gait").exists()
     assert (out / "notes.txt").read_text() == "of the run before\n"
+
+
+def test_track_takes_a_silhouette_configuration(embedded_session, tmp_path):
+    """``gaitcap track --silhouette-config``: the silhouettes a lab tuned with ``gaitcap silhouettes -c`` are the
+    ones tracked (the run's silhouettes.h5 records the configuration it used)."""
+    import h5py
+    import yaml
+    from click.testing import CliRunner
+
+    from gaitcap.cli.main import cli
+    from gaitcap.config import default_config_path
+
+    data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
+    data["shape"]["enabled"] = False
+    data["factored_ipf"].update(particles=40, root_particles=80)
+    tracking = tmp_path / "tracking.yaml"
+    tracking.write_text(yaml.safe_dump(data))
+    sil = yaml.safe_load(default_config_path("silhouette.yaml").read_text())
+    sil["background"]["samples"] = 17
+    mine = tmp_path / "silhouette.yaml"
+    mine.write_text(yaml.safe_dump(sil))
+    out = tmp_path / "out"
+    res = CliRunner().invoke(cli, ["track", str(embedded_session.session), "-o", str(out), "-c", str(tracking),
+                                   "--silhouette-config", str(mine), "--max-frames", "3", "--save-masks"])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    with h5py.File(out / "silhouettes.h5", "r") as f:
+        used = yaml.safe_load(f.attrs["config"])
+    assert used["background"]["samples"] == 17

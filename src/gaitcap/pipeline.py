@@ -160,9 +160,12 @@ def run_track(
     session: Path, out: Path, *, config: Path | None = None, tracker: str | None = None,
     height_m: float | None = None, force: bool = False, progress: bool = True, max_frames: int | None = None,
     on_frame: Callable[[int, FrameTiming], None] | None = None, save_masks: bool = False,
-    body: Path | None = None,
+    body: Path | None = None, silhouette_config: Path | None = None,
 ) -> TrackSummary:  # fmt: skip
     """Track one session into ``out`` (see the module docstring). Returns the run's summary.
+
+    ``silhouette_config``: the silhouettes' configuration (None: the shipped silhouette.yaml), as
+    ``gaitcap silhouettes -c`` takes it.
 
     ``save_masks``: also stream the full-resolution silhouettes the tracker saw, frame by frame, to
     ``out/silhouettes.h5`` (the layout of ``gaitcap silhouettes``; ``gaitcap eval`` scores them).
@@ -187,7 +190,7 @@ def run_track(
     _check_out(out, force)
     rig = videos.rig
     n_frames = videos.n_frames if max_frames is None else min(videos.n_frames, max_frames)
-    sil_cfg = SilhouetteConfig.load()
+    sil_cfg = SilhouetteConfig.load(silhouette_config)
     views = tracking_views(rig, cfg.scale)
     likelihood = SilhouetteLikelihood(views, cfg.beta)
     saver = MaskSaver(out / SILHOUETTES_FILE, file_attrs(sil_cfg)) if save_masks else None

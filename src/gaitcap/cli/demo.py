@@ -29,7 +29,7 @@ def command(ctx: click.Context, out: Path | None, max_frames: int | None) -> Non
     Renders a synthetic 2-camera session from the real walk (gaitcap synth), tracks it with the
     default settings (gaitcap track), compares the result with the ground truth (gaitcap eval)
     and writes the gait report (gaitcap report), printing the main errors and where each result
-    is. Takes a few minutes on two cores.
+    is. Takes about half a minute on two cores.
 
     \b
     Example:

@@ -23,6 +23,9 @@ log = logging.getLogger("gaitcap")
               help="Override the configuration's tracker (default factored-ipf).")
 @click.option("-c", "--config", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
               help="Tracking configuration YAML (default: the shipped configs/tracking.yaml).")
+@click.option("--silhouette-config", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
+              help="Silhouette configuration YAML (default: the shipped configs/silhouette.yaml), as "
+                   "`gaitcap silhouettes -c` takes it.")
 @click.option("--height", "height_m", type=click.FloatRange(0.5, 2.6), default=None,
               help="Subject height in metres (default: session.yaml, else estimated).")
 @click.option("--body", type=click.Path(exists=True, path_type=Path), default=None,
@@ -41,8 +44,8 @@ log = logging.getLogger("gaitcap")
 @click.pass_context
 @handle_errors
 def command(ctx: click.Context, source: Path, out: Path, tracker: str | None, config: Path | None,
-            height_m: float | None, body: Path | None, max_frames: int | None, jobs: int, scheduler: str | None,
-            save_masks: bool, force: bool) -> None:
+            silhouette_config: Path | None, height_m: float | None, body: Path | None, max_frames: int | None,
+            jobs: int, scheduler: str | None, save_masks: bool, force: bool) -> None:
     """Track the subject in a session (or every session of a folder).
 
     Writes OUT/trajectories.h5 (points, per-point uncertainty, poses, likelihood, quality),
@@ -63,7 +66,7 @@ def command(ctx: click.Context, source: Path, out: Path, tracker: str | None, co
     """
     quiet = bool(ctx.obj.get("quiet"))
     kwargs = {"config": config, "tracker": tracker, "height_m": height_m, "max_frames": max_frames,
-              "save_masks": save_masks, "body": body}
+              "save_masks": save_masks, "body": body, "silhouette_config": silhouette_config}
     if is_session(source) and scheduler is None:
         summary = run_track(source, out, force=force, progress=not quiet, **kwargs)  # logs its verdict and notes
         log.info("%s", summary.message)
