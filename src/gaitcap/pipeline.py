@@ -25,6 +25,7 @@ from concurrent.futures import ThreadPoolExecutor
 from contextlib import ExitStack, contextmanager, nullcontext
 from dataclasses import dataclass
 from functools import partial
+from itertools import islice
 from pathlib import Path
 
 import numba
@@ -638,12 +639,14 @@ HEIGHT_CHECK_TOLERANCE = 0.15
 
 
 def _silhouette_height(views: list[TrackingView], head: Head[Observation]) -> float | None:
-    """The subject's height (m) from the silhouettes' tops in the first frame where every camera places the
-    subject (:func:`estimate_height`), or None."""
-    first = head.take(head.limit)
-    pos = subject_positions(views, first)
-    ok = np.where(np.all(np.isfinite(pos), axis=1))[0]
-    return estimate_height(views, first[ok[0]], pos[ok[0]]) if len(ok) else None
+    """The subject's height (m) from the silhouettes' tops in the first frame of the head where every
+    camera places the subject (:func:`estimate_height`), or None. The frames are read only as far as that
+    one: the initialisation, next, starts once its own first frames are in."""
+    for obs in islice(head, head.limit):
+        pos = subject_positions(views, [obs])[0]
+        if np.all(np.isfinite(pos)):
+            return estimate_height(views, obs, pos)
+    return None
 
 
 def _height_mismatch(height: float, source: str, estimate: float | None) -> str | None:
