@@ -37,6 +37,7 @@ from gaitcap.io.atomic import write_text_atomic
 log = logging.getLogger(__name__)
 
 TRACK_JSON = "track.json"
+TRAJECTORIES_H5 = "trajectories.h5"
 #: what other commands derive from a tracking run, in its output folder: ``gaitcap eval``'s results and
 #: ``gaitcap report``'s folder. A run tracked again there removes them: they describe the run it replaces
 EVAL_FILE = "eval.json"
@@ -161,7 +162,7 @@ def unfinished(trajectories: str | Path) -> str | None:
     not finish (a re-run killed before its end leaves the earlier run's files, its track.json removed), or the
     file is not a ``gaitcap track`` output; None for a finished run's or another kind of file."""
     path = Path(trajectories)
-    if path.name != "trajectories.h5" or is_finished(path.parent):
+    if path.name != TRAJECTORIES_H5 or is_finished(path.parent):
         return None
     return (f"{path.parent}: no finished {TRACK_JSON} beside {path.name}: a run there did not finish (a re-run "
             "stopped before its end leaves the earlier run's files) or the file is not gaitcap track's; it is "

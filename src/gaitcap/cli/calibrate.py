@@ -20,6 +20,7 @@ from gaitcap.camera import Camera, CameraRig
 from gaitcap.cli.options import force_option, handle_errors
 from gaitcap.config import load_yaml_model
 from gaitcap.errors import CalibrationError, InputError, OutputError
+from gaitcap.io.atomic import refuse_existing
 from gaitcap.io.calibration_toml import read_calibration, read_calibration_metadata, write_calibration
 from gaitcap.session import CALIBRATION_FILE, VIDEOS_DIR, VIDEO_EXTENSIONS, find_per_camera
 
@@ -67,8 +68,7 @@ def check_new(path: Path, force: bool) -> None:
     if path.suffix.lower() not in OUTPUT_SUFFIXES:
         raise OutputError(f"{path}: unknown calibration file type: name a .toml (gaitcap) "
                           "or .yml/.yaml/.xml (OpenCV) file")
-    if path.exists() and not force:
-        raise OutputError(f"{path}: exists already (use --force to overwrite)")
+    refuse_existing(path, force)
 
 
 def keep_previous(path: Path) -> Path | None:
@@ -338,8 +338,7 @@ def export_cmd(calibration, output, fmt, force):
     meta = read_calibration_metadata(calibration) if calibration.suffix == ".toml" else {}
     targets = [output / CALIBRATION_FILE] if fmt == "toml" else [output / f"{c.name}.{fmt}" for c in rig]
     for t in targets:
-        if t.exists() and not force:
-            raise OutputError(f"{t}: exists already (use --force to overwrite)")
+        refuse_existing(t, force)
     if fmt == "toml":
         write_calibration(targets[0], rig, meta)
     else:

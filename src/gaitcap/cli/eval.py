@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from gaitcap.cli.options import force_option, handle_errors
-from gaitcap.errors import OutputError
+from gaitcap.io.atomic import refuse_existing
 
 #: exit code when a threshold is exceeded (1, like an error: CI fails either way)
 EXIT_THRESHOLD = 1
@@ -70,8 +70,7 @@ def command(
     if (truth is None) == (reference is None):
         raise click.UsageError("give exactly one of --truth and --reference")
     target = output or (out / EVAL_FILE if out.is_dir() else out.parent / EVAL_FILE)
-    if target.exists() and not force:  # before the work, so that no result is computed and then refused
-        raise OutputError(f"{target}: exists already (use --force to overwrite)")
+    refuse_existing(target, force)  # before the work, so that no result is computed and then refused
     if truth is not None:
         ref = read_truth_reference(truth)
     else:

@@ -8,11 +8,11 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from gaitcap.errors import InputError, OutputError
+from gaitcap.errors import InputError
 from gaitcap.evaluation.compare import CHECKED_ANGLES, Evaluation
 from gaitcap.gait.angles import ANGLE_NAMES
 from gaitcap.gait.parameters import OVERALL_KEYS
-from gaitcap.io.atomic import write_text_atomic
+from gaitcap.io.atomic import refuse_existing, write_text_atomic
 from gaitcap.io.silhouettes_h5 import SILHOUETTES_FILE
 from gaitcap.io.trajectories_h5 import read_trajectory
 from gaitcap.io.truth_folder import JOINTS_FILE, is_truth_folder, read_truth_folder
@@ -100,8 +100,7 @@ def other_session(truth: str | Path, tracked_session: str | None) -> str | None:
 def write_evaluation(path: str | Path, ev: Evaluation, force: bool = False) -> Path:
     """Write ``eval.json`` atomically; an existing file is kept unless ``force``."""
     path = Path(path)
-    if path.exists() and not force:
-        raise OutputError(f"{path}: exists already (use --force to overwrite)")
+    refuse_existing(path, force)
     write_text_atomic(path, json.dumps(ev.to_dict(), indent=2) + "\n")
     return path
 

@@ -30,6 +30,13 @@ def default_dir_mode() -> int:
     return 0o777 & ~_umask()
 
 
+def refuse_existing(path: str | Path, force: bool) -> None:
+    """Raise :class:`OutputError` when ``path`` exists and ``force`` is not given (called before the work, so
+    that nothing is computed and then refused)."""
+    if Path(path).exists() and not force:
+        raise OutputError(f"{path}: exists already (use --force to overwrite)")
+
+
 def remove_stale_parts(folder: str | Path) -> None:
     """Remove the temporary files that :func:`atomic_path` left in ``folder`` when a run was killed
     (``.<name>.*.part*``); a missing folder has none."""

@@ -20,12 +20,11 @@ from gaitcap.report.fit import FitRecord, angle_bands, load_fit_record, select_f
 from gaitcap.report.html import FitView, render_fit_report, render_report
 from gaitcap.report.plots import FLEXION_ANGLES
 from gaitcap.report.sheet import contact_sheet
-from gaitcap.track_summary import GAIT_DIR, Verdict, read_track_json, read_verdict, unfinished
+from gaitcap.track_summary import GAIT_DIR, TRAJECTORIES_H5, Verdict, read_track_json, read_verdict, unfinished
 from gaitcap.trajectory import SIDES, GaitEvent, Trajectory, side_suffix
 
 log = logging.getLogger("gaitcap.report")
 
-TRAJECTORIES_H5 = "trajectories.h5"
 MOTION_SUFFIXES = (".c3d", ".trc")
 PELVIS_MARKERS = ("LASI", "RASI", "LPSI", "RPSI")
 SACRAL_MARKER = "SACR"
@@ -143,12 +142,12 @@ def run_report(
     if warning := unfinished(path):
         log.warning("%s", warning)
     traj = load_trajectory(path, mapping, subject, static)
+    if recorded_events and not traj.events:
+        raise InputError(f"{path}: --recorded-events: the file records no gait event")
     out = Path(out_dir) if out_dir is not None else (Path(source) if Path(source).is_dir() else path.parent) / GAIT_DIR
     try:
         a = analyse(traj, options, recorded=recorded_events)
     except InputError as e:
-        if recorded_events and not traj.events:
-            raise InputError(f"{path}: --recorded-events: the file records no gait event") from e
         raise _fit_only(path, traj, out / "report.html", session, e) from e
     files = {
         "events": out / "events.csv", "parameters_json": out / "parameters.json",

@@ -23,7 +23,7 @@ import yaml
 
 from gaitcap import __version__
 from gaitcap.errors import InputError, OutputError
-from gaitcap.io.atomic import atomic_path, remove_stale_parts
+from gaitcap.io.atomic import atomic_path, refuse_existing, remove_stale_parts
 from gaitcap.io.silhouettes_h5 import SILHOUETTES_FILE, SilhouetteWriter
 from gaitcap.io.video_write import AtomicVideoWriter as VideoWriter
 from gaitcap.camera import Camera
@@ -126,10 +126,8 @@ OVERLAY_DIR = "overlay"
 
 
 def _check_outputs(out: Path, force: bool) -> None:
-    targets = [out / H5_NAME, out / CSV_NAME]
-    existing = [str(t) for t in targets if t.exists()]
-    if existing and not force:
-        raise OutputError(f"{existing[0]}: exists already (use --force to overwrite)")
+    for target in (out / H5_NAME, out / CSV_NAME):
+        refuse_existing(target, force)
 
 
 def run_silhouettes(
