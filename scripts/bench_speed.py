@@ -103,14 +103,20 @@ def lower_limb_mm(session: Path, out: Path) -> float:
     return math.nan if lower is None else float(lower)
 
 
-def measure(session: Path, out: Path, extra: list[str]) -> dict[str, float]:
-    """One tracking run and one floor measurement of ``session``: the table's quantities."""
-    _, wall, summary = track_in_child(session, out, extra)
+def run_row(session: Path, out: Path, summary: dict, wall: float, start_up: float) -> dict[str, float]:
+    """The table's quantities of one run (its track.json ``summary``, written to ``out``), but the floor."""
     stages = summary.get("stages_s", {})
-    row = {"frames": summary["n_frames"], "wall": wall, "start-up": wall - summary["seconds"],
+    row = {"frames": summary["n_frames"], "wall": wall, "start-up": start_up,
            "lower mm": lower_limb_mm(session, out), "run verdict": summary.get("verdict", "?")}  # fmt: skip
     row |= {name: stages.get(key, float("nan")) for key, name in STAGES.items()}
     row["background"] = stages.get("background", float("nan"))
+    return row
+
+
+def measure(session: Path, out: Path, extra: list[str]) -> dict[str, float]:
+    """One tracking run and one floor measurement of ``session``: the table's quantities."""
+    _, wall, summary = track_in_child(session, out, extra)
+    row = run_row(session, out, summary, wall, wall - summary["seconds"])
     row["floor"], cpu, frames = floor_seconds(session)
     row["floor CPU ms/frame"] = 1000 * cpu / frames
     return row
@@ -128,16 +134,9 @@ def measure_batch(session: Path, work: Path, body: Path, k: int, extra: list[str
     _, wall = gaitcap_in_child(["track", str(folder), "-o", str(out), "--force", "--body", str(body), *extra])
     summaries = [json.loads((out / name / "track.json").read_text()) for name in names]
     start_up = (wall - sum(s["seconds"] for s in summaries)) / k
-    rows = []
-    for name, summary in zip(names[1:], summaries[1:], strict=True):
-        stages = summary.get("stages_s", {})
-        row = {"frames": summary["n_frames"], "wall": summary["seconds"] + start_up, "start-up": start_up,
-               "lower mm": lower_limb_mm(session, out / name), "run verdict": summary.get("verdict", "?"),
-               "floor": floor, "floor CPU ms/frame": floor_cpu}  # fmt: skip
-        row |= {label: stages.get(key, float("nan")) for key, label in STAGES.items()}
-        row["background"] = stages.get("background", float("nan"))
-        rows.append(row)
-    return rows
+    return [run_row(session, out / name, summary, summary["seconds"] + start_up, start_up)
+            | {"floor": floor, "floor CPU ms/frame": floor_cpu}
+            for name, summary in zip(names[1:], summaries[1:], strict=True)]  # fmt: skip
 
 
 def main() -> None:
