@@ -30,7 +30,7 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=Path("/tmp/gaitcap-synth"))
     ap.add_argument("--seed", type=int, default=0, help="look seed (person, clothes, room, light, cameras)")
     args = ap.parse_args()
-    print(f"| trial | frames | s to render | fit residual hips/knees/ankles mm | truth in mask % per camera | max bone variation % |")
+    print("| trial | frames | s to render | fit residual hips/knees/ankles mm | truth in mask % per camera | max bone variation % |")
     print("|---|---|---|---|---|---|")
     for name, rel in TRIALS.items():
         t0 = time.perf_counter()

@@ -152,7 +152,7 @@ def _plot_fraction(fr: np.ndarray, fps: float, path: Path) -> None:
 
 def run_pose2sim(data: Path) -> None:
     folder = data / "calibration" / "pose2sim_qualisys_4cam" / "videos"
-    print(f"\n## Pose2Sim 4-camera videos (subject never leaves the view)\n")
+    print("\n## Pose2Sim 4-camera videos (subject never leaves the view)\n")
     print("| video | ambiguous pixels | usable |")
     print("|---|---|---|")
     cfg = SilhouetteConfig()

@@ -24,7 +24,6 @@ class Scene:
 
 def _texture(rng: np.random.Generator, h: int, w: int, scale: float, contrast: float) -> np.ndarray:
     noise = rng.normal(0.0, 1.0, (h, w)).astype(np.float32)
-    k = max(1, int(scale)) | 1
     tex = cv2.GaussianBlur(noise, (0, 0), scale) if scale > 0 else noise
     tex /= tex.std() + 1e-6
     return tex * contrast

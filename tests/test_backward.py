@@ -378,13 +378,6 @@ def test_alternating_stretches_follow_the_passings_and_change_the_fewest_frames(
 NAMES = ("pelvis", "ankle_l", "ankle_r")
 
 
-@dataclass
-class _Est:
-    q: np.ndarray
-    points: np.ndarray
-    fit: float
-
-
 def _walk(d: np.ndarray) -> np.ndarray:
     """Points (T, 3, 3) of NAMES for a walk along x at 1.2 m/s whose ankles lead by d (T,)."""
     T = len(d)

@@ -17,7 +17,7 @@ from gaitcap.io.silhouettes_h5 import SILHOUETTES_FILE
 from gaitcap.io.trajectories_h5 import read_trajectory
 from gaitcap.io.truth_folder import JOINTS_FILE, is_truth_folder, read_truth_folder
 from gaitcap.synth.truth import read_truth
-from gaitcap.track_summary import EVAL_FILE, format_verdict
+from gaitcap.track_summary import format_verdict
 from gaitcap.trajectory import FOOT, LOWER_LIMB, Trajectory
 
 TRAJECTORIES_FILE = "trajectories.h5"
