@@ -2,6 +2,7 @@ from __future__ import annotations
 
 import csv
 import json
+import logging
 import pickle
 import re
 import time
@@ -1104,10 +1105,16 @@ def test_a_run_whose_legs_lie_off_the_masks_is_tracked_again_with_doubt(embedded
     config = tmp_path / "tracking.yaml"
     config.write_text(yaml.safe_dump(data))
     out = tmp_path / "out"
-    summary = run_track(embedded_session.session, out, config=config, progress=False, max_frames=5, save_masks=True)
+    caplog.set_level(logging.INFO, logger="gaitcap")
+    summary = run_track(embedded_session.session, out, config=config, progress=False, max_frames=5, save_masks=True,
+                        height_m=1.2)  # a height the silhouettes contradict  # fmt: skip
     assert summary.status == "ok" and summary.n_frames == 5
     assert summary.verdict_notes[0].startswith("tracked twice: the first run's legs lay off a camera's masks (")
     assert "tracking again with the faint pixels" in caplog.text
+    warned = [r for r in caplog.records if r.levelno == logging.WARNING and "the silhouettes show" in r.getMessage()]
+    assert len(warned) == 1  # once, though the session was tracked twice
+    assert sum("the silhouettes show" in n for n in summary.verdict_notes) == 1  # and noted by the run kept
+    assert re.search(r"tracking the first 5 of the \d+ common frames \(--max-frames\)", caplog.text)
     with h5py.File(out / "trajectories.h5") as f:
         assert yaml.safe_load(f.attrs["config"])["soft_silhouettes"] is True
     assert json.loads((out / "track.json").read_text())["verdict_notes"] == summary.verdict_notes

@@ -191,6 +191,8 @@ def run_track(
     _check_out(out, force)
     rig = videos.rig
     n_frames = videos.n_frames if max_frames is None else min(videos.n_frames, max_frames)
+    if n_frames < videos.n_frames:
+        log.info("tracking the first %d of the %d common frames (--max-frames)", n_frames, videos.n_frames)
     sil_cfg = SilhouetteConfig.load(silhouette_config)
     views = tracking_views(rig, cfg.scale)
     likelihood = SilhouetteLikelihood(views, cfg.beta)
@@ -266,7 +268,8 @@ def _attempt(session: Path, out: Path, ses: Session, videos, views, likelihood, 
         if saver is not None:
             saver.open()
         return _track_session(session, out, ses, videos, cfg, views, likelihood, head, stream, height_m, n_frames,
-                              progress, on_frame, t_start, stages, reused, lost_legs, notes)  # fmt: skip
+                              progress, on_frame, t_start, stages, reused, lost_legs, notes,
+                              warn=not prepared)  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -491,13 +494,16 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
                    head: Head[Observation], stream: Iterator[Observation], height_m: float | None, n_frames: int,
                    progress: bool, on_frame, t_start: float, stages: Stages,
                    reused: ReusedBody | None = None, lost_legs: bool = False,
-                   notes: tuple[str, ...] = ()) -> TrackSummary:  # fmt: skip
+                   notes: tuple[str, ...] = (), warn: bool = True) -> TrackSummary:  # fmt: skip
     """:func:`run_track` once the output folder is ready: ``head`` the buffered first frames, the
     others read from ``stream``; ``reused``: the body to track (no shape calibration); ``lost_legs``,
-    ``notes``: see :func:`_attempt`."""
+    ``notes``: see :func:`_attempt`; ``warn``: log the warnings about the subject's height (the
+    session's second run, ``lost_legs``, notes them again without repeating them)."""
+    say = log.warning if warn else log.debug
     if reused is not None:
         height, height_source = reused.model.height_m, "--body"
-        _check_reused_height(ses, reused)
+        if warn:
+            _check_reused_height(ses, reused)
     else:
         height, height_source = _height(ses, height_m)
     if height is None:
@@ -505,9 +511,9 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
         if est is None or not (1.0 < est < 2.3):
             raise TrackingError(f"{session}: cannot estimate the subject's height; give it with --height or in session.yaml")
         height = est
-        log.warning("subject height not given: estimated %.2f m from the silhouettes (give --height for accuracy)", height)
+        say("subject height not given: estimated %.2f m from the silhouettes (give --height for accuracy)", height)
     elif reused is None and (mismatch := _height_mismatch(height, height_source, _silhouette_height(views, head))):
-        log.warning("%s", mismatch)
+        say("%s", mismatch)
         notes = (*notes, mismatch)
     model = load_body_model(height_m=height) if reused is None else reused.model
     filt = _new_tracker(cfg, model, likelihood)
