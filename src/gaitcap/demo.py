@@ -14,13 +14,13 @@ from pathlib import Path
 
 from gaitcap.data import embedded_walk
 from gaitcap.evaluation import Evaluation
-from gaitcap.evaluation.report import EVAL_FILE, read_truth_reference, write_evaluation
+from gaitcap.evaluation.report import read_truth_reference, write_evaluation
 from gaitcap.evaluation.run import evaluate_output
 from gaitcap.pipeline import run_track
 from gaitcap.report.pipeline import ReportResult, run_report
 from gaitcap.synth.checks import truth_inside_masks
 from gaitcap.synth.session import TRUTH_FILE, SynthOptions, SynthResult, synthesize
-from gaitcap.track_summary import TrackSummary
+from gaitcap.track_summary import EVAL_FILE, TrackSummary
 
 log = logging.getLogger("gaitcap.demo")
 

@@ -63,9 +63,10 @@ def command(
         gaitcap eval OUT --reference OUT_previous
     """
     from gaitcap.evaluation import Thresholds, check_thresholds
-    from gaitcap.evaluation.report import (EVAL_FILE, TruthReference, format_evaluation, read_tracked,
-                                           read_truth_reference, tracked_path, write_evaluation)  # fmt: skip
+    from gaitcap.evaluation.report import (TruthReference, format_evaluation, read_tracked, read_truth_reference,
+                                           tracked_path, write_evaluation)  # fmt: skip
     from gaitcap.evaluation.run import evaluate_output
+    from gaitcap.track_summary import EVAL_FILE
 
     if (truth is None) == (reference is None):
         raise click.UsageError("give exactly one of --truth and --reference")
