@@ -24,6 +24,7 @@ from gaitcap.io.truth_folder import read_events_csv
 from gaitcap.io.trajectories_h5 import write_trajectory
 from gaitcap.report.fit import (MAX_ATTENTION_FRAMES, UNCERTAIN_MM, FitRecord, angle_bands, attention_frames,
                                 load_fit_record, select_frames)  # fmt: skip
+import gaitcap.track_summary as track_summary
 from gaitcap.track_summary import read_verdict
 from gaitcap.report.sheet import draw_model, project_model, tracked_model
 from gaitcap.session import Session
@@ -253,3 +254,11 @@ def test_a_run_without_its_track_json_is_reported_with_a_warning(tracked_session
     assert any("no finished track.json" in n for n in notes)
     finished = CliRunner().invoke(cli, ["report", str(out), "-o", str(tmp_path / "gait2")])
     assert "no finished track.json" not in finished.output
+    (run / "track.json").write_text("{broken")  # unreadable (edited by hand): named once by each command
+    for args, code in ((["report", str(run), "-o", str(tmp_path / "gait3")], 3),  # 3: no complete gait cycle
+                       (["eval", str(run), "--truth", str(synth.session / "truth.h5"), "--force"], 0)):  # fmt: skip
+        track_summary._unreadable.clear()  # as in a new process
+        res = CliRunner().invoke(cli, args)
+        assert res.exit_code == code, res.output
+        assert res.output.count("track.json: unreadable (") == 1, res.output
+        assert "taken as no finished run" in res.output and "no finished track.json beside" in res.output

@@ -144,15 +144,28 @@ def write_track_json(summary: TrackSummary) -> Path:
     return path
 
 
+#: the unreadable track.json files warned about (path, size, modification time): a command reads a
+#: run's track.json in several places, and each file is named once
+_unreadable: set[tuple[str, int, int]] = set()
+
+
 def read_track_json(out: str | Path) -> dict[str, Any] | None:
-    """The ``track.json`` document of ``out``, or None when absent or unreadable (logged)."""
+    """The ``track.json`` document of ``out``, or None when absent or unreadable (a warning, once per
+    file and version of it in a process: an unreadable record is taken as no finished run)."""
     path = Path(out) / TRACK_JSON
     if not path.is_file():
         return None
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
-        log.warning("%s: unreadable (%s); the session will be redone", path, e)
+        try:
+            stat = path.stat()
+            version = (str(path.resolve()), stat.st_size, stat.st_mtime_ns)
+        except OSError:
+            version = (str(path), -1, -1)
+        if version not in _unreadable:
+            _unreadable.add(version)
+            log.warning("%s: unreadable (%s): taken as no finished run", path, e)
         return None
     return data if isinstance(data, dict) else None
 
