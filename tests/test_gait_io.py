@@ -69,6 +69,9 @@ def test_c3d_export_is_read_back_by_ezc3d_and_c3d(tmp_path) -> None:
         assert r.first_frame == 153 and r.point_rate == tr.rate_hz
         labels = [s.strip() for s in r.get("EVENT:LABELS").string_array]
         assert r.get_int16("EVENT:USED") == 3  # an integer, as readers take it (it was stored as a float: 0)
+        for name, expected in (("ICON_IDS", [1, 1, 2]), ("GENERIC_FLAGS", [0, 0, 0])):
+            param = r.get(f"EVENT:{name}")
+            assert param.bytes_per_element == 2 and sorted(param.int16_array) == expected  # integers (were floats)
         times = r.get("EVENT:TIMES").float_array[:, 1]
         frames = [p for _, p, _ in r.read_frames()]
     assert sorted(labels) == ["Foot Off", "Foot Strike", "Foot Strike"]

@@ -47,8 +47,8 @@ def write_c3d(path: str | Path, traj: Trajectory, subject: str = "") -> None:
         c.add_parameter("EVENT", "LABELS", [_LABELS[e.event] for e in ev])
         c.add_parameter("EVENT", "DESCRIPTIONS", [_DESCRIPTIONS[e.event] for e in ev])
         c.add_parameter("EVENT", "SUBJECTS", [subject or "subject"] * len(ev))
-        c.add_parameter("EVENT", "ICON_IDS", [_ICONS[e.event] for e in ev])
-        c.add_parameter("EVENT", "GENERIC_FLAGS", [0] * len(ev))
+        _add_integers(c, "EVENT", "ICON_IDS", [_ICONS[e.event] for e in ev])
+        _add_integers(c, "EVENT", "GENERIC_FLAGS", [0] * len(ev))
         c.add_parameter("EVENT", "TIMES", np.array([[0.0] * len(ev), [float(e.time_s) for e in ev]]))
     # ezc3d appends .c3d to a name that does not end with it: keep the temporary name's suffix .c3d
     with atomic_path(path, suffix=".part.c3d") as tmp:
@@ -56,3 +56,12 @@ def write_c3d(path: str | Path, traj: Trajectory, subject: str = "") -> None:
             c.write(str(tmp))
         except (RuntimeError, ValueError) as e:
             raise OutputError(f"{path}: C3D write failed ({e})") from e
+
+
+def _add_integers(c: ezc3d.c3d, group: str, name: str, values: list[int]) -> None:
+    """Add the parameter ``group:name`` as 16-bit integers (``add_parameter`` stores a list of ints as
+    floats, which readers that ask for integers, as the ``c3d`` package's ``get_int16``, misread)."""
+    c.add_parameter(group, name, values)
+    parameter = c["parameters"][group][name]
+    parameter["type"] = ezc3d.ezc3d.INT
+    parameter["value"] = np.asarray(values, dtype=int)
