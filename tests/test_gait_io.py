@@ -5,6 +5,7 @@ from __future__ import annotations
 import warnings
 
 import ezc3d
+import h5py
 import numpy as np
 import pytest
 from gait_walker import Walker
@@ -35,6 +36,9 @@ def test_trajectories_h5_round_trip(tmp_path, rng) -> None:
     assert [(e.time_s, e.side, e.event) for e in back.events] == [(e.time_s, e.side, e.event) for e in tr.events]
     np.testing.assert_array_equal(back.meta["uncertainty"], unc)
     np.testing.assert_array_equal(back.meta["quality"], q)
+    with h5py.File(tmp_path / "trajectories.h5") as f:
+        assert [f[k].attrs["units"] for k in ("points", "uncertainty", "times", "events/time_s")] == ["m", "m", "s", "s"]
+        assert "units" not in f["quality"].attrs  # a code, not a quantity
 
 
 def test_trajectories_h5_errors_name_the_file(tmp_path) -> None:

@@ -71,8 +71,14 @@ def test_trajectories_h5_layout(tracked_session):
         assert list(f["points"].attrs["names"]) == list(POINT_NAMES)
         assert f["points"].attrs["rate_hz"] == 25.0
         assert f["poses"].shape == (20, 31) and len(f["poses"].attrs["dof_names"]) == 31
+        units = dict(zip(f["poses"].attrs["dof_names"], f["poses"].attrs["dof_units"], strict=True))
+        assert [n for n, u in units.items() if u == "m"] == ["pelvis_tx", "pelvis_ty", "pelvis_tz"]
+        assert units["knee_flexion_l"] == "rad" and set(units.values()) == {"m", "rad"}
         for key in ("uncertainty", "spread", "quality", "likelihood", "fit", "times", "points_unfiltered"):
             assert f[key].shape[0] == 20, key
+        for key in ("points", "points_unfiltered", "uncertainty", "spread"):
+            assert f[key].attrs["units"] == "m", key
+        assert f["times"].attrs["units"] == "s"
         unc, spread = f["uncertainty"][()], f["spread"][()]
         assert np.all(np.isfinite(unc)) and np.all(unc > 0) and unc.shape == spread.shape == (20, 20)
         assert np.all(np.isfinite(spread)) and np.all(spread >= 0) and not np.allclose(unc, spread)

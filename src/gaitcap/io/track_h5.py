@@ -10,7 +10,8 @@ NaN in frames without a pose (subject out of view or not found); ``/times`` (T,)
 (gaitcap.quality; the particles' spread when none is given); ``/spread`` (T, P) metres, the weighted
 spread of the tracker's particles; ``/quality`` (T,) uint8 (0 ok,
 1 poor fit, 2 subject out of view, 3 not initialised); ``/poses`` (T, D) attr ``dof_names``;
-``/likelihood`` (T,); ``/fit`` (T,); root attrs ``gaitcap_version``, ``config`` (YAML),
+``/likelihood`` (T,); ``/fit`` (T,); datasets of lengths and times carry ``units`` (``m``, ``s``;
+``/poses`` ``dof_units``: ``m`` or ``rad`` per DOF, when given); root attrs ``gaitcap_version``, ``config`` (YAML),
 ``tracker``, ``height_m``, ``height_source``, ``session`` (the session folder, absolute), ``shape``
 (a note), ``body_scales`` and ``body_shifts`` (JSON ``{segment: [x, y, z]}``: the proportions of the
 tracked body model, so that its capsules can be drawn again; absent in runs before they were
@@ -33,6 +34,7 @@ import numpy as np
 from gaitcap import __version__
 from gaitcap.errors import InputError, OutputError
 from gaitcap.io.atomic import atomic_path
+from gaitcap.io.trajectories_h5 import label_units
 
 if TYPE_CHECKING:
     from gaitcap.body.model import BodyModel
@@ -52,7 +54,7 @@ class TrackWriter:
     """Append per-frame results; ``finish`` completes and renames the file."""
 
     def __init__(self, path: str | Path, names: tuple[str, ...], dof_names: tuple[str, ...], rate_hz: float,
-                 attrs: dict[str, Any]) -> None:  # fmt: skip
+                 attrs: dict[str, Any], dof_units: tuple[str, ...] | None = None) -> None:  # fmt: skip
         self.path = Path(path)
         self._stack = contextlib.ExitStack()
         tmp = self._stack.enter_context(atomic_path(self.path, suffix=".part.h5"))
@@ -72,6 +74,10 @@ class TrackWriter:
             "quality": f.create_dataset("quality", (0,), maxshape=(None,), chunks=(1024,), dtype=np.uint8),
         }  # fmt: skip
         self._ds["poses"].attrs["dof_names"] = list(dof_names)
+        if dof_units is not None:
+            if len(dof_units) != D:
+                raise ValueError(f"dof_units must have {D} entries, got {len(dof_units)}")
+            self._ds["poses"].attrs["dof_units"] = list(dof_units)
         self.names, self.rate_hz, self.n = names, rate_hz, 0
         f.attrs["gaitcap_version"] = __version__
         for k, v in attrs.items():
@@ -123,6 +129,7 @@ class TrackWriter:
         ds.attrs["t0_s"] = 0.0
         f.create_dataset("times", data=np.arange(self.n) / self.rate_hz)
         f.attrs["filter"] = filter_note
+        label_units(f)
         f.close()
         self._stack.close()
 

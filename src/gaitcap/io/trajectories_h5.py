@@ -11,6 +11,8 @@ Layout (all lengths in metres, times in seconds):
   ``event`` (E,) strings (``left``/``right``, ``foot_strike``/``foot_off``); a compound dataset
   with the same three fields is read too;
 - root attribute ``gaitcap_version``.
+
+Each dataset of lengths or times carries a ``units`` attribute (``m``, ``s``: :func:`label_units`).
 """
 
 from __future__ import annotations
@@ -27,6 +29,17 @@ from gaitcap.io.atomic import atomic_path
 from gaitcap.trajectory import GaitEvent, Trajectory
 
 _STR = h5py.string_dtype("utf-8")
+
+#: the units of the datasets that hold lengths or times (here and in the tracker's file, gaitcap.io.track_h5)
+UNITS = {"points": "m", "points_unfiltered": "m", "uncertainty": "m", "spread": "m", "times": "s",
+         "events/time_s": "s"}  # fmt: skip
+
+
+def label_units(f: h5py.File) -> None:
+    """Set the ``units`` attribute of the datasets of :data:`UNITS` that ``f`` holds."""
+    for name, units in UNITS.items():
+        if name in f:
+            f[name].attrs["units"] = units
 
 
 def write_trajectory(
@@ -56,6 +69,7 @@ def write_trajectory(
         g.create_dataset("time_s", data=np.array([e.time_s for e in traj.events], dtype=np.float64))
         g.create_dataset("side", data=np.array([e.side for e in traj.events], dtype=object), dtype=_STR)
         g.create_dataset("event", data=np.array([e.event for e in traj.events], dtype=object), dtype=_STR)
+        label_units(f)
 
 
 def _text(values: Any) -> list[str]:
