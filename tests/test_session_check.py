@@ -5,7 +5,9 @@ import logging
 import pytest
 from session_factory import SIZE, make_session
 
-from gaitcap.errors import InputError
+from gaitcap.camera import CameraRig
+from gaitcap.errors import CalibrationError, InputError
+from gaitcap.io.calibration_toml import read_calibration, write_calibration
 from gaitcap.session import Session
 from gaitcap.session_check import check_session_videos, count_frames
 
@@ -76,3 +78,34 @@ def test_truncated_video_is_counted_by_decoding(tmp_path, caplog):
 def test_count_frames_without_a_declared_count(tmp_path):
     root = make_session(tmp_path / "s", frames={"cam0": 7})
     assert count_frames(root / "videos" / "cam0.avi", 0) == 7
+
+
+def test_a_recorded_reprojection_error_is_refused_when_too_large_and_noted_when_poor(tmp_path, caplog):
+    """calibration.toml's [metadata] records each camera's reprojection error (``calibrate extrinsics``):
+    above 5 px the session is refused before any work, above 1 px (``calibrate check``'s limit) tracked with
+    a warning and a note; an overall error counts when no camera's is recorded, -1 (not measured) does not."""
+    root = make_session(tmp_path / "s")
+    rig = read_calibration(root / "calibration.toml")
+    write_calibration(root / "calibration.toml", rig, {"reprojection_rms_px": {"cam0": 0.4, "cam1": 54.5}})
+    with pytest.raises(CalibrationError) as e:
+        check_session_videos(Session.open(root))
+    assert "calibration.toml: the reprojection error it records ([metadata]) is camera 'cam1' 54.50 px: above 5 px" in str(e.value)
+    assert "cam0" not in str(e.value)
+    write_calibration(root / "calibration.toml", rig, {"error": 1.5})
+    with caplog.at_level(logging.WARNING, logger="gaitcap"):
+        checked = check_session_videos(Session.open(root))
+    assert len(checked.notes) == 1 and "records is 1.50 px overall (above 1 px: a poor calibration" in checked.notes[0]
+    assert checked.notes[0] in caplog.text
+    for fine in ({"error": -1.0}, {"error": 0.9, "reprojection_rms_px": {"cam0": 0.5, "cam1": 0.9}}):
+        write_calibration(root / "calibration.toml", rig, fine)
+        assert check_session_videos(Session.open(root)).notes == ()
+
+
+def test_a_calibration_of_one_camera_is_refused_naming_the_videos_it_leaves_out(tmp_path):
+    root = make_session(tmp_path / "s")
+    rig = read_calibration(root / "calibration.toml")
+    write_calibration(root / "calibration.toml", CameraRig((rig["cam0"],)))
+    with pytest.raises(CalibrationError) as e:
+        check_session_videos(Session.open(root))
+    assert str(e.value) == (f"{root / 'calibration.toml'}: calibrates one camera (cam0); tracking needs two or more: "
+                            "videos/ also holds cam1.avi, not in it (calibrate all the cameras together)")

@@ -5,6 +5,7 @@ import json
 import logging
 import pickle
 import re
+import shutil
 import time
 
 import h5py
@@ -15,6 +16,7 @@ import yaml
 from gaitcap.body.measures import model_lengths
 from gaitcap.body.model import load_body_model
 from gaitcap.errors import ConfigError, OutputError, TrackingError
+from gaitcap.io.calibration_toml import read_calibration, write_calibration
 from gaitcap.io.silhouettes_h5 import read_masks
 from gaitcap.io.trajectories_h5 import read_trajectory
 from gaitcap.markers.motion import read_markers
@@ -1168,6 +1170,22 @@ def test_a_run_whose_legs_lie_off_the_masks_is_tracked_again_with_doubt(embedded
     with h5py.File(out / "trajectories.h5") as f:
         assert yaml.safe_load(f.attrs["config"])["soft_silhouettes"] is False
     np.testing.assert_array_equal(read_trajectory(out / "trajectories.h5").points, first_run)  # the kept first run
+
+
+def test_what_the_session_check_tolerated_is_noted_in_track_json(embedded_session, tmp_path):
+    """A calibration whose recorded reprojection error is poor (1.5 px, above ``calibrate check``'s 1 px) is
+    tracked, and track.json's notes say so (the session check's notes: also a crop, frame counts that differ)."""
+    session = tmp_path / "session"
+    shutil.copytree(embedded_session.session, session)
+    write_calibration(session / "calibration.toml", read_calibration(session / "calibration.toml"), {"error": 1.5})
+    data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
+    data["shape"]["enabled"] = False
+    data["factored_ipf"].update(particles=40, root_particles=80)
+    config = tmp_path / "tracking.yaml"
+    config.write_text(yaml.safe_dump(data))
+    summary = run_track(session, tmp_path / "out", config=config, progress=False, max_frames=4)
+    assert "records is 1.50 px overall (above 1 px: a poor calibration" in summary.verdict_notes[0]
+    assert json.loads((tmp_path / "out" / "track.json").read_text())["verdict_notes"] == summary.verdict_notes
 
 
 def test_calibrated_body_outside_the_ranges_is_rejected(embedded_session, tmp_path, caplog):

@@ -628,7 +628,7 @@ def _finish_run(run: TrackedRun, notes: tuple[str, ...]) -> TrackSummary:
                                    f"{run.tracked / seconds:.1f} frames/s end to end",
                            stages=dict(stages),  # a plain dict: a batch's worker process pickles the summary
                            verdict=judged.verdict.verdict, verdict_reasons=list(judged.verdict.reasons),
-                           verdict_notes=[*notes, *run.backward_notes, *judged.verdict.notes],
+                           verdict_notes=[*videos.notes, *notes, *run.backward_notes, *judged.verdict.notes],
                            body={"height_m": round(float(run.height), 4), "height_source": run.height_source,
                                  "shape": run.shape_note,
                                  "segment_lengths_m": {k: round(v, 4) for k, v in model_lengths(run.model).items()}})  # fmt: skip

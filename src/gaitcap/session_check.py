@@ -2,7 +2,9 @@
 
 First the calibration's geometry (:func:`gaitcap.calibration.quality.check_rig_geometry`: cameras
 kilometres away because the translations are in millimetres, cameras under the floor or looking
-away from it): a :class:`CalibrationError` naming calibration.toml and the likely cause. Once the
+away from it): a :class:`CalibrationError` naming calibration.toml and the likely cause; so is a
+calibration of one camera, or one whose recorded reprojection error is too large to track with
+(:func:`gaitcap.calibration.quality.check_recorded_errors`; a poor one is a warning and a note). Once the
 first frames' silhouettes are known, :func:`check_silhouettes_meet` checks that they meet in 3D
 where the calibration puts them. For each camera: the decoded frame size, the declared frame rate and frame count (the count is
 verified by decoding the last declared frame; when that fails the frames are counted by decoding,
@@ -28,10 +30,11 @@ from pathlib import Path
 import numpy as np
 
 from gaitcap.calibration.formats import fit_to_frame_size
-from gaitcap.calibration.quality import check_rig_geometry
+from gaitcap.calibration.quality import check_recorded_errors, check_rig_geometry
 from gaitcap.camera import CameraRig
 from gaitcap.errors import CalibrationError, InputError
-from gaitcap.session import CALIBRATION_FILE, Session
+from gaitcap.io.calibration_toml import read_calibration_metadata
+from gaitcap.session import CALIBRATION_FILE, VIDEO_EXTENSIONS, VIDEOS_DIR, Session
 from gaitcap.tracking.init import height_on_vertical, silhouette_centroid, silhouette_row_centre, triangulate
 from gaitcap.tracking.observation import Observation, TrackingView
 from gaitcap.video import VideoInfo, VideoReader, probe_video
@@ -84,7 +87,7 @@ class SessionVideos:
         fps: the common frame rate.
         rig: the calibration, with cameras adjusted to the decoded frame size where a centred crop
             was assumed.
-        notes: what was adjusted or tolerated, one sentence each (also logged as warnings).
+        notes: what was adjusted or tolerated, one sentence each (also logged; track.json notes them).
     """
 
     videos: dict[str, CameraVideo]
@@ -112,6 +115,20 @@ def count_frames(path: Path, declared: int) -> int:
                 return declared
     with VideoReader(path) as video:  # warns when fewer than the declared frames decode
         return sum(1 for _ in video)
+
+
+def _check_camera_count(session: Session) -> None:
+    """Refuse a calibration of one camera: tracking needs two or more (naming the session's videos
+    that calibration.toml leaves out)."""
+    if len(session.rig) >= 2:
+        return
+    folder = session.root / VIDEOS_DIR
+    left_out = sorted(p.name for p in folder.iterdir() if p.suffix.lower() in VIDEO_EXTENSIONS
+                      and p.stem not in session.rig.names)  # fmt: skip
+    raise CalibrationError(
+        f"{session.root / CALIBRATION_FILE}: calibrates one camera ({session.rig.names[0]}); tracking needs two or "
+        "more" + (f": {VIDEOS_DIR}/ also holds {', '.join(left_out)}, not in it (calibrate all the cameras together)"
+                  if left_out else ""))  # fmt: skip
 
 
 def _check_fps(videos: dict[str, CameraVideo], allow_mismatch: bool, notes: list[str]) -> float:
@@ -158,6 +175,7 @@ def _check_sizes(rig: CameraRig, videos: dict[str, CameraVideo], notes: list[str
         except CalibrationError as e:
             raise InputError(f"{where}; recalibrate at the video size (a resize is not a crop)") from e
         note = f"{where}: assumed a centred crop, principal point moved by half the difference"
+        log.info("%s", note)
         notes.append(note)
     return CameraRig(tuple(cams))
 
@@ -171,12 +189,16 @@ def check_session_videos(session: Session, allow_fps_mismatch: bool = False) -> 
         InputError: a video that does not open or has no decodable frame (named), frame rates that
             differ (unless allowed) or are unknown, a frame size the calibration cannot be fitted to.
     """
-    check_rig_geometry(session.rig, session.root / CALIBRATION_FILE)
+    calibration = session.root / CALIBRATION_FILE
+    check_rig_geometry(session.rig, calibration)
+    _check_camera_count(session)
+    notes: list[str] = check_recorded_errors(session.rig, read_calibration_metadata(calibration), calibration)
+    for note in notes:
+        log.warning("%s", note)
     videos: dict[str, CameraVideo] = {}
     for cam in session.rig:
         info = probe_video(session.videos[cam.name])
         videos[cam.name] = CameraVideo(cam.name, info, count_frames(info.path, info.frame_count))
-    notes: list[str] = []
     fps = _check_fps(videos, allow_fps_mismatch, notes)
     n_frames = _check_counts(videos, notes)
     rig = _check_sizes(session.rig, videos, notes)

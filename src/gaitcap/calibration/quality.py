@@ -14,7 +14,11 @@ import numpy as np
 from gaitcap.camera import Camera, CameraRig
 from gaitcap.errors import CalibrationError
 
+#: the largest recorded reprojection RMS (px) of a good calibration (``gaitcap calibrate check``)
 MAX_ERROR_PX = 1.0
+#: a recorded reprojection RMS (px) above which a camera's calibration cannot be tracked with: its
+#: rays miss the subject by a limb's width or more (``gaitcap track`` refuses it)
+UNUSABLE_ERROR_PX = 5.0
 MAX_ASPECT_DEVIATION = 0.05
 #: the farthest a camera of a gait lab stands from the calibration's origin (on the walkway), and
 #: the farthest it sees the floor: a walkway and its cameras fit in a few tens of metres
@@ -99,6 +103,43 @@ def check_rig_geometry(rig: CameraRig, source: str | Path) -> None:
         raise CalibrationError(f"{source}: " + "; ".join(problems))
 
 
+def _per_camera_errors(metadata: dict[str, Any]) -> dict[str, float]:
+    """``[metadata] reprojection_rms_px`` (camera -> px), empty when absent."""
+    table = metadata.get("reprojection_rms_px")
+    if not isinstance(table, dict):
+        return {}
+    return {str(k): float(v) for k, v in table.items() if isinstance(v, (int, float))}
+
+
+def check_recorded_errors(rig: CameraRig, metadata: dict[str, Any], source: str | Path) -> list[str]:
+    """Refuse a calibration whose recorded reprojection error (``[metadata]``: each camera's, or else
+    the overall one) is above :data:`UNUSABLE_ERROR_PX`; returns a note when one is above
+    :data:`MAX_ERROR_PX`.
+
+    Raises:
+        CalibrationError: naming ``source`` and each camera (or the overall error) and its value.
+    """
+    per_cam = _per_camera_errors(metadata)
+    errors = {f"camera {c.name!r}": per_cam[c.name] for c in rig if c.name in per_cam}
+    overall = metadata.get("error")
+    if not errors and isinstance(overall, (int, float)) and overall >= 0:  # -1: not measured
+        errors = {"overall": float(overall)}
+
+    def listing(limit: float) -> str:  # those above limit, with their errors
+        return ", ".join(f"{e:.2f} px overall" if what == "overall" else f"{what} {e:.2f} px"
+                         for what, e in errors.items() if e > limit)  # fmt: skip
+
+    if unusable := listing(UNUSABLE_ERROR_PX):
+        raise CalibrationError(
+            f"{source}: the reprojection error it records ([metadata]) is {unusable}: above "
+            f"{UNUSABLE_ERROR_PX:g} px a camera's rays miss the subject; calibrate again "
+            f"(`gaitcap calibrate check` lists the problems)")  # fmt: skip
+    if poor := listing(MAX_ERROR_PX):
+        return [f"{source}: the reprojection error it records is {poor} (above {MAX_ERROR_PX:g} px: a poor "
+                "calibration; positions may be off by centimetres)"]  # fmt: skip
+    return []
+
+
 @dataclass
 class CheckReport:
     """Lines to print and the problems that make a calibration poor."""
@@ -128,7 +169,7 @@ def check_rig(
     """
     meta = metadata or {}
     rep = CheckReport()
-    per_cam = meta.get("reprojection_rms_px", {}) if isinstance(meta.get("reprojection_rms_px"), dict) else {}
+    per_cam = _per_camera_errors(meta)
     rep.lines.append(f"{'camera':<10} {'size':>10} {'fx':>9} {'fy':>9} {'cx':>8} {'cy':>8}  {'position x, y, z (m)':<24} {'rms px':>7}")
     for cam in rig:
         K = cam.matrix
