@@ -7,6 +7,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+import yaml
 from click.testing import CliRunner
 
 from gaitcap.calibration.boards import Board, detect_board, parse_board_size, parse_length
@@ -20,11 +21,11 @@ from gaitcap.calibration.extrinsics import (
 from gaitcap.calibration.formats import fit_to_frame_size, read_opencv_camera, read_qualisys, write_opencv_camera
 from gaitcap.calibration.intrinsics import calibrate_intrinsics, coverage, select_spread
 from gaitcap.calibration.synthetic import render_board_view
-from gaitcap.calibration.views import detect_views
+from gaitcap.calibration.views import ViewSet, detect_views, paired_views
 from gaitcap.camera import Camera
 from gaitcap.cli.main import cli
 from gaitcap.config import load_yaml_model
-from gaitcap.errors import CalibrationError, ConfigError
+from gaitcap.errors import CalibrationError, ConfigError, InputError
 from gaitcap.io.calibration_toml import read_calibration, read_calibration_metadata, write_calibration
 
 FIX = Path(__file__).resolve().parent / "fixtures" / "calibration"
@@ -339,3 +340,89 @@ def test_cli_extrinsics_from_floor_board(tmp_path):
         assert np.linalg.norm(est.center - true.center) < 0.005
     meta = read_calibration_metadata(session / "calibration.toml")
     assert set(meta["reprojection_rms_px"]) == {"c1", "c2"} and meta["check_3d_mm"] >= 0
+    first = (session / "calibration.toml").read_text()
+    r = _run("extrinsics", session, "--board", "9x6", "--square", "120mm")  # again: no earlier copy is replaced
+    assert r.exit_code == 0, r.output
+    assert "previous one kept as calibration.toml.bak2" in r.output
+    assert (session / "calibration.toml.bak").read_text() == before
+    assert (session / "calibration.toml.bak2").read_text() == first
+
+
+def _points_session(tmp_path: Path, rng: np.random.Generator, cameras: int = 2) -> tuple[Path, Path, dict]:
+    """A session folder whose calibration.toml holds the intrinsics of ``cameras`` of the known rig, and
+    a scene points file of 8 points seen by every camera (0.3 px of click noise); returns both and the YAML."""
+    truth = _rig_truth()[:cameras]
+    session = tmp_path / "s"
+    session.mkdir()
+    from gaitcap.camera import CameraRig
+
+    write_calibration(session / "calibration.toml", CameraRig(tuple(Camera(c.name, c.size, c.matrix, c.dist) for c in truth)))
+    pts = {f"q{i}": [float(v) for v in p] for i, p in enumerate(rng.uniform([-1, -1, 0], [1.5, 1, 0.3], size=(8, 3)))}
+    pixels = {c.name: {n: [float(v) for v in c.project(np.array(p)[None])[0] + rng.normal(0, 0.3, 2)]
+                       for n, p in pts.items()} for c in truth}  # fmt: skip
+    doc = {"points": pts, "pixels": pixels}
+    points = tmp_path / "points.yaml"
+    points.write_text(yaml.safe_dump(doc))
+    return session, points, doc
+
+
+def test_cli_extrinsics_refuses_a_poor_result_and_names_the_worst_points(tmp_path, rng):
+    """Two of a camera's clicks swapped: its reprojection RMS is tens of pixels; calibration.toml is not
+    written (nor a backup made) and the two points are named; --max-error accepts it."""
+    session, points, doc = _points_session(tmp_path, rng)
+    doc["pixels"]["c2"]["q1"], doc["pixels"]["c2"]["q5"] = doc["pixels"]["c2"]["q5"], doc["pixels"]["c2"]["q1"]
+    points.write_text(yaml.safe_dump(doc))
+    before = (session / "calibration.toml").read_text()
+    r = _run("extrinsics", session, "--points", points)
+    assert r.exit_code == 1 and "calibration.toml: not written: a poor calibration" in r.output
+    worst = re.search(r"camera 'c2': reprojection RMS [\d.]+ px > 1 px \(worst points: (\w+) [\d.]+ px, (\w+)", r.output)
+    assert worst and set(worst.groups()) == {"q1", "q5"}, r.output
+    assert (session / "calibration.toml").read_text() == before and not (session / "calibration.toml.bak").exists()
+    r = _run("extrinsics", session, "--points", points, "--max-error", "100")
+    assert r.exit_code == 0, r.output
+
+
+def test_cli_extrinsics_of_one_camera_is_not_written(tmp_path, rng):
+    session, points, _ = _points_session(tmp_path, rng, cameras=1)
+    before = (session / "calibration.toml").read_text()
+    r = _run("extrinsics", session, "--points", points)
+    assert r.exit_code == 1 and "not written: only c1 calibrated; tracking needs two or more cameras" in r.output
+    assert "nan" not in r.output  # no 3D check without two cameras
+    assert (session / "calibration.toml").read_text() == before
+    r = _run("check", session)
+    assert r.exit_code == 1 and "one camera (c1): tracking needs two or more" in r.output
+
+
+def _views(sources: list[str]) -> ViewSet:
+    """A ViewSet of these sources, each detected (its detection: the source's name)."""
+    return ViewSet(frames=list(sources), sources=list(sources))  # type: ignore[arg-type]
+
+
+def test_stereo_views_are_paired_by_the_number_in_their_names():
+    left = _views(["left01.jpg", "left02.jpg", "left03.jpg"])
+    right = _views(["right01.jpg", "right03.jpg", "right02.jpg"])  # listed in another order
+    assert paired_views(left, right) == [("left01.jpg", "right01.jpg"), ("left02.jpg", "right02.jpg"),
+                                         ("left03.jpg", "right03.jpg")]  # fmt: skip
+    with pytest.raises(InputError, match="views without their pair .*: left02.jpg$"):
+        paired_views(left, _views(["right01.jpg", "right03.jpg"]))  # one missing: never shifted onto the others
+    video = paired_views(_views(["l.mp4#0", "l.mp4#10"]), _views(["r.mp4#0", "r.mp4#10"]))
+    assert video == [("l.mp4#0", "r.mp4#0"), ("l.mp4#10", "r.mp4#10")]  # a video's frame index
+    unnumbered = _views(["a.png", "b.png"])
+    assert paired_views(unnumbered, _views(["c.png", "d.png"])) == [("a.png", "c.png"), ("b.png", "d.png")]
+    with pytest.raises(InputError, match="2 left views and 1 right ones, not numbered"):
+        paired_views(unnumbered, _views(["c.png"]))
+    undetected = ViewSet(frames=[None, "left02.jpg"], sources=["left01.jpg", "left02.jpg"])  # type: ignore[list-item]
+    assert paired_views(undetected, _views(["right01.jpg", "right02.jpg"])) == [("left02.jpg", "right02.jpg")]
+
+
+def test_cli_stereo_refuses_one_folder_twice_and_a_poor_result(tmp_path):
+    r = _run("stereo", CHESS, CHESS, "--board", "9x6", "--square", "25mm", "-o", tmp_path / "s.toml")
+    assert r.exit_code == 2 and "given as both LEFT and RIGHT" in r.output
+    left, right = tmp_path / "l", tmp_path / "r"
+    left.mkdir(), right.mkdir()
+    for k in ("01", "02", "03", "04", "05", "06"):
+        (left / f"left{k}.jpg").write_bytes((CHESS / f"left{k}.jpg").read_bytes())
+        (right / f"right{k}.jpg").write_bytes((CHESS / f"right{k}.jpg").read_bytes())
+    r = _run("stereo", left, right, "--board", "9x6", "--square", "25mm", "-o", tmp_path / "s.toml", "--max-error", "0.01")
+    assert r.exit_code == 1 and re.search(r"s.toml: not written: stereo reprojection RMS [\d.]+ px > 0.01 px", r.output)
+    assert not (tmp_path / "s.toml").exists()

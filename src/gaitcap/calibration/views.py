@@ -7,6 +7,7 @@ Reading only: the choice of views and the calibration itself live in
 from __future__ import annotations
 
 import logging
+import re
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -33,12 +34,14 @@ class ViewSet:
         rejected: ``source -> reason`` for views that were read but not used.
         frames: for each input frame (in order), its detection or ``None`` (for synchronised
             multi-camera use: frame k of every camera shows the same board pose).
+        sources: each input frame's name (``file`` or ``video#frame``), as ``frames``.
     """
 
     image_size: tuple[int, int] | None = None
     detections: list[Detection] = field(default_factory=list)
     rejected: dict[str, str] = field(default_factory=dict)
     frames: list[Detection | None] = field(default_factory=list)
+    sources: list[str] = field(default_factory=list)
 
     def require(self, n: int, what: str) -> None:
         """Raise :class:`CalibrationError` naming every rejected view when fewer than ``n`` are usable."""
@@ -130,6 +133,40 @@ def detect_views(
             else:
                 views.detections.append(det)
             views.frames.append(det)
+            views.sources.append(source)
     for source, reason in views.rejected.items():
         log.debug("%s: rejected: %s", source, reason)
     return views
+
+
+def _pair_number(source: str) -> int | None:
+    """The number a view is paired by: a video's frame index, else the last number in the file name."""
+    if "#" in source:
+        return int(source.rsplit("#", 1)[1])
+    numbers = re.findall(r"\d+", Path(source).stem)
+    return int(numbers[-1]) if numbers else None
+
+
+def paired_views(left: ViewSet, right: ViewSet) -> list[tuple[Detection, Detection]]:
+    """The views of a synchronised pair taken together, both detected: paired by number (a video's
+    frame index, or the last number in each file name: left05.jpg with right05.jpg) when every view
+    has its own, else in input order.
+
+    Raises:
+        InputError: a view without its partner (named), or, without numbers, two counts of views.
+    """
+    kl, kr = [_pair_number(s) for s in left.sources], [_pair_number(s) for s in right.sources]
+    numbered = all(k is not None for k in kl + kr) and len(set(kl)) == len(kl) and len(set(kr)) == len(kr)
+    if numbered:
+        alone = [s for s, k in zip(left.sources, kl) if k not in set(kr)]
+        alone += [s for s, k in zip(right.sources, kr) if k not in set(kl)]
+        if alone:
+            raise InputError(f"views without their pair (paired by the number in their names): {', '.join(alone)}")
+        by_number = dict(zip(kr, right.frames))
+        pairs = [(a, by_number[k]) for k, a in zip(kl, left.frames)]
+    elif len(left.frames) != len(right.frames):
+        raise InputError(f"{len(left.frames)} left views and {len(right.frames)} right ones, not numbered to pair "
+                         "them: give the pairs' files the same number (left05.jpg, right05.jpg)")  # fmt: skip
+    else:
+        pairs = list(zip(left.frames, right.frames))
+    return [(a, b) for a, b in pairs if a is not None and b is not None]

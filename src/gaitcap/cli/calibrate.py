@@ -8,13 +8,14 @@ from pathlib import Path
 
 import click
 import cv2
+import numpy as np
 
 from gaitcap.calibration import extrinsics as ext
 from gaitcap.calibration.boards import Board, parse_board_size, parse_length
 from gaitcap.calibration.formats import read_opencv_camera, read_qualisys, write_opencv_camera
 from gaitcap.calibration.intrinsics import MIN_VIEWS, calibrate_intrinsics
-from gaitcap.calibration.quality import check_rig
-from gaitcap.calibration.views import IMAGE_SUFFIXES, VIDEO_SUFFIXES, detect_views
+from gaitcap.calibration.quality import MAX_ERROR_PX, check_rig
+from gaitcap.calibration.views import IMAGE_SUFFIXES, VIDEO_SUFFIXES, detect_views, paired_views
 from gaitcap.camera import Camera, CameraRig
 from gaitcap.cli.options import force_option, handle_errors
 from gaitcap.config import load_yaml_model
@@ -71,11 +72,15 @@ def check_new(path: Path, force: bool) -> None:
 
 
 def keep_previous(path: Path) -> Path | None:
-    """Copy an existing ``path`` to ``path.bak`` (replacing an older copy) before it is overwritten;
-    returns the copy (None: nothing to keep)."""
+    """Copy an existing ``path`` to ``path.bak`` (or, when that exists, the first free ``path.bak2``,
+    ``path.bak3``...: no earlier copy is replaced) before it is overwritten; returns the copy (None:
+    nothing to keep)."""
     if not path.exists():
         return None
     backup = path.with_name(path.name + ".bak")
+    k = 2
+    while backup.exists():
+        backup, k = path.with_name(f"{path.name}.bak{k}"), k + 1
     try:
         shutil.copy2(path, backup)
     except OSError as e:
@@ -164,10 +169,14 @@ def _default_views(session: Path, name: str) -> Path:
                    "floor z = 0; at least 4) and 'pixels' (camera: {name: [u, v], or null where not seen}).")
 @click.option("--video-step", type=int, default=1, show_default=True, help="Read every n-th video frame.")
 @click.option("--no-adjust", is_flag=True, help="Skip the joint refinement (bundle adjustment).")
+@click.option("--max-error", type=float, default=MAX_ERROR_PX, show_default=True,
+              help="Largest reprojection RMS (px) of a camera for calibration.toml to be written.")
 @handle_errors
-def extrinsics_cmd(session, board_size, square, charuco, marker, dictionary, intrinsics_files, views_opt, points, video_step, no_adjust):
+def extrinsics_cmd(session, board_size, square, charuco, marker, dictionary, intrinsics_files, views_opt, points, video_step, no_adjust, max_error):
     """Place every camera in the floor frame (metres, z up, floor z = 0) and write calibration.toml
-    (an existing one is kept as calibration.toml.bak).
+    (an existing one is kept as calibration.toml.bak, or .bak2, .bak3... when that exists). Nothing
+    is written when fewer than two cameras are calibrated or a camera's reprojection RMS is above
+    --max-error (with --points, its worst points are named).
 
     With a board lying on the floor: origin at its first corner, x along its rows. With --points:
     the frame of the given coordinates.
@@ -207,10 +216,33 @@ def extrinsics_cmd(session, board_size, square, charuco, marker, dictionary, int
     for cam in res.rig:
         c = cam.center
         click.echo(f"{cam.name}: position {c[0]:.3f} {c[1]:.3f} {c[2]:.3f} m, reprojection RMS {res.rms_px[cam.name]:.3f} px")
-    click.echo(f"3D check: {res.check_mm:.2f} mm RMS ({res.method}, {res.n_positions} position(s), adjusted={res.adjusted})")
+    if np.isfinite(res.check_mm):
+        click.echo(f"3D check: {res.check_mm:.2f} mm RMS ({res.method}, {res.n_positions} position(s), "
+                   f"adjusted={res.adjusted})")  # fmt: skip
+    _refuse_poor_extrinsics(res, target, max_error, scene if points is not None else None)
     kept = keep_previous(target)
     write_calibration(target, res.rig, res.metadata())
     click.echo(f"wrote {target}" + (f" (the previous one kept as {kept.name})" if kept else ""))
+
+
+def _refuse_poor_extrinsics(res: ext.ExtrinsicsResult, target: Path, max_error: float,
+                            scene: ext.ScenePoints | None) -> None:  # fmt: skip
+    """Refuse to write a result of fewer than two cameras, or with a camera's reprojection RMS above
+    ``max_error`` px (with ``scene``, each such camera's worst points and their errors named)."""
+    if len(res.rig) < 2:
+        raise CalibrationError(f"{target}: not written: only {', '.join(res.rig.names)} calibrated; tracking needs "
+                               "two or more cameras (give every camera's intrinsics)")  # fmt: skip
+    poor = {name: rms for name, rms in res.rms_px.items() if rms > max_error}
+    if not poor:
+        return
+    residuals = ext.scene_reprojection(res.rig, scene) if scene is not None else {}
+    lines = []
+    for name, rms in poor.items():
+        worst = sorted(residuals.get(name, {}).items(), key=lambda item: -item[1])[:3]
+        lines.append(f"camera {name!r}: reprojection RMS {rms:.2f} px > {max_error:g} px"
+                     + (" (worst points: " + ", ".join(f"{n} {d:.1f} px" for n, d in worst) + ")" if worst else ""))
+    raise CalibrationError(f"{target}: not written: a poor calibration:\n  " + "\n  ".join(lines)
+                           + "\n  check those points' pixels (or the board views), or give --max-error to accept it")
 
 
 @command.command("stereo")
@@ -219,26 +251,34 @@ def extrinsics_cmd(session, board_size, square, charuco, marker, dictionary, int
 @board_options
 @click.option("--fix-aspect-ratio", is_flag=True, help="Force fx = fy for each camera.")
 @click.option("-o", "--output", type=click.Path(path_type=Path), required=True, help="calibration.toml of the pair.")
+@click.option("--max-error", type=float, default=MAX_ERROR_PX, show_default=True,
+              help="Largest stereo reprojection RMS (px) for the result to be written.")
 @force_option
 @handle_errors
-def stereo_cmd(left, right, board_size, square, charuco, marker, dictionary, fix_aspect_ratio, output, force):
+def stereo_cmd(left, right, board_size, square, charuco, marker, dictionary, fix_aspect_ratio, output, max_error, force):
     """Calibrate a synchronised pair: intrinsics of each, then their relative pose (LEFT is the frame).
 
-    LEFT and RIGHT are folders (or videos) whose k-th views were taken together.
+    LEFT and RIGHT are folders (or videos) of views taken together: paired by the number in their
+    names (left05.jpg with right05.jpg; a video's frame index), or in order when they have none.
 
     \b
     Example:
         gaitcap calibrate stereo pairs/left pairs/right --board 9x6 --square 25mm -o stereo.toml
     """
     check_new(output, force)
+    if left.resolve() == right.resolve():
+        raise click.BadParameter(f"{left}: given as both LEFT and RIGHT", param_hint="RIGHT")
     board = make_board(board_size, square, charuco, marker, dictionary)
     vl, vr = detect_views([left], board), detect_views([right], board)
+    pairs = paired_views(vl, vr)  # before the intrinsics: a missing partner is named at once
     cl = calibrate_intrinsics(vl.detections, board, "left", fix_aspect_ratio).camera
     cr = calibrate_intrinsics(vr.detections, board, "right", fix_aspect_ratio).camera
-    pairs = [(a, b) for a, b in zip(vl.frames, vr.frames) if a is not None and b is not None]
     res = ext.calibrate_stereo(cl, cr, pairs, board)
     click.echo(f"{res.n_pairs} pairs: RMS {res.rms_px:.4f} px, baseline {res.baseline_m * 1000:.2f} mm, "
                f"mean epipolar error {res.epipolar_px:.4f} px")
+    if res.rms_px > max_error:
+        raise CalibrationError(f"{output}: not written: stereo reprojection RMS {res.rms_px:.2f} px > {max_error:g} px "
+                               "(are the views paired right? give --max-error to accept it)")  # fmt: skip
     write_cameras(output, res.rig, {"error": round(res.rms_px, 4), "baseline_m": res.baseline_m,
                                     "epipolar_px": res.epipolar_px}, force)
     click.echo(f"wrote {output}")
@@ -276,6 +316,8 @@ def check_cmd(target, max_error):
         rig, meta = CameraRig(tuple(read_cameras(path))), {}
     sizes = _frame_sizes(target, rig.names) if target.is_dir() else {}
     rep = check_rig(rig, meta, sizes, max_error)
+    if target.is_dir() and len(rig) < 2:
+        rep.problems.append(f"one camera ({rig.names[0]}): tracking needs two or more")
     click.echo(f"{path}: {len(rig)} camera(s)")
     for line in rep.lines:
         click.echo(line)
