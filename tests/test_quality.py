@@ -29,6 +29,7 @@ from gaitcap.quality import (
     unsupported_legs,
 )
 from gaitcap.tracking.config import TrackingConfig, UncertaintyConfig, VerdictConfig, load_tracking_config
+from gaitcap.trajectory import LOWER_LIMB
 
 HEIGHT = 1.7
 T = 50
@@ -469,6 +470,30 @@ def test_assess_returns_the_three(walk):
     cfg = load_tracking_config()
     a = assess(points, names, np.full(T, 0.8), np.zeros(T, np.uint8), HEIGHT, RATE, cfg.verdict, cfg.uncertainty)
     assert a.verdict.verdict == "ok" and a.signals.n_frames == T and a.uncertainty.shape == (T, len(names))
+
+
+def test_a_run_uncertain_through_much_of_its_length_is_doubtful(walk, rng):
+    """The lower-limb points' mean calibrated uncertainty above ``uncertain_mm`` in more than
+    ``max_uncertain_fraction`` of the tracked frames makes a run doubtful (the baseline trackers, a wrong
+    height: tens of millimetres off where no other check sees it); frames not tracked are not counted."""
+    points, names = walk
+    cfg = load_tracking_config()
+    steady = assess(points, names, np.full(T, 0.9), np.zeros(T, np.uint8), HEIGHT, RATE, cfg.verdict, cfg.uncertainty)
+    assert steady.signals.n_uncertain == 0 and steady.verdict.verdict == "ok"
+    jitter = points + rng.normal(0.0, 0.03, points.shape)  # 3 cm of jitter on every point: u well above 90 mm
+    shaky = assess(jitter, names, np.full(T, 0.6), np.zeros(T, np.uint8), HEIGHT, RATE, cfg.verdict, cfg.uncertainty)
+    lower = [names.index(p) for p in LOWER_LIMB]
+    expected = int(np.sum(shaky.uncertainty[:, lower].mean(axis=1) > 0.090))
+    assert expected > 0.25 * T and shaky.signals.n_uncertain == expected
+    assert shaky.verdict.verdict == "doubtful"
+    assert f"uncertainty is above 90 mm in {expected} of {T} tracked frames" in shaky.verdict.reasons[-1]
+    quality = np.full(T, QUALITY_OUT_OF_VIEW, np.uint8)
+    quality[:5] = QUALITY_OK  # only 5 frames tracked: the others are not counted, even where u is large
+    few = assess(jitter, names, np.full(T, 0.6), quality, HEIGHT, RATE, cfg.verdict, cfg.uncertainty)
+    assert few.signals.n_uncertain <= 5
+    loose = cfg.verdict.model_copy(update={"uncertain_mm": 1000.0})
+    assert assess(jitter, names, np.full(T, 0.6), np.zeros(T, np.uint8), HEIGHT, RATE, loose,
+                  cfg.uncertainty).signals.n_uncertain == 0  # fmt: skip
 
 
 # --------------------------------------------------------------------------------------- config

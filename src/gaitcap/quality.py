@@ -32,6 +32,9 @@ walking person passes:
   model's own, body.yaml: 0.245 H and 0.246 H);
 - the subject's height in each camera's image (pixels): a small figure leaves the limbs a few
   pixels wide;
+- the frames whose lower-limb points' mean calibrated uncertainty (below) is above
+  ``uncertain_mm``: a run that jitters or fits poorly through much of its length (the baseline
+  trackers, a body scaled to a wrong height) is off by centimetres where no other check sees it;
 - (a note, not a reason: it leaves the verdict as it is) whether some camera views the walk
   obliquely. Seen from beside the walkway a camera sees how far apart the feet are fore and aft
   but not which is on the left; seen along it, the reverse; two such views fit both pairings of
@@ -79,6 +82,7 @@ from gaitcap.gait import passes
 from gaitcap.gait.passes import MIN_SPEED_M_S, travel_axis
 from gaitcap.io.track_h5 import QUALITY_OK, tracked_frames
 from gaitcap.tracking.smoothing import lowpass
+from gaitcap.trajectory import LOWER_LIMB
 
 if TYPE_CHECKING:
     from gaitcap.camera import CameraRig
@@ -118,6 +122,8 @@ class RunSignals:
         leg_support: segment (:data:`LEG_SEGMENTS`, :data:`FOOT_SEGMENTS`) -> (T,) its lowest share
             over the cameras of drawn pixels on the silhouettes
             (:func:`gaitcap.tracking.support.segment_support`; NaN: not judged), empty when not measured.
+        n_uncertain: tracked frames whose lower-limb points' mean calibrated uncertainty is above the
+            verdict's ``uncertain_mm`` (:func:`assess`; 0 when not measured).
     """
 
     n_frames: int
@@ -133,6 +139,7 @@ class RunSignals:
     exchanged: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
     moving_backwards: tuple[int, int, int, int] = (0, 0, 0, 0)
     leg_support: dict[str, np.ndarray] = field(default_factory=dict)
+    n_uncertain: int = 0
 
     @property
     def n_exchanged(self) -> int:
@@ -503,6 +510,9 @@ def judge(signals: RunSignals, cfg: VerdictConfig) -> RunVerdict:
     if s.body_problems:
         reasons.append("the shape calibration gave a body outside anthropometric ranges (" + "; ".join(s.body_problems)
                        + "): tracked with body.yaml's proportions")  # fmt: skip
+    if s.n_uncertain > cfg.max_uncertain_fraction * s.n_tracked:
+        reasons.append(f"the lower-limb points' uncertainty is above {cfg.uncertain_mm:g} mm in {s.n_uncertain} of "
+                       f"{s.n_tracked} tracked frames: positions may be off by several centimetres")  # fmt: skip
     small = {k: v for k, v in s.image_height_px.items() if v < cfg.min_image_height_px}
     if small:
         listed = ", ".join(f"{v:.0f} px in {k}" for k, v in small.items())
@@ -652,6 +662,15 @@ def assess(points: np.ndarray, names: tuple[str, ...], fit: np.ndarray, quality:
     signals = replace(run_signals(points, names, quality, height_m, rig, verdict_cfg.crossed_margin_m,
                                   rate_hz=rate_hz, exchanged_margin_m=verdict_cfg.exchanged_margin_m),
                       body_problems=body_problems, leg_support=dict(leg_support or {}))  # fmt: skip
-    verdict = judge(signals, verdict_cfg)
     u = calibrated_uncertainty(points, names, fit, signals, rate_hz, uncertainty_cfg)
-    return Assessment(signals, verdict, u)
+    signals = replace(signals, n_uncertain=_uncertain_frames(u, names, quality, verdict_cfg.uncertain_mm))
+    return Assessment(signals, judge(signals, verdict_cfg), u)
+
+
+def _uncertain_frames(u: np.ndarray, names: tuple[str, ...], quality: np.ndarray, limit_mm: float) -> int:
+    """The tracked frames whose lower-limb points' mean uncertainty ``u`` (T, P), metres, is above ``limit_mm``."""
+    lower = np.asarray(u, float)[:, [names.index(p) for p in LOWER_LIMB if p in names]]
+    finite = np.isfinite(lower)
+    counted = finite.sum(axis=1)
+    mean = np.where(finite, lower, 0.0).sum(axis=1) / np.maximum(counted, 1)
+    return int(np.sum(tracked_frames(quality) & (counted > 0) & (mean * 1000.0 > limit_mm)))

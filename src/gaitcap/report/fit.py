@@ -40,12 +40,14 @@ from gaitcap.gait.angles import joint_angles
 from gaitcap.gait.events import WalkingDirection
 from gaitcap.io.track_h5 import QUALITY_NAMES, QUALITY_OK, TrackRecord, read_track_record
 from gaitcap.track_summary import Verdict, read_track_json, read_verdict
+from gaitcap.tracking.config import VerdictConfig
 from gaitcap.trajectory import LOWER_LIMB, GaitEvent, Trajectory
 
 log = logging.getLogger("gaitcap.report")
 
-#: a frame whose mean lower-limb uncertainty exceeds this (mm) is shown as uncertain
-UNCERTAIN_MM = 90.0
+#: a frame whose mean lower-limb uncertainty exceeds this (mm) is shown as uncertain (the verdict's
+#: default ``uncertain_mm``, tracking.yaml)
+UNCERTAIN_MM = VerdictConfig().uncertain_mm
 #: the quality.min_fit of a run whose config does not say
 DEFAULT_MIN_FIT = 0.55
 #: Monte Carlo draws of the angle bands (seeded: the report is reproducible)

@@ -96,6 +96,8 @@ class VerdictConfig(Strict):
     min_oblique_deg: float = Field(default=15.0, ge=0, le=45)
     min_leg_support: float = Field(default=0.5, ge=0, le=1)
     max_unsupported_fraction: float = Field(default=0.25, gt=0, le=1)
+    uncertain_mm: float = Field(default=90.0, gt=0)
+    max_uncertain_fraction: float = Field(default=0.25, gt=0, le=1)
 
     @field_validator("segment_ratio")
     @classmethod
