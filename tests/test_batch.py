@@ -3,6 +3,7 @@ from __future__ import annotations
 import json
 import logging
 import os
+from dataclasses import replace
 from functools import partial
 from pathlib import Path
 
@@ -72,6 +73,8 @@ def test_finished_sessions_are_skipped_unless_force(tmp_path):
     forced = run_batch(sessions, tmp_path / "out", task=fake_track, force=True)
     assert [s.status for s in forced] == ["ok", "ok"]
     assert not any_failed(forced)
+    judged_failed = [replace(forced[0], verdict="failed"), forced[1]]  # tracked, but not to be used
+    assert any_failed(judged_failed) and any_failed([replace(again[0], verdict="failed")])  # a skipped one too
 
 
 def test_unreadable_track_json_means_not_finished(tmp_path, caplog):

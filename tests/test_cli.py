@@ -146,6 +146,14 @@ def test_track_says_its_verdict_and_notes_once(runner, embedded_session, tmp_pat
     for note in track["verdict_notes"]:
         assert sum(note in line for line in lines) == 1
     assert lines[-1] == f"results: {out}"
+    data["quality"]["min_fit"] = 0.999  # no frame fits that well: the verdict is failed
+    data["lost_legs"] = {"retrack": False}
+    config.write_text(yaml.safe_dump(data))
+    result = runner.invoke(cli, ["track", str(embedded_session.session), "-o", str(out), "--max-frames", "3",
+                                 "-c", str(config), "--force"])  # fmt: skip
+    assert json.loads((out / "track.json").read_text())["verdict"] == "failed"  # written, for a look
+    assert result.exit_code == 1, result.output
+    assert f"the run's verdict is failed: the results in {out} must not be used" in result.output
 
 
 def test_ctrl_c_inside_a_compiled_kernel_is_an_abort_not_a_traceback(runner, monkeypatch):

@@ -45,6 +45,13 @@ def test_report_on_a_tracking_folder_writes_every_output(tmp_path) -> None:
         assert f["left/knee_flexion"].shape[1] == 101 and f["left/knee_flexion"].shape[0] == p["left"]["n_strides"]
     html = (gait / "report.html").read_text()
     assert html.count("data:image/png;base64,") == 4 and "http" not in html.replace("http-equiv", "")
+    assert "tracking_verdict" not in p  # no track.json: not a tracking run's verdict to carry
+    (out / "track.json").write_text(json.dumps({"status": "ok", "verdict": "failed",
+                                                "verdict_reasons": ["none of the 100 frames fits the silhouettes"]}))
+    res = CliRunner().invoke(cli, ["report", str(out), "-o", str(tmp_path / "gait2")])
+    assert res.exit_code == 0, res.output
+    p = json.loads((tmp_path / "gait2" / "parameters.json").read_text())
+    assert p["tracking_verdict"] == {"verdict": "failed", "reasons": ["none of the 100 frames fits the silhouettes"]}
 
 
 def test_report_with_less_than_one_cycle_exits_3_and_says_why(tmp_path) -> None:

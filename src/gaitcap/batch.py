@@ -336,8 +336,9 @@ def run_batch(
 
 
 def any_failed(summaries: Sequence[TrackSummary]) -> bool:
-    """True when at least one session failed (the CLI exits with a non-zero code)."""
-    return any(s.status == STATUS_FAILED for s in summaries)
+    """True when at least one session failed, or its run (also one finished before and skipped) has the
+    verdict ``failed`` (the CLI exits with a non-zero code)."""
+    return any(s.status == STATUS_FAILED or s.verdict == "failed" for s in summaries)
 
 
 def _note(s: TrackSummary) -> str:

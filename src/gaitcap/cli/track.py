@@ -54,7 +54,8 @@ def command(ctx: click.Context, source: Path, out: Path, tracker: str | None, co
     OUT/joints.csv (metres, NaN where flagged) and OUT/joints.trc (OpenSim, mm); with --save-masks
     also OUT/silhouettes.h5 (the masks the tracker saw, as gaitcap silhouettes writes them). A folder of
     sessions gives OUT/<session>/..., a log per session and a summary; finished sessions are
-    skipped unless --force; the exit code is 1 when any session failed.
+    skipped unless --force. The exit code is 1 when a session failed or its run's verdict is
+    failed (the outputs are written, to look at, not to use).
 
     The subject's proportions are calibrated on the first frames of each session; for more clips
     of the same subject, --body OUT1 reuses those of an earlier run (a shorter run: no calibration).
@@ -73,6 +74,9 @@ def command(ctx: click.Context, source: Path, out: Path, tracker: str | None, co
         log.info("%s", summary.message)
         if not quiet:
             click.echo(f"results: {out}")
+        if summary.verdict == "failed":  # written for a look, not for use
+            click.echo(f"Error: the run's verdict is failed: the results in {out} must not be used", err=True)
+            sys.exit(1)
         return
     if quiet:  # -q: no progress bars (in one process the batch shows them by default)
         kwargs["progress"] = False

@@ -2,7 +2,8 @@
 
 - ``events.csv``: ``side,event,frame,time_s`` (frame = nearest frame index, 0-based);
 - ``parameters.json``: :meth:`GaitParameters.to_dict` (``status``, ``reason``, ``overall``,
-  ``left``, ``right``, ``symmetry_index_pct``, ``info``); missing values are ``null``;
+  ``left``, ``right``, ``symmetry_index_pct``, ``info``); missing values are ``null``; for a
+  tracking run also ``tracking_verdict`` (its track.json's verdict and reasons);
 - ``parameters.csv``: ``scope,parameter,mean,sd,n,unit`` (scope = overall, left, right, symmetry);
 - ``strides.csv``: one row per complete gait cycle;
 - ``angles.csv``: ``frame,time_s`` and one column per angle (degrees);
@@ -27,6 +28,7 @@ from gaitcap import __version__
 from gaitcap.gait.analysis import GaitAnalysis
 from gaitcap.gait.parameters import OVERALL_KEYS, SIDE_KEYS, GaitParameters
 from gaitcap.io.atomic import atomic_path, write_text_atomic
+from gaitcap.track_summary import Verdict
 from gaitcap.trajectory import SIDES, GaitEvent, Trajectory
 
 
@@ -47,8 +49,13 @@ def write_events_csv(path: Path, events: Sequence[GaitEvent], traj: Trajectory) 
     write_text_atomic(path, _csv_text(("side", "event", "frame", "time_s"), rows))
 
 
-def write_parameters(json_path: Path, csv_path: Path, params: GaitParameters) -> None:
-    write_text_atomic(json_path, json.dumps(params.to_dict(), indent=2) + "\n")
+def write_parameters(json_path: Path, csv_path: Path, params: GaitParameters, verdict: Verdict | None = None) -> None:
+    """parameters.json and parameters.csv; with the tracking run's ``verdict`` (track.json), the JSON also
+    holds it as ``tracking_verdict`` (``verdict``, ``reasons``): a failed run's parameters must not be used."""
+    doc = params.to_dict()
+    if verdict is not None:
+        doc["tracking_verdict"] = {"verdict": verdict.verdict, "reasons": list(verdict.reasons)}
+    write_text_atomic(json_path, json.dumps(doc, indent=2) + "\n")
     rows: list[tuple[Any, ...]] = []
     for scope, keys, values in (("overall", OVERALL_KEYS, params.overall),
                                 ("left", SIDE_KEYS, params.sides["left"]),

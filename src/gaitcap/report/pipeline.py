@@ -156,7 +156,8 @@ def run_report(
         "c3d": out / "trajectories.c3d", "html": out / "report.html",
     }  # fmt: skip
     gait_outputs.write_events_csv(files["events"], a.events, traj)
-    gait_outputs.write_parameters(files["parameters_json"], files["parameters_csv"], a.parameters)
+    verdict = read_verdict(read_track_json(path.parent)) if path.name == TRAJECTORIES_H5 else None
+    gait_outputs.write_parameters(files["parameters_json"], files["parameters_csv"], a.parameters, verdict)
     gait_outputs.write_strides_csv(files["strides"], a.parameters)
     gait_outputs.write_angles_csv(files["angles"], traj, a.angles)
     gait_outputs.write_cycles_h5(files["cycles"], a)
