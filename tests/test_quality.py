@@ -566,6 +566,7 @@ def test_feet_the_silhouettes_hold_little_of_get_a_note_of_their_own(walk):
     assert a.verdict.verdict == "ok" and a.verdict.reasons == ()
     (note,) = [n for n in a.verdict.notes if n.startswith("feet placed where")]
     assert f"foot_l in {T // 2} of {T} frames" in note and "foot_r" not in note and "gait events" in note
+    assert "or the tracker placed the feet off them" in note  # not only the masks to blame (a baseline tracker)
     assert not [n for n in a.verdict.notes if n.startswith("legs placed where")]
     assert unsupported_legs(support, cfg) == {}
     assert unsupported_legs(support, cfg, FOOT_SEGMENTS) == {"foot_l": (T // 2, T)}

@@ -574,10 +574,12 @@ def unsupported_listing(low: dict[str, tuple[int, int]]) -> str:
 #: a share is of, and what the masks' loss means for them
 _SUPPORT_NOTES = (
     (LEG_SEGMENTS, "legs", "segment",
-     "the masks lost them there and the other cameras and the priors placed them"),
+     "either the masks lost them there and the other cameras and the priors placed them, or the tracker "
+     "placed them off the masks"),
     (FOOT_SEGMENTS, "feet", "foot",
-     "the masks do not show the shoes there (a shoe of the floor's colour and brightness cannot be told from it), "
-     "so the heel and toe points, and the gait events read from them, follow the legs above"),
+     "either the masks do not show the shoes there (a shoe of the floor's colour and brightness cannot be told "
+     "from it), or the tracker placed the feet off them; the heel and toe points, and the gait events read from "
+     "them, follow the legs above"),
 )  # fmt: skip
 
 
@@ -590,8 +592,9 @@ def _support_notes(s: RunSignals, cfg: VerdictConfig) -> tuple[str, ...]:
         low = unsupported_legs(s.leg_support, cfg, segments)
         if low:
             notes.append(f"{what} placed where a camera's silhouette has little of them ({unsupported_listing(low)}: "
-                         f"less than {100 * cfg.min_leg_support:.0f} % of the {unit} on the masks): {meaning}; check "
-                         "the masks (gaitcap track --save-masks)")  # fmt: skip
+                         f"less than {100 * cfg.min_leg_support:.0f} % of the {unit} on the masks): {meaning}; look "
+                         "at the masks (silhouettes.h5, gaitcap track --save-masks) and at the model drawn over the "
+                         "frames (gaitcap report)")  # fmt: skip
     return tuple(notes)
 
 
