@@ -1768,6 +1768,24 @@ def test_shape_defaults_of_the_schema_are_the_shipped_ones():
     assert differ == {}
 
 
+def test_a_clip_of_one_frame_skips_the_shape_calibration_for_that_reason(embedded_session, caplog):
+    """One frame (``--max-frames 1``): the calibration is skipped as having one frame, not as a subject out
+    of view (the frame has it in view; the reason is kept in track.json and shown again by --body)."""
+    from gaitcap import pipeline
+    from gaitcap.prefetch import Head
+
+    truth, rig, model = _truth_setup(embedded_session.session)
+    cfg = load_tracking_config()
+    cfg.init.frames, cfg.shape.frames = 1, 10
+    views = tracking_views(rig, cfg.scale)
+    head = Head(iter([observe(views, [truth.mask(c, 0) for c in rig.names])]), 10)
+    lik = SilhouetteLikelihood(views, cfg.beta)
+    filt = pipeline._new_tracker(cfg, model, lik)
+    note = pipeline._calibrate_shape(filt, lik, views, cfg, head)[3]
+    assert note == "skipped: 1 frame to calibrate on"
+    assert "shape calibration skipped: 1 frame to calibrate on" in caplog.text and "not in every view" not in caplog.text
+
+
 @pytest.mark.parametrize(("gone_at", "note"), [(None, "skipped: no subject"),
                                                (9, "skipped: subject not in view in the first frames")])
 def test_the_initialisation_starts_before_the_shape_window_is_read(embedded_session, monkeypatch, gone_at, note):

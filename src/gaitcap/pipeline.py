@@ -722,7 +722,11 @@ def _calibrate_shape(filt, likelihood, views, cfg: TrackingConfig, head: Head[Ob
         except TrackingError as e:
             error = e
     first = head.take(head.limit)  # the window, read while initialising
-    if not _in_view(first, cfg) or len(first) < 2:
+    if len(first) < 2:  # a clip (or --max-frames) of one frame
+        log.warning("shape calibration skipped: %d frame to calibrate on; tracking with the proportions of "
+                    "body.yaml", len(first))  # fmt: skip
+        return filt, None, False, f"skipped: {len(first)} frame to calibrate on", []
+    if not _in_view(first, cfg):
         log.warning("shape calibration skipped: the subject is not in every view of the first %d frames; "
                     "tracking with the proportions of body.yaml", len(first))  # fmt: skip
         return filt, None, False, "skipped: subject not in view in the first frames", []
