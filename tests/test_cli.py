@@ -5,6 +5,7 @@ import os
 import re
 import subprocess
 import sys
+from pathlib import Path
 
 import click
 import pytest
@@ -112,6 +113,25 @@ def test_the_program_ends_with_its_status_output_and_exit_handlers(tmp_path):
     assert bad.returncode == 2 and "none.yaml" in bad.stderr and not (tmp_path / "out").exists()
     text = _child("from gaitcap.cli.main import _exit_now; _exit_now('stopped: reason')", tmp_path)
     assert text.returncode == 1 and text.stderr.strip() == "stopped: reason"
+
+
+def test_a_console_whose_reader_has_gone_does_not_stop_the_command(tmp_path):
+    """stderr a pipe whose reader has gone (``gaitcap ... 2>&1 | head -1``): the log lines are dropped and
+    the command goes on to write its outputs and exit 0 (it stopped at its first log line, exit 1, nothing
+    written)."""
+    import gaitcap.data
+
+    walk = Path(gaitcap.data.__file__).parent / "walk_pig.c3d"
+    read, write = os.pipe()
+    os.close(read)  # the reader is gone: every write to the pipe fails (EPIPE)
+    try:
+        run = subprocess.run([sys.executable, "-m", "gaitcap", "report", str(walk), "-o", str(tmp_path / "gait")],
+                             stdout=subprocess.DEVNULL, stderr=write, cwd=tmp_path, timeout=300,
+                             env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)})  # fmt: skip
+    finally:
+        os.close(write)
+    assert run.returncode == 0
+    assert (tmp_path / "gait" / "report.html").is_file() and (tmp_path / "gait" / "parameters.json").is_file()
 
 
 def test_the_program_waits_for_a_thread_still_running(tmp_path):

@@ -22,11 +22,20 @@ os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # FFmpeg's AV_LOG_QUIET
 
 
 class _ClickHandler(logging.Handler):
-    """Log records to stderr through Click, so CliRunner captures them."""
+    """Log records to stderr through Click, so CliRunner captures them. Once stderr is a pipe whose
+    reader has gone (``gaitcap track ... 2>&1 | head``), the records are dropped: the command goes on
+    and writes its outputs (the console is for reading along, not the run's record)."""
+
+    closed = False
 
     def emit(self, record: logging.LogRecord) -> None:
+        if self.closed:
+            return
         prefix = "" if record.levelno == logging.INFO else f"{record.levelname.lower()}: "
-        click.echo(prefix + record.getMessage(), err=True)
+        try:
+            click.echo(prefix + record.getMessage(), err=True)
+        except BrokenPipeError:
+            self.closed = True
 
 
 def _setup_logging(verbose: int, quiet: bool) -> None:
