@@ -11,6 +11,7 @@ import pytest
 from batch_tasks import N_FRAMES, fake_track
 
 from gaitcap.batch import any_failed, find_sessions, format_summary, run_batch
+from gaitcap.track_summary import run_options
 from gaitcap.errors import ConfigError, InputError, OutputError
 from gaitcap.track_summary import TRACK_JSON, is_finished
 
@@ -75,6 +76,28 @@ def test_finished_sessions_are_skipped_unless_force(tmp_path):
     assert not any_failed(forced)
     judged_failed = [replace(forced[0], verdict="failed"), forced[1]]  # tracked, but not to be used
     assert any_failed(judged_failed) and any_failed([replace(again[0], verdict="failed")])  # a skipped one too
+
+
+def test_a_session_finished_with_other_options_is_neither_skipped_nor_redone(tmp_path, caplog):
+    """A batch run again with another tracker, configuration, --max-frames, --height or --body: a session
+    finished with other options (track.json's ``options``) is counted failed, naming them, and not tracked
+    (--force redoes it); one finished with the same options is skipped; one recorded before options were
+    recorded is skipped as before. Decided from the records: no session is tracked here."""
+    sessions = make_sessions(tmp_path / "in", ["a", "b", "c"])
+    recorded = {"a": run_options(max_frames=30), "b": run_options(tracker="ipf", max_frames=30), "c": None}
+    for name, options in recorded.items():
+        out = tmp_path / "out" / name
+        out.mkdir(parents=True)
+        doc = {"status": "ok", "n_frames": 30, "n_flagged": 0, "verdict": "ok", **({"options": options} if options else {})}
+        (out / "track.json").write_text(json.dumps(doc))
+    res = run_batch(sessions, tmp_path / "out", max_frames=30)  # the default task: run_track
+    assert [s.status for s in res] == ["skipped", "failed", "skipped"]
+    assert res[1].message == ("finished before with other options (the tracker factored-ipf (was ipf)): use --force "
+                              "to redo it with these")  # fmt: skip
+    assert any_failed(res) and "b: finished before with other options" in caplog.text
+    res = run_batch(sessions[:1], tmp_path / "out", max_frames=20, height_m=1.7)
+    assert res[0].status == "failed"
+    assert "--max-frames 20 (was 30); --height 1.7 (was not given)" in res[0].message
 
 
 def test_unreadable_track_json_means_not_finished(tmp_path, caplog):

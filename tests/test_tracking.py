@@ -1729,6 +1729,17 @@ def test_track_json_holds_the_verdict(tracked_session):
     assert doc["verdict_notes"] == summary.verdict_notes and isinstance(doc["verdict_notes"], list)
 
 
+def test_track_json_records_the_options_of_the_run(tracked_session):
+    """track.json's options: what a batch compares before skipping a finished session (gaitcap.batch)."""
+    from gaitcap.track_summary import changed_options, run_options
+
+    _, out, _ = tracked_session
+    recorded = json.loads((out / "track.json").read_text())["options"]
+    assert recorded == run_options(max_frames=20)  # the fixture's run: shipped configurations, 20 frames
+    assert recorded["tracker"] == "factored-ipf" and recorded["max_frames"] == 20 and recorded["body"] is None
+    assert changed_options(recorded, run_options(max_frames=20)) == ""
+
+
 def test_track_json_records_the_stage_times(tracked_session):
     _, out, summary = tracked_session
     stages = json.loads((out / "track.json").read_text())["stages_s"]

@@ -3,7 +3,9 @@
 ``run_batch(sessions, out_root)`` tracks each session into ``out_root/<session name>/``:
 
 - a session whose output is finished (``track.json`` with status ``ok``, see
-  :mod:`gaitcap.track_summary`) is skipped (status ``"skipped"``) unless ``force``;
+  :mod:`gaitcap.track_summary`) is skipped (status ``"skipped"``) unless ``force``; one finished
+  with other options than this batch's (tracker, configurations, ``max_frames``, ``height_m``,
+  ``body``: track.json's ``options``) is not redone either, but counted as failed, naming them;
 - each session logs to its own ``out_root/<name>/track.log`` (a ``logging.FileHandler`` set up in
   the worker that runs it, appended to on each run, with the traceback of a failure);
 - a session that raises anything is recorded as ``"failed"`` with the message, and the other
@@ -37,8 +39,8 @@ from typing import Any
 
 from gaitcap.errors import ConfigError, GaitcapError, InputError, OutputError
 from gaitcap.session import CALIBRATION_FILE
-from gaitcap.track_summary import (STATUS_FAILED, STATUS_OK, STATUS_SKIPPED, VERDICTS, TrackSummary, is_finished,
-                                   read_track_json)  # fmt: skip
+from gaitcap.track_summary import (STATUS_FAILED, STATUS_OK, STATUS_SKIPPED, VERDICTS, TrackSummary, changed_options,
+                                   is_finished, read_track_json, run_options)  # fmt: skip
 
 log = logging.getLogger("gaitcap.batch")
 
@@ -314,6 +316,12 @@ def run_batch(
         if not force and is_finished(out):
             before = read_track_json(out) or {}
             frames, flagged = int(before.get("n_frames", 0)), int(before.get("n_flagged", 0))  # the finished run's
+            if changed := _changed_options(before, task, task_kwargs):
+                results[i] = TrackSummary(session, out, STATUS_FAILED, frames, flagged, 0.0,
+                                          f"finished before with other options ({changed}): use --force to redo it "
+                                          "with these")  # fmt: skip
+                log.warning("%s: %s", session.name, results[i].message)
+                continue
             results[i] = TrackSummary(session, out, STATUS_SKIPPED, frames, flagged, 0.0,
                                       "finished before (use --force to redo)",
                                       verdict=before.get("verdict"), verdict_reasons=before.get("verdict_reasons", []),
@@ -333,6 +341,19 @@ def run_batch(
         done = _run_in_process(job_list)
     results.update({i: s for (i, _), s in zip(todo, done, strict=True)})
     return [results[i] for i in range(len(paths))]
+
+
+def _changed_options(before: dict[str, Any], task: Task, task_kwargs: dict[str, Any]) -> str:
+    """The options of this batch that differ from those a finished run recorded (its track.json's
+    ``options``; empty for another task, or when they cannot be compared: the run reports that)."""
+    if task is not run_track_lazy or not before.get("options"):
+        return ""
+    names = ("config", "tracker", "height_m", "max_frames", "body", "silhouette_config")
+    try:
+        options = run_options(**{k: task_kwargs[k] for k in names if k in task_kwargs})
+    except GaitcapError:  # a configuration that cannot be read: every session's run says so
+        return ""
+    return changed_options(before["options"], options)
 
 
 def any_failed(summaries: Sequence[TrackSummary]) -> bool:

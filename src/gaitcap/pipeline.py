@@ -23,7 +23,7 @@ import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import ExitStack, contextmanager, nullcontext
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import partial
 from itertools import islice
 from pathlib import Path
@@ -55,7 +55,7 @@ from gaitcap.silhouette.joint import JointExtractor, floor_check
 from gaitcap.silhouette.run import Source, camera_attrs, file_attrs, prepare_extractor, quality_row
 from gaitcap.timeseries import finite_runs
 from gaitcap.track_summary import (EVAL_FILE, GAIT_DIR, TRACK_JSON, TrackSummary, format_verdict, is_finished,
-                                   write_track_json)  # fmt: skip
+                                   run_options, write_track_json)  # fmt: skip
 from gaitcap.tracking.backward import (choose_backward, exchanged_legs, leg_points, legs_apart, mean_pose,
                                        merge_passes, order_legs)
 from gaitcap.tracking.condensation import Condensation
@@ -180,6 +180,7 @@ def run_track(
     if body is not None and height_m is not None:
         raise ConfigError("give the subject's height (--height) or an earlier run's body (--body), not both: "
                           "the body carries its height")  # fmt: skip
+    options = run_options(config, tracker, height_m, max_frames, body, silhouette_config)  # for track.json
     reused = read_body(body) if body is not None else None
     cfg = load_tracking_config(config, model=load_body_model())  # names only: the height comes later
     if tracker is not None:
@@ -199,7 +200,7 @@ def run_track(
     saver = MaskSaver(out / SILHOUETTES_FILE, file_attrs(sil_cfg)) if save_masks else None
     stages["setup"] = time.perf_counter() - t_start
     attempt = partial(_attempt, session, out, ses, videos, views, likelihood, save_masks, height_m, n_frames, progress,
-                      on_frame, t_start, stages, reused)  # fmt: skip
+                      on_frame, t_start, stages, reused, options=options)  # fmt: skip
     try:
         summary = attempt(cfg, sil_cfg, saver, lost_legs=cfg.lost_legs.retrack and not cfg.soft_silhouettes)
     except LegsLost as lost:
@@ -243,11 +244,13 @@ class LegsLost(Exception):
 def _attempt(session: Path, out: Path, ses: Session, videos, views, likelihood, save_masks: bool,
              height_m: float | None, n_frames: int, progress: bool, on_frame, t_start: float, stages: Stages,
              reused, cfg: TrackingConfig, sil_cfg: SilhouetteConfig, saver: MaskSaver | None, lost_legs: bool,
-             notes: tuple[str, ...] = (), prepared: bool = False) -> TrackSummary:  # fmt: skip
+             notes: tuple[str, ...] = (), prepared: bool = False,
+             options: dict | None = None) -> TrackSummary:  # fmt: skip
     """One run of :func:`run_track` with these configurations, from the videos to the outputs (the
     stages' times add up over the runs). ``lost_legs``: raise :class:`LegsLost` instead of writing a
     run whose legs lie off the masks; ``notes``: prepended to the verdict's notes; ``prepared``: the
-    output folder was prepared by an earlier run of this session (whose temporary file is kept)."""
+    output folder was prepared by an earlier run of this session (whose temporary file is kept);
+    ``options``: the command's options, for track.json (:func:`gaitcap.track_summary.run_options`)."""
     # the videos are read and the silhouettes extracted in a worker thread, a few frames ahead; the
     # first frames (initialisation, shape calibration) are read ahead without waiting for the
     # tracker; once they are in the head, the queue shrinks back to PREFETCH_FRAMES
@@ -269,7 +272,7 @@ def _attempt(session: Path, out: Path, ses: Session, videos, views, likelihood, 
             saver.open()
         return _track_session(session, out, ses, videos, cfg, views, likelihood, head, stream, height_m, n_frames,
                               progress, on_frame, t_start, stages, reused, lost_legs, notes,
-                              warn=not prepared)  # fmt: skip
+                              warn=not prepared, options=options or {})  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -494,11 +497,11 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
                    head: Head[Observation], stream: Iterator[Observation], height_m: float | None, n_frames: int,
                    progress: bool, on_frame, t_start: float, stages: Stages,
                    reused: ReusedBody | None = None, lost_legs: bool = False,
-                   notes: tuple[str, ...] = (), warn: bool = True) -> TrackSummary:  # fmt: skip
+                   notes: tuple[str, ...] = (), warn: bool = True, options: dict | None = None) -> TrackSummary:  # fmt: skip
     """:func:`run_track` once the output folder is ready: ``head`` the buffered first frames, the
     others read from ``stream``; ``reused``: the body to track (no shape calibration); ``lost_legs``,
-    ``notes``: see :func:`_attempt`; ``warn``: log the warnings about the subject's height (the
-    session's second run, ``lost_legs``, notes them again without repeating them)."""
+    ``notes``, ``options``: see :func:`_attempt`; ``warn``: log the warnings about the subject's
+    height (the session's second run, ``lost_legs``, notes them again without repeating them)."""
     say = log.warning if warn else log.debug
     if reused is not None:
         height, height_source = reused.model.height_m, "--body"
@@ -555,7 +558,8 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
         writer.abort(e)
         raise
     run = TrackedRun(session, out, videos, cfg, filt.model, writer, tracked, support, height, height_source,
-                     shape_note, tuple(body_problems), timing, stages, t_start, tuple(backward_notes))  # fmt: skip
+                     shape_note, tuple(body_problems), timing, stages, t_start, tuple(backward_notes),
+                     dict(options or {}))  # fmt: skip
     if lost_legs and support is not None and (low := unsupported_legs(support, cfg.verdict)):
         raise LegsLost(low, run)  # nothing written yet: the run is finished or discarded by run_track
     return _finish_run(run, notes)
@@ -584,6 +588,7 @@ class TrackedRun:
     stages: Stages
     t_start: float
     backward_notes: tuple[str, ...] = ()  # what the backward pass did that a reader should know (_mirror_run)
+    options: dict = field(default_factory=dict)  # the command's options (track_summary.run_options)
 
 
 def _finish_run(run: TrackedRun, notes: tuple[str, ...]) -> TrackSummary:
@@ -631,7 +636,8 @@ def _finish_run(run: TrackedRun, notes: tuple[str, ...]) -> TrackSummary:
                            verdict_notes=[*videos.notes, *notes, *run.backward_notes, *judged.verdict.notes],
                            body={"height_m": round(float(run.height), 4), "height_source": run.height_source,
                                  "shape": run.shape_note,
-                                 "segment_lengths_m": {k: round(v, 4) for k, v in model_lengths(run.model).items()}})  # fmt: skip
+                                 "segment_lengths_m": {k: round(v, 4) for k, v in model_lengths(run.model).items()}},
+                           options=run.options)  # fmt: skip
     write_track_json(summary)
     return summary
 

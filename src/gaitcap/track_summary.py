@@ -25,6 +25,7 @@ older version) has no verdict.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import logging
 from dataclasses import dataclass, field
@@ -70,6 +71,7 @@ class TrackSummary:
             verdict).
         body: the tracked body: height, how it was obtained, the shape calibration's note and the
             model's segment lengths (``gaitcap.body.measures``); empty for a failed run.
+        options: the options the run was made with (:func:`run_options`); empty when not recorded.
     """
 
     session: Path
@@ -84,6 +86,7 @@ class TrackSummary:
     verdict_reasons: list[str] = field(default_factory=list)
     verdict_notes: list[str] = field(default_factory=list)
     body: dict[str, Any] = field(default_factory=dict)
+    options: dict[str, Any] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         """The ``track.json`` document."""
@@ -98,6 +101,7 @@ class TrackSummary:
             **(self._verdict() if self.verdict else {}),
             **({"stages_s": {k: round(float(v), 3) for k, v in self.stages.items()}} if self.stages else {}),
             **({"body": self.body} if self.body else {}),
+            **({"options": self.options} if self.options else {}),
         }
 
     def _verdict(self) -> dict[str, Any]:
@@ -135,6 +139,58 @@ def format_verdict(verdict: str | None, reasons: list[str] | tuple[str, ...] = (
     if not verdict:
         return "not judged"
     return verdict + (": " + "; ".join(reasons) if reasons else "")
+
+
+def run_options(config: str | Path | None = None, tracker: str | None = None, height_m: float | None = None,
+                max_frames: int | None = None, body: str | Path | None = None,
+                silhouette_config: str | Path | None = None) -> dict[str, Any]:  # fmt: skip
+    """What a run of ``gaitcap track`` with these options records in track.json (``options``), to tell
+    whether a finished run was made with the same ones: the tracker, digests of the tracking and
+    silhouette configurations in force (their contents, not their paths), ``--max-frames``,
+    ``--height`` and ``--body``.
+
+    Raises:
+        ConfigError: a configuration that cannot be read (as the run would).
+    """
+    from gaitcap.body.model import load_body_model
+    from gaitcap.silhouette.config import SilhouetteConfig
+    from gaitcap.tracking.config import load_tracking_config
+
+    cfg = load_tracking_config(config, model=load_body_model())
+    if tracker is not None:
+        cfg.tracker = tracker
+
+    def digest(text: str) -> str:
+        return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+    return {"tracker": cfg.tracker, "tracking_config": digest(cfg.model_dump_json(exclude={"tracker"})),
+            "silhouette_config": digest(SilhouetteConfig.load(silhouette_config).model_dump_json()),
+            "max_frames": max_frames, "height_m": height_m,
+            "body": str(Path(body).resolve()) if body is not None else None}  # fmt: skip
+
+
+#: how :func:`changed_options` names each option
+_OPTION_NAMES = {"tracker": "the tracker", "tracking_config": "the tracking configuration",
+                 "silhouette_config": "the silhouette configuration", "max_frames": "--max-frames",
+                 "height_m": "--height", "body": "--body"}  # fmt: skip
+
+
+def changed_options(recorded: dict[str, Any] | None, options: dict[str, Any]) -> str:
+    """The options (:func:`run_options`) that differ from a finished run's ``recorded`` ones, named with
+    both values where they are short ("the tracker ipf (was factored-ipf)"); empty when they agree or
+    the run recorded none (runs before they were recorded)."""
+    if not recorded:
+        return ""
+    def shown(key: str, value: Any) -> str:
+        return ("all frames" if key == "max_frames" else "not given") if value is None else str(value)
+
+    changed = []
+    for key, name in _OPTION_NAMES.items():
+        now, before = options.get(key), recorded.get(key)
+        if now != before:
+            digest = key in ("tracking_config", "silhouette_config")
+            changed.append(name if digest else f"{name} {shown(key, now)} (was {shown(key, before)})")
+    return "; ".join(changed)
 
 
 def write_track_json(summary: TrackSummary) -> Path:
