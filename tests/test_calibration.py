@@ -382,6 +382,21 @@ def test_cli_extrinsics_refuses_a_poor_result_and_names_the_worst_points(tmp_pat
     assert r.exit_code == 0, r.output
 
 
+def test_cli_extrinsics_names_the_views_without_a_board_and_the_clicks_left_out(tmp_path, rng, caplog):
+    session, points, doc = _points_session(tmp_path, rng)
+    doc["pixels"]["cam9"] = doc["pixels"]["c2"]  # a camera no intrinsics describe (a typo, or left out)
+    points.write_text(yaml.safe_dump(doc))
+    r = _run("extrinsics", session, "--points", points)
+    assert r.exit_code == 0, r.output
+    assert "pixels of camera(s) cam9 left out: no intrinsics describe them (cameras: c1, c2)" in r.output
+    blank = tmp_path / "blank.png"
+    cv2.imwrite(str(blank), np.full((480, 640), 128, np.uint8))
+    r = _run("extrinsics", session, "--board", "9x6", "--square", "120mm", "--views", f"c1={blank}",
+             "--views", f"c2={blank}")  # fmt: skip
+    assert r.exit_code == 1 and f"{blank}: camera 'c1': the checkerboard 9x6" in r.output
+    assert "not found in any of its 1 view(s)" in r.output
+
+
 def test_cli_extrinsics_of_one_camera_is_not_written(tmp_path, rng):
     session, points, _ = _points_session(tmp_path, rng, cameras=1)
     before = (session / "calibration.toml").read_text()

@@ -325,6 +325,10 @@ class ScenePoints(Strict):
 def calibrate_from_points(cameras: Sequence[Camera], scene: ScenePoints, source: str = "points") -> ExtrinsicsResult:
     """Camera poses from points of known world coordinates and their pixels in each camera."""
     cams = list(cameras)
+    uncalibrated = sorted(set(scene.pixels) - {c.name for c in cams})
+    if uncalibrated:  # a misspelt camera's clicks, or a camera left out on purpose: said either way
+        log.warning("%s: pixels of camera(s) %s left out: no intrinsics describe them (cameras: %s)", source,
+                    ", ".join(uncalibrated), ", ".join(c.name for c in cams))  # fmt: skip
     for cam_name, table in scene.pixels.items():
         unknown = sorted(set(table) - set(scene.points))
         if unknown:

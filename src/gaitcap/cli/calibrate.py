@@ -207,7 +207,11 @@ def extrinsics_cmd(session, board_size, square, charuco, marker, dictionary, int
             raise click.BadParameter(f"unknown camera(s) {', '.join(unknown)}", param_hint="--views")
         frames = {}
         for cam in cams:
-            vs = detect_views([given.get(cam.name) or _default_views(session, cam.name)], board, video_step=video_step)
+            where = given.get(cam.name) or _default_views(session, cam.name)
+            vs = detect_views([where], board, video_step=video_step)
+            if not vs.detections:  # named here: the solver knows the camera, not the file
+                raise CalibrationError(f"{where}: camera {cam.name!r}: the {board.describe()} is not found in any of "
+                                       f"its {len(vs.frames)} view(s)")  # fmt: skip
             if vs.image_size != cam.size:
                 raise InputError(f"camera {cam.name!r}: board views are {vs.image_size[0]}x{vs.image_size[1]}, "
                                  f"its intrinsics are for {cam.width}x{cam.height}")
