@@ -209,7 +209,22 @@ def test_report_without_the_videos_omits_the_sheet_and_says_why(tracked_copy):
     assert not any(mime == "image/jpeg" for mime, _ in _decoded_images(html))
     assert "How well the model fits" in html  # the fit plot needs no video
     res = CliRunner().invoke(cli, ["report", str(root / "run"), "--session", str(root / "nowhere"), "-o", str(root / "g3")])
-    assert "the session folder is not found" in (root / "g3" / "report.html").read_text()
+    html = (root / "g3" / "report.html").read_text()
+    assert "the session folder given with --session is not found" in html and "give it with --session" not in html
+    other = root / "other_walk"  # another session (by its name): said, and drawn as asked
+    shutil.copytree(root / "session", other)
+    res = CliRunner().invoke(cli, ["report", str(root / "run"), "--session", str(other), "-o", str(root / "g4")])
+    assert f"--session {other}: this run tracked " in res.output
+    assert "the model is drawn over another session's videos" in res.output
+
+
+def test_report_of_a_batch_output_folder_names_its_runs(tmp_path):
+    for name in ("walk01", "walk02"):
+        write_trajectory(tmp_path / "OUT" / name / "trajectories.h5", Walker(duration=2.0).trajectory())
+    res = CliRunner().invoke(cli, ["report", str(tmp_path / "OUT")])
+    assert res.exit_code == 1
+    assert (f"{tmp_path / 'OUT'}: holds the runs of 2 sessions (walk01, walk02): report each one, e.g. gaitcap "
+            f"report {tmp_path / 'OUT' / 'walk01'}") in res.output
 
 
 def test_a_run_that_lost_the_subject_still_gets_its_fit_report(tracked_copy):

@@ -43,6 +43,11 @@ def resolve_input(source: Path) -> Path:
     if source.is_dir():
         path = source / TRAJECTORIES_H5
         if not path.is_file():
+            runs = sorted(p.parent.name for p in source.glob(f"*/{TRAJECTORIES_H5}"))
+            if runs:  # a batch's output folder (gaitcap track FOLDER -o OUT)
+                listed = ", ".join(runs[:5]) + (", ..." if len(runs) > 5 else "")
+                raise InputError(f"{source}: holds the runs of {len(runs)} sessions ({listed}): report each one, "
+                                 f"e.g. gaitcap report {source / runs[0]}")  # fmt: skip
             raise InputError(f"{source}: no {TRAJECTORIES_H5} in this folder (run gaitcap track first, or pass a .c3d/.trc)")
         return path
     if not source.exists():

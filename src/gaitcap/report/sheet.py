@@ -84,10 +84,25 @@ def open_session(fit: FitRecord, override: Path | None = None) -> tuple[Session 
             tried.append(str(folder))
             if folder.is_dir():
                 try:
-                    return Session.open(folder), ""
+                    session = Session.open(folder)
                 except GaitcapError as e:
                     return None, f"the session cannot be read ({e})"
-    return None, f"the session folder is not found ({', '.join(dict.fromkeys(tried))}; give it with --session)"
+                if override is not None:
+                    _check_given_session(fit, folder)
+                return session, ""
+    where = ", ".join(dict.fromkeys(tried))
+    if override is not None:
+        return None, f"the session folder given with --session is not found ({where})"
+    return None, f"the session folder is not found ({where}; give it with --session)"
+
+
+def _check_given_session(fit: FitRecord, folder: Path) -> None:
+    """Warn when the session given with --session is not the one the run recorded by name (a session
+    moved keeps its name; another one draws the model over another room)."""
+    recorded = fit.track_json.get("session") or fit.record.attrs.get("session")
+    if recorded and Path(str(recorded)).name != folder.resolve().name:
+        log.warning("--session %s: this run tracked %s (track.json): the model is drawn over another session's "
+                    "videos", folder, recorded)  # fmt: skip
 
 
 def tracked_model(fit: FitRecord) -> tuple[BodyModel | None, str]:
