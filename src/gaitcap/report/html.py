@@ -108,7 +108,7 @@ def fit_section(view: FitView, traj: Trajectory, events: list[GaitEvent], sheet_
     n_flag, n_unc = int(fit.flagged.sum()), int((fit.uncertain & ~fit.flagged).sum())
     parts = [
         "<h2>How well the model fits the videos</h2>",
-        f"<p>{rec.n_frames} frames tracked: {n_flag} flagged by the tracker (fit below {fit.min_fit:g}, subject out "
+        f"<p>{rec.n_frames} frame{'s' if rec.n_frames != 1 else ''} tracked: {n_flag} flagged by the tracker (fit below {fit.min_fit:g}, subject out "
         f"of view or not found), {n_unc} more with a mean lower-limb uncertainty above {UNCERTAIN_MM:g} mm; median "
         f"fit {np.nanmedian(rec.fit):.2f}.</p>",
         _img(plots.fit_timeline(fit, traj.times(), sheet_frames, events), "fit and uncertainty"),

@@ -55,6 +55,16 @@ def resolve_input(source: Path) -> Path:
     return source
 
 
+def _title(path: Path) -> str:
+    """The report's title: a tracking run's session (as track.json records it) and its output folder, or the
+    marker file's name."""
+    if path.name != TRAJECTORIES_H5:
+        return f"Gait report — {path.name}"
+    session = (read_track_json(path.parent) or {}).get("session")
+    run = path.parent.resolve().name
+    return f"Gait report — {Path(session).name} ({run})" if session else f"Gait report — {run}"
+
+
 def load_trajectory(path: Path, mapping: str | Path | None = None, subject: str | None = None,
                     static: Path | None = None) -> Trajectory:  # fmt: skip
     """A trajectories.h5 file, or a .c3d/.trc motion file (joint centres through read_motion, with
@@ -122,7 +132,7 @@ def _fit_only(path: Path, traj: Trajectory, html_path: Path, session: Path | Non
     view, frames = fit_view(path, traj, [], None, session)
     if view.fit is None:
         return error
-    write_text_atomic(html_path, render_fit_report(traj, view, str(error), f"Gait report — {path.name}", frames))
+    write_text_atomic(html_path, render_fit_report(traj, view, str(error), _title(path), frames))
     verdict = f"; {view.verdict.line()}" if view.verdict is not None else ""
     return InputError(f"{error}{verdict}; the tracking's fit is shown in {html_path}")
 
@@ -168,6 +178,6 @@ def run_report(
     gait_outputs.write_cycles_h5(files["cycles"], a)
     write_c3d(files["c3d"], traj.with_events(a.events))
     view, sheet_frames = fit_view(path, traj, a.events, a.direction, session)
-    write_text_atomic(files["html"], render_report(a, f"Gait report — {path.name}", view, sheet_frames))
+    write_text_atomic(files["html"], render_report(a, _title(path), view, sheet_frames))
     log.info("wrote %d files to %s", len(files), out)
     return ReportResult(a, out, tuple(files.values()), view.verdict)
