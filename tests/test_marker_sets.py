@@ -217,6 +217,19 @@ def test_markers_command_shows_sources_and_missing():
     assert res.exit_code == 1 and "does NOT fit" in res.output
 
 
+def test_markers_command_on_a_gaitcap_export_reads_its_joint_centres(tmp_path):
+    """gaitcap report's trajectories.c3d holds gaitcap's own joint centres: read as they are (as report and
+    read_motion do), not judged against the marker mappings (it was 'plugin_gait: does NOT fit', exit 1)."""
+    from gaitcap.io.c3d_export import write_c3d
+
+    joints = read_motion(RAW)
+    write_c3d(tmp_path / "trajectories.c3d", joints)
+    res = CliRunner().invoke(cli, ["markers", str(tmp_path / "trajectories.c3d")])
+    assert res.exit_code == 0, res.output
+    assert f"joint centres of gaitcap's body model ({len(joints.names)} of 20 points" in res.output
+    assert "does NOT fit" not in res.output
+
+
 def test_report_on_raw_c3d_with_mapping_option(tmp_path):
     res = CliRunner().invoke(cli, ["report", str(RAW), "-o", str(tmp_path / "g"), "--mapping", "plugin_gait"])
     assert res.exit_code == 0, res.output

@@ -7,7 +7,7 @@ from pathlib import Path
 from gaitcap.errors import InputError
 from gaitcap.markers.mapping import Mapping, Resolution, load_mapping
 from gaitcap.markers.motion import find_static_trial, read_raw_markers, resolve_shipped
-from gaitcap.trajectory import Trajectory
+from gaitcap.trajectory import POINT_NAMES, Trajectory
 
 
 def explain_point(resolution: Resolution, name: str) -> str:
@@ -48,6 +48,10 @@ def describe_file(path: str | Path, mapping: Mapping | str | Path | None = None,
              + f", {len(raw.events)} events in the file"]  # fmt: skip
     if raw.meta.get("empty"):
         lines[0] += f"; {len(raw.meta['empty'])} more labels without any sample: {', '.join(raw.meta['empty'])}"
+    if mapping is None and raw.names and set(raw.names) <= set(POINT_NAMES):  # as read_motion takes it
+        lines.append(f"joint centres of gaitcap's body model ({len(raw.names)} of {len(POINT_NAMES)} points: a "
+                     "gaitcap export, e.g. gaitcap report's trajectories.c3d): read as they are, no marker mapping")
+        return "\n".join(lines)
     shipped = resolve_shipped(raw.names)
     main = load_mapping(mapping).resolve(raw.names) if isinstance(mapping, (str, Path)) else (
         mapping.resolve(raw.names) if mapping is not None else shipped[0])  # fmt: skip
