@@ -230,6 +230,12 @@ def test_markers_command_on_a_gaitcap_export_reads_its_joint_centres(tmp_path):
     assert "does NOT fit" not in res.output
 
 
+def test_a_static_trial_given_as_the_walk_is_named_as_such():
+    res = CliRunner().invoke(cli, ["report", str(WALKING / "subject01_static.trc")])
+    assert res.exit_code == 1
+    assert "subject01_static.trc: this is a static trial (*_static.trc), which the mapping reads beside" in res.output
+
+
 def test_report_on_raw_c3d_with_mapping_option(tmp_path):
     res = CliRunner().invoke(cli, ["report", str(RAW), "-o", str(tmp_path / "g"), "--mapping", "plugin_gait"])
     assert res.exit_code == 0, res.output

@@ -214,6 +214,9 @@ def find_static_trial(motion_path: Path, pattern: str) -> Path:
     """The single file matching ``pattern`` (e.g. ``*_static.trc``) beside the motion file."""
     found = sorted(p for p in motion_path.parent.glob(pattern) if p != motion_path)
     if not found:
+        if motion_path.match(pattern):  # a standing trial has no walk to read
+            raise InputError(f"{motion_path}: this is a static trial ({pattern}), which the mapping reads beside a "
+                             "walking trial: give the walking trial's file (and this one with --static FILE)")  # fmt: skip
         raise InputError(f"{motion_path}: the mapping needs a static trial ({pattern} beside it): none there; "
                          "give it with --static FILE")
     if len(found) > 1:
