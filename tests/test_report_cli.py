@@ -65,6 +65,7 @@ def test_report_with_less_than_one_cycle_exits_3_and_says_why(tmp_path) -> None:
     assert res.output.count("not enough steps") == 1  # said once (the analysis's warning), not echoed again
     p = json.loads((out / "gait" / "parameters.json").read_text())
     assert p["status"] == "not_enough_steps" and "not enough steps" in p["reason"]
+    assert f"; 5 of the {tr.n_frames} frames have no position (flagged by the tracker or missing)" in p["reason"]
     assert p["left"]["n_strides"] == 0 and p["overall"]["speed_m_s"] is None
     assert "Not enough steps" in (out / "gait" / "report.html").read_text()
 

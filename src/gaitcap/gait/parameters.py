@@ -367,6 +367,9 @@ def _no_cycle_reason(traj: Trajectory, events: Sequence[GaitEvent], n_steps: int
         f"{traj.n_frames / traj.rate_hz:.2f} s; a cycle needs two foot strikes of one foot with its foot off and "
         "one strike of the other foot between)"
     )
+    missing = int(np.sum(~np.isfinite(traj.points).any(axis=(1, 2)))) if traj.n_frames else 0
+    if missing:  # a tracking run's flagged frames: no event is found in them
+        reason += f"; {missing} of the {traj.n_frames} frames have no position (flagged by the tracker or missing)"
     if n_steps:
         reason += (
             f"; step length, step time, step width and cadence are from {n_steps} step{'s' if n_steps > 1 else ''}; "
