@@ -397,6 +397,23 @@ def test_cli_extrinsics_names_the_views_without_a_board_and_the_clicks_left_out(
     assert "not found in any of its 1 view(s)" in r.output
 
 
+def test_cli_extrinsics_keeps_the_intrinsics_error_for_check(tmp_path, rng):
+    """calibrate intrinsics records each camera's own reprojection error; extrinsics computed from those
+    intrinsics keep it in calibration.toml, and check flags a camera whose intrinsics are poor."""
+    session, points, _ = _points_session(tmp_path, rng)
+    rig = read_calibration(session / "calibration.toml")
+    write_calibration(session / "calibration.toml", rig, {"intrinsics_rms_px": {"c1": 0.41, "c2": 1.7},
+                                                          "intrinsics_views": {"c1": 14, "c2": 6}})  # fmt: skip
+    r = _run("extrinsics", session, "--points", points)
+    assert r.exit_code == 0, r.output
+    meta = read_calibration_metadata(session / "calibration.toml")
+    assert meta["intrinsics_rms_px"] == {"c1": 0.41, "c2": 1.7} and meta["intrinsics_views"] == {"c1": 14, "c2": 6}
+    r = _run("check", session)
+    assert "intrinsics reprojection RMS (px): c1 0.410, c2 1.700" in r.output
+    assert r.exit_code == 1 and "camera 'c2': intrinsics reprojection error 1.70 px > 1 px" in r.output
+    assert "c1': intrinsics" not in r.output
+
+
 def test_cli_extrinsics_of_one_camera_is_not_written(tmp_path, rng):
     session, points, _ = _points_session(tmp_path, rng, cameras=1)
     before = (session / "calibration.toml").read_text()

@@ -161,7 +161,8 @@ def check_rig(
 ) -> CheckReport:
     """Describe every camera, the distances between cameras and the reprojection summary.
 
-    Problems: a recorded reprojection error above ``max_error_px``, fx/fy differing by more than
+    Problems: a recorded reprojection error (of the extrinsics, or of a camera's intrinsics as
+    ``calibrate intrinsics`` records it) above ``max_error_px``, fx/fy differing by more than
     5 %, a principal point outside the middle half of the image, the geometry that cannot be
     right (:func:`geometry_problems`: cameras kilometres away, under the floor or looking away
     from it), two cameras at the same place, or video frames whose size cannot be a crop of the
@@ -170,6 +171,7 @@ def check_rig(
     meta = metadata or {}
     rep = CheckReport()
     per_cam = _per_camera_errors(meta)
+    intrinsics = meta.get("intrinsics_rms_px") if isinstance(meta.get("intrinsics_rms_px"), dict) else {}
     rep.lines.append(f"{'camera':<10} {'size':>10} {'fx':>9} {'fy':>9} {'cx':>8} {'cy':>8}  {'position x, y, z (m)':<24} {'rms px':>7}")
     for cam in rig:
         K = cam.matrix
@@ -204,10 +206,14 @@ def check_rig(
     if "error" in meta and float(meta["error"]) >= 0:
         overall = float(meta["error"])
         rep.lines.append(f"reprojection error (overall RMS): {overall:.3f} px")
-        if overall > max_error_px and not per_cam:
+        if overall > max_error_px and not per_cam and not intrinsics:  # else named per camera
             rep.problems.append(f"reprojection error {overall:.2f} px > {max_error_px:g} px")
     else:
         rep.notes.append("no reprojection error recorded in [metadata] (imported or unknown)")
+    if intrinsics:
+        rep.lines.append("intrinsics reprojection RMS (px): " + ", ".join(f"{c} {float(e):.3f}" for c, e in intrinsics.items()))
+        rep.problems.extend(f"camera {c!r}: intrinsics reprojection error {float(e):.2f} px > {max_error_px:g} px"
+                            for c, e in intrinsics.items() if float(e) > max_error_px)  # fmt: skip
     if "check_3d_mm" in meta and float(meta["check_3d_mm"]) >= 0:
         rep.lines.append(f"3D check: {float(meta['check_3d_mm']):.2f} mm RMS")
     return rep

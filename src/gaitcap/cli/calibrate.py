@@ -189,8 +189,11 @@ def extrinsics_cmd(session, board_size, square, charuco, marker, dictionary, int
     """
     target = session / CALIBRATION_FILE
     cams: list[Camera] = []
+    carried: dict[str, dict] = {}  # the intrinsics' own quality (calibrate intrinsics' [metadata]), kept
     for f in intrinsics_files or [target]:
-        cams.extend(read_cameras(f))
+        read = read_cameras(f)
+        cams.extend(read)
+        _carry_intrinsics_quality(f, [c.name for c in read], carried)
     if points is not None:
         scene = load_yaml_model(ext.ScenePoints, points)
         res = ext.calibrate_from_points(cams, scene, str(points))
@@ -225,8 +228,18 @@ def extrinsics_cmd(session, board_size, square, charuco, marker, dictionary, int
                    f"adjusted={res.adjusted})")  # fmt: skip
     _refuse_poor_extrinsics(res, target, max_error, scene if points is not None else None)
     kept = keep_previous(target)
-    write_calibration(target, res.rig, res.metadata())
+    write_calibration(target, res.rig, {**res.metadata(), **carried})
     click.echo(f"wrote {target}" + (f" (the previous one kept as {kept.name})" if kept else ""))
+
+
+def _carry_intrinsics_quality(path: Path, names: list[str], carried: dict[str, dict]) -> None:
+    """Add the ``intrinsics_*`` tables of a gaitcap calibration file's ``[metadata]`` (its cameras
+    ``names``) to ``carried``, so that ``calibrate check`` still sees the intrinsics' error."""
+    if path.suffix.lower() != ".toml":
+        return
+    for key, table in read_calibration_metadata(path).items():
+        if key.startswith("intrinsics_") and isinstance(table, dict):
+            carried.setdefault(key, {}).update({n: v for n, v in table.items() if n in names})
 
 
 def _refuse_poor_extrinsics(res: ext.ExtrinsicsResult, target: Path, max_error: float,
