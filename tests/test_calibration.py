@@ -253,6 +253,17 @@ def test_cli_wrong_board_size_names_the_files(tmp_path):
     assert "only 0 usable view" in r.output and "left02.jpg: checkerboard 7x5" in r.output
 
 
+def test_a_board_given_smaller_than_it_is_is_warned_about(tmp_path):
+    """--board 8x6 on a 9x6 board: OpenCV finds an 8x6 part of it; the first view is checked for a larger
+    pattern and the user told (the origin would be a square off, the board possibly turned round)."""
+    images = sorted(CHESS.glob("left0*.jpg"))
+    r = _run("intrinsics", *images, "--board", "8x6", "--square", "25mm", "-o", tmp_path / "part.toml")
+    assert r.exit_code == 0, r.output
+    assert "the board shows 9x6 inner corners or more, more than the 8x6 given: give its full size" in r.output
+    r = _run("intrinsics", *images, "--board", "9x6", "--square", "25mm", "-o", tmp_path / "whole.toml")
+    assert r.exit_code == 0 and "inner corners or more" not in r.output
+
+
 def test_cli_no_board_in_image(tmp_path):
     blank = tmp_path / "blank.png"
     cv2.imwrite(str(blank), np.full((480, 640), 128, np.uint8))

@@ -180,6 +180,21 @@ def detect_board(image: np.ndarray, board: Board, source: str = "image") -> Dete
     return Detection(source, size, pts, np.arange(len(pts)), sharp, _square_px(pts, pattern))
 
 
+def larger_pattern(image: np.ndarray, board: Board) -> tuple[int, int] | None:
+    """A checkerboard pattern one corner wider or taller than ``board``'s that ``image`` also shows
+    (``board`` then names only part of the board: its origin and orientation are those of a part), or
+    None (and always for ChArUco, whose markers fix its size)."""
+    if board.kind == "charuco":
+        return None
+    gray = to_gray(image)
+    cols, rows = board.corner_grid
+    for pattern in ((cols + 1, rows), (cols, rows + 1)):
+        found, _ = cv2.findChessboardCorners(gray, pattern, flags=_FIND_FLAGS)
+        if found:
+            return pattern
+    return None
+
+
 def _detect_charuco(gray: np.ndarray, board: Board, source: str, size: tuple[int, int]) -> Detection | None:
     detector = cv2.aruco.CharucoDetector(board._charuco())
     corners, ids, _, _ = detector.detectBoard(gray)

@@ -15,7 +15,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from gaitcap.calibration.boards import Board, Detection, detect_board, is_blurred
+from gaitcap.calibration.boards import Board, Detection, detect_board, is_blurred, larger_pattern
 from gaitcap.errors import CalibrationError, InputError
 
 log = logging.getLogger(__name__)
@@ -131,6 +131,10 @@ def detect_views(
                 views.rejected[source] = f"blurred (edges {det.blur_fraction:.2f} of a square wide)"
                 det = None
             else:
+                if not views.detections and (larger := larger_pattern(gray, board)):  # checked on the first view
+                    log.warning("%s: the board shows %dx%d inner corners or more, more than the %dx%d given: give "
+                                "its full size (a part of it moves the origin and may turn the board round)", source,
+                                *larger, *board.corner_grid)  # fmt: skip
                 views.detections.append(det)
             views.frames.append(det)
             views.sources.append(source)
