@@ -308,6 +308,18 @@ def test_cli_import_qualisys_then_check(tmp_path):
     assert r.exit_code == 1 and "--force" in r.output
 
 
+def test_check_keeps_its_table_aligned_with_long_camera_names():
+    from gaitcap.calibration.quality import check_rig
+    from gaitcap.camera import CameraRig
+
+    rig = read_qualisys(QUALISYS / "Calib.qca.txt")
+    named = CameraRig(tuple(replace(c, name=n) for c, n in zip(rig, ("left_intrinsics_cam", "c2", "c3", "c4"))))
+    header, *rows = check_rig(named).lines[:5]
+    assert len({row.index(f"{cam.width:>5}x{cam.height}") + 5 for row, cam in zip(rows, named)}) == 1
+    height = str(named[0].height)
+    assert header.index("size") + 4 == rows[0].index(f"x{height}") + 1 + len(height)  # ends under its title
+
+
 def test_cli_check_flags_poor_calibration(tmp_path):
     rig = read_qualisys(QUALISYS / "Calib.qca.txt")
     write_calibration(tmp_path / "calibration.toml", rig, {"error": 3.2, "reprojection_rms_px": {"cam02": 3.2}})

@@ -172,13 +172,14 @@ def check_rig(
     rep = CheckReport()
     per_cam = _per_camera_errors(meta)
     intrinsics = meta.get("intrinsics_rms_px") if isinstance(meta.get("intrinsics_rms_px"), dict) else {}
-    rep.lines.append(f"{'camera':<10} {'size':>10} {'fx':>9} {'fy':>9} {'cx':>8} {'cy':>8}  {'position x, y, z (m)':<24} {'rms px':>7}")
+    w = max([10, *(len(cam.name) for cam in rig)])  # the names' column: long names keep the table aligned
+    rep.lines.append(f"{'camera':<{w}} {'size':>10} {'fx':>9} {'fy':>9} {'cx':>8} {'cy':>8}  {'position x, y, z (m)':<24} {'rms px':>7}")
     for cam in rig:
         K = cam.matrix
         c = cam.center
         err = per_cam.get(cam.name)
         rep.lines.append(
-            f"{cam.name:<10} {cam.width:>5}x{cam.height:<4} {K[0, 0]:9.2f} {K[1, 1]:9.2f} {K[0, 2]:8.2f} {K[1, 2]:8.2f}  "
+            f"{cam.name:<{w}} {cam.width:>5}x{cam.height:<4} {K[0, 0]:9.2f} {K[1, 1]:9.2f} {K[0, 2]:8.2f} {K[1, 2]:8.2f}  "
             f"{c[0]:7.3f} {c[1]:7.3f} {c[2]:7.3f}   {'' if err is None else f'{err:7.3f}'}"
         )
         if abs(K[0, 0] / K[1, 1] - 1) > MAX_ASPECT_DEVIATION:
