@@ -55,7 +55,7 @@ from gaitcap.silhouette.joint import JointExtractor, floor_check
 from gaitcap.silhouette.run import Source, camera_attrs, file_attrs, prepare_extractor, quality_row
 from gaitcap.timeseries import finite_runs
 from gaitcap.track_summary import (EVAL_FILE, GAIT_DIR, TRACK_JSON, TrackSummary, format_verdict, is_finished,
-                                   run_options, write_track_json)  # fmt: skip
+                                   options_record, write_track_json)  # fmt: skip
 from gaitcap.tracking.backward import (choose_backward, exchanged_legs, leg_points, legs_apart, mean_pose,
                                        merge_passes, order_legs)
 from gaitcap.tracking.condensation import Condensation
@@ -180,11 +180,12 @@ def run_track(
     if body is not None and height_m is not None:
         raise ConfigError("give the subject's height (--height) or an earlier run's body (--body), not both: "
                           "the body carries its height")  # fmt: skip
-    options = run_options(config, tracker, height_m, max_frames, body, silhouette_config)  # for track.json
     reused = read_body(body) if body is not None else None
     cfg = load_tracking_config(config, model=load_body_model())  # names only: the height comes later
     if tracker is not None:
         cfg.tracker = tracker  # validated by the schema
+    sil_cfg = SilhouetteConfig.load(silhouette_config)
+    options = options_record(cfg, sil_cfg, height_m, max_frames, body)  # for track.json, as given
     if reused is not None:
         cfg.shape.enabled = False  # the body is the subject's already
     ses = Session.open(session)
@@ -194,7 +195,6 @@ def run_track(
     n_frames = videos.n_frames if max_frames is None else min(videos.n_frames, max_frames)
     if n_frames < videos.n_frames:
         log.info("tracking the first %d of the %d common frames (--max-frames)", n_frames, videos.n_frames)
-    sil_cfg = SilhouetteConfig.load(silhouette_config)
     views = tracking_views(rig, cfg.scale)
     likelihood = SilhouetteLikelihood(views, cfg.beta)
     saver = MaskSaver(out / SILHOUETTES_FILE, file_attrs(sil_cfg)) if save_masks else None

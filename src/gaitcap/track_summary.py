@@ -30,10 +30,14 @@ import json
 import logging
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from gaitcap import __version__
 from gaitcap.io.atomic import write_text_atomic
+
+if TYPE_CHECKING:
+    from gaitcap.silhouette.config import SilhouetteConfig
+    from gaitcap.tracking.config import TrackingConfig
 
 log = logging.getLogger(__name__)
 
@@ -144,10 +148,7 @@ def format_verdict(verdict: str | None, reasons: list[str] | tuple[str, ...] = (
 def run_options(config: str | Path | None = None, tracker: str | None = None, height_m: float | None = None,
                 max_frames: int | None = None, body: str | Path | None = None,
                 silhouette_config: str | Path | None = None) -> dict[str, Any]:  # fmt: skip
-    """What a run of ``gaitcap track`` with these options records in track.json (``options``), to tell
-    whether a finished run was made with the same ones: the tracker, digests of the tracking and
-    silhouette configurations in force (their contents, not their paths), ``--max-frames``,
-    ``--height`` and ``--body``.
+    """:func:`options_record` of ``gaitcap track``'s options, its configurations read as the run reads them.
 
     Raises:
         ConfigError: a configuration that cannot be read (as the run would).
@@ -159,13 +160,20 @@ def run_options(config: str | Path | None = None, tracker: str | None = None, he
     cfg = load_tracking_config(config, model=load_body_model())
     if tracker is not None:
         cfg.tracker = tracker
+    return options_record(cfg, SilhouetteConfig.load(silhouette_config), height_m, max_frames, body)
+
+
+def options_record(cfg: TrackingConfig, sil_cfg: SilhouetteConfig, height_m: float | None, max_frames: int | None,
+                   body: str | Path | None) -> dict[str, Any]:  # fmt: skip
+    """What a run records in track.json (``options``), to tell whether a finished run was made with the
+    same options: the tracker, digests of the tracking (``cfg``, as given: before the run adapts it) and
+    silhouette configurations (their contents, not their paths), ``--max-frames``, ``--height`` and ``--body``."""
 
     def digest(text: str) -> str:
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
     return {"tracker": cfg.tracker, "tracking_config": digest(cfg.model_dump_json(exclude={"tracker"})),
-            "silhouette_config": digest(SilhouetteConfig.load(silhouette_config).model_dump_json()),
-            "max_frames": max_frames, "height_m": height_m,
+            "silhouette_config": digest(sil_cfg.model_dump_json()), "max_frames": max_frames, "height_m": height_m,
             "body": str(Path(body).resolve()) if body is not None else None}  # fmt: skip
 
 
