@@ -90,7 +90,8 @@ def test_nan_frames_are_flagged_and_excluded(truth):
     ev = evaluate(tracked(truth, pts), truth)
     assert ev.n_flagged == 7
     assert ev.mpjpe_mm == pytest.approx(10.0, abs=1e-6)
-    assert ev.to_dict()["frames"] == {"compared": truth.n_frames - 7, "total": truth.n_frames, "flagged": 7, "reference_missing": 0}
+    assert ev.to_dict()["frames"] == {"compared": truth.n_frames - 7, "total": truth.n_frames, "out_total": truth.n_frames,
+                                      "outside_reference": 0, "flagged": 7, "reference_missing": 0}  # fmt: skip
     json.dumps(ev.to_dict(), allow_nan=False)  # strict JSON: NaN became null
 
 
@@ -129,8 +130,33 @@ def test_thresholds(truth):
     ev = evaluate(tracked(truth, truth.points + [0.01, 0, 0]), truth)
     assert check_thresholds(ev, Thresholds(max_mpjpe_mm=11, max_angle_rmse_deg=1, max_event_error_frames=5)) == []
     fails = check_thresholds(ev, Thresholds(max_mpjpe_mm=9.5, max_event_error_frames=0.01))
-    assert fails[0] == "MPJPE 10.0 mm > 9.5 mm"
+    assert fails[0] == "MPJPE (all points) 10.0 mm > 9.5 mm"
     assert fails[1].startswith("event timing error") and fails[1].endswith("> 0.01 frames")
+    assert ev.thresholds == {"max_mpjpe_mm": 9.5, "max_event_error_frames": 0.01}  # recorded in eval.json
+    assert check_thresholds(ev, Thresholds(max_lower_limb_mpjpe_mm=9.5)) == ["lower-limb MPJPE 10.0 mm > 9.5 mm"]
+
+
+def test_thresholds_on_what_was_not_compared_and_the_runs_verdict(truth):
+    """CI thresholds fail a run that passes its error limits on what little was compared: frames flagged or
+    not covered by the reference (--min-compared-fraction), reference events not detected
+    (--max-event-error-frames), a verdict worse than required or none (--require-verdict)."""
+    pts = truth.points + [0.01, 0, 0]
+    pts[truth.n_frames // 2:] = np.nan  # half the run flagged
+    ev = evaluate(tracked(truth, pts), truth)
+    assert ev.n_out_frames == truth.n_frames and ev.n_compared == truth.n_frames // 2
+    half = f"{truth.n_frames // 2} of OUT's {truth.n_frames} frames compared (50%) < 90%"
+    assert check_thresholds(ev, Thresholds(min_compared_fraction=0.9)) == [half + " (flagged, or without a reference frame)"]
+    assert check_thresholds(ev, Thresholds(min_compared_fraction=0.5)) == []
+    missed = check_thresholds(ev, Thresholds(max_event_error_frames=5))
+    assert missed and missed[-1].endswith("events not detected in OUT") and ev.events["n_missed"] > 0
+    short = Trajectory(truth.names, truth.points[:20], truth.rate_hz)  # a reference covering 20 frames
+    cut = evaluate(tracked(truth, truth.points), short)
+    assert f"{truth.n_frames - 20} of OUT's {truth.n_frames} frames have no reference frame: not compared" in cut.notes
+    assert check_thresholds(cut, Thresholds(min_compared_fraction=0.9))
+    for verdict, required, fails in ((None, "ok", True), ("failed", "doubtful", True), ("doubtful", "ok", True),
+                                     ("doubtful", "doubtful", False), ("ok", "ok", False)):  # fmt: skip
+        ev.verdict = verdict
+        assert bool(check_thresholds(ev, Thresholds(require_verdict=required))) is fails, (verdict, required)
 
 
 def test_angle_error_is_measured(truth):
@@ -189,9 +215,15 @@ def test_cli_thresholds_flip_the_exit_code(tmp_path, session, truth):
     assert doc["positions_mm"]["all"]["mpjpe_mm"] == pytest.approx(10.0)
     assert doc["passed"] is True and doc["left_right_swaps"]["n_frames"] == 0
     bad = runner.invoke(cli, ["eval", str(out), "--truth", str(session), "--max-mpjpe-mm", "5", "--force"])
-    assert bad.exit_code == 1
-    assert "threshold exceeded: MPJPE 10.0 mm > 5 mm" in bad.output
-    assert json.loads((out / "eval.json").read_text())["thresholds_failed"] == ["MPJPE 10.0 mm > 5 mm"]
+    assert bad.exit_code == 3  # a threshold: not an error (1) nor a usage error (2)
+    assert "threshold exceeded: MPJPE (all points) 10.0 mm > 5 mm" in bad.output
+    doc = json.loads((out / "eval.json").read_text())
+    assert doc["thresholds_failed"] == ["MPJPE (all points) 10.0 mm > 5 mm"] and doc["passed"] is False
+    assert doc["thresholds"] == {"max_mpjpe_mm": 5.0} and doc["gaitcap_version"]
+    # an evaluation that fails with --force leaves no earlier eval.json to be read as its result
+    (out / "trajectories.h5").write_bytes(b"not hdf5")
+    broken = runner.invoke(cli, ["eval", str(out), "--truth", str(session), "--force"])
+    assert broken.exit_code == 1 and not (out / "eval.json").exists()
 
 
 def test_cli_shows_the_runs_verdict(tmp_path, session, truth):
@@ -257,6 +289,26 @@ def test_cli_names_a_truth_from_another_session(tmp_path, session, truth):
             doc = json.loads((out / "eval.json").read_text())
             assert ("is it the right truth?" in res.output) is named
             assert any("elsewhere, track.json): is it the right truth?" in n for n in doc["notes"]) is named
+
+
+def test_a_truth_outside_any_session_and_a_reference_of_another_session(tmp_path, session, truth):
+    """A lab's own truth export kept outside the session folder is not doubted (nothing tells its session);
+    a reference run that tracked another session than OUT is (by their track.json)."""
+    from gaitcap.evaluation.report import other_run_session, other_session
+
+    export = tmp_path / "lab_export" / "truth"
+    export.mkdir(parents=True)
+    assert other_session(export, str(session)) is None
+    assert "is it the right truth?" in other_session(session, str(tmp_path / "elsewhere"))
+    runner = CliRunner()
+    out = write_out(tmp_path / "OUT", tracked(truth, truth.points))
+    ref = write_out(tmp_path / "REF", tracked(truth, truth.points))
+    (out / "track.json").write_text(json.dumps({"status": "ok", "session": str(session)}))
+    (ref / "track.json").write_text(json.dumps({"status": "ok", "session": str(tmp_path / "walk02")}))
+    res = runner.invoke(cli, ["eval", str(out), "--reference", str(ref)])
+    assert res.exit_code == 0, res.output
+    assert f"the reference run tracked another session ({tmp_path / 'walk02'}) than this run" in res.output
+    assert other_run_session(ref / "trajectories.h5", str(tmp_path / "walk02")) is None
 
 
 def _turned(points: np.ndarray, angle: float) -> np.ndarray:

@@ -123,6 +123,27 @@ def read_opencv_camera(path: str | Path, name: str | None = None) -> Camera:
         raise CalibrationError(f"{path}: {e}") from e
 
 
+def read_opencv_error(path: str | Path) -> float | None:
+    """The ``avg_reprojection_error`` (px) an OpenCV calibration file records, or None (absent)."""
+    fs = cv2.FileStorage(str(path), cv2.FILE_STORAGE_READ)
+    try:
+        node = fs.getNode("avg_reprojection_error")
+        return None if node.empty() else float(node.real())
+    finally:
+        fs.release()
+
+
+def camera_error(metadata: dict, name: str) -> float | None:
+    """A camera's own reprojection error (px) in a calibration.toml ``[metadata]``: its intrinsics' (as
+    OpenCV files record it), else its extrinsics', else the overall one; None when not measured."""
+    for key in ("intrinsics_rms_px", "reprojection_rms_px"):
+        table = metadata.get(key)
+        if isinstance(table, dict) and isinstance(table.get(name), (int, float)):
+            return float(table[name])
+    overall = metadata.get("error")
+    return float(overall) if isinstance(overall, (int, float)) and overall >= 0 else None
+
+
 def _mat(fs: cv2.FileStorage, key: str, path: Path) -> np.ndarray:
     node = fs.getNode(key)
     if node.empty():

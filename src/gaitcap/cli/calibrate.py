@@ -12,7 +12,8 @@ import numpy as np
 
 from gaitcap.calibration import extrinsics as ext
 from gaitcap.calibration.boards import Board, parse_board_size, parse_length
-from gaitcap.calibration.formats import read_opencv_camera, read_qualisys, write_opencv_camera
+from gaitcap.calibration.formats import (camera_error, read_opencv_camera, read_opencv_error, read_qualisys,
+                                         write_opencv_camera)  # fmt: skip
 from gaitcap.calibration.intrinsics import MIN_VIEWS, calibrate_intrinsics
 from gaitcap.calibration.quality import MAX_ERROR_PX, check_rig
 from gaitcap.calibration.views import IMAGE_SUFFIXES, VIDEO_SUFFIXES, detect_views, paired_views
@@ -375,7 +376,9 @@ def import_opencv_cmd(files, output, force):
         gaitcap calibrate import-opencv left_intrinsics.yml right_intrinsics.yml -o calibration.toml
     """
     rig = CameraRig(tuple(read_opencv_camera(f) for f in files))
-    write_cameras(output, rig, {"error": -1.0}, force)  # -1: not measured here
+    errors = {cam.name: e for cam, f in zip(rig, files) if (e := read_opencv_error(f)) is not None}
+    write_cameras(output, rig, {"error": -1.0, **({"intrinsics_rms_px": errors} if errors else {})},
+                  force)  # -1: the extrinsics not measured here; the files' own errors kept  # fmt: skip
     click.echo(f"{len(rig)} camera(s) -> {output}")
 
 
@@ -400,7 +403,8 @@ def export_cmd(calibration, output, fmt, force):
     if fmt == "toml":
         write_calibration(targets[0], rig, meta)
     else:
-        for cam, t in zip(rig, targets):
-            write_opencv_camera(t, cam, {"avg_reprojection_error": meta.get("error", 0.0)})
+        for cam, t in zip(rig, targets):  # each camera's own error, none when not measured (not 0)
+            error = camera_error(meta, cam.name)
+            write_opencv_camera(t, cam, {} if error is None else {"avg_reprojection_error": error})
     for t in targets:
         click.echo(f"wrote {t}")

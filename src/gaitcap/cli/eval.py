@@ -9,8 +9,8 @@ import click
 from gaitcap.cli.options import force_option, handle_errors
 from gaitcap.io.atomic import refuse_existing
 
-#: exit code when a threshold is exceeded (1, like an error: CI fails either way)
-EXIT_THRESHOLD = 1
+#: exit code when a threshold is exceeded (an error is 1, a usage error 2: a CI job tells a regression apart)
+EXIT_THRESHOLD = 3
 
 
 @click.command("eval")
@@ -23,15 +23,25 @@ EXIT_THRESHOLD = 1
 @click.option("-o", "--output", type=click.Path(path_type=Path), default=None,
               help="Where to write the JSON results (default: OUT/eval.json, or eval.json beside a file).")
 @click.option("--max-mpjpe-mm", type=click.FloatRange(min=0), default=None, help="Fail above this MPJPE (all points).")
+@click.option("--max-lower-limb-mpjpe-mm", type=click.FloatRange(min=0), default=None,
+              help="Fail above this MPJPE of the lower limb (hips, knees, ankles: the README's accuracy figure).")
 @click.option("--max-angle-rmse-deg", type=click.FloatRange(min=0), default=None,
               help="Fail when the RMSE of hip/knee flexion or ankle dorsiflexion (either side) is above this.")
 @click.option("--max-event-error-frames", type=click.FloatRange(min=0), default=None,
-              help="Fail when a gait event of OUT is further than this from the reference's (frames).")
+              help="Fail when a gait event of OUT is further than this from the reference's (frames), or a "
+                   "reference event is not detected.")
+@click.option("--min-compared-fraction", type=click.FloatRange(min=0, max=1), default=None,
+              help="Fail when fewer than this fraction (0-1) of OUT's frames are compared (flagged frames, or "
+                   "frames the reference does not cover, are not).")
+@click.option("--require-verdict", type=click.Choice(["ok", "doubtful"]), default=None,
+              help="Fail when the run's own verdict (track.json) is worse than this, or missing.")
 @force_option
 @handle_errors
 def command(
     out: Path, truth: Path | None, reference: Path | None, output: Path | None,
-    max_mpjpe_mm: float | None, max_angle_rmse_deg: float | None, max_event_error_frames: float | None, force: bool,
+    max_mpjpe_mm: float | None, max_lower_limb_mpjpe_mm: float | None, max_angle_rmse_deg: float | None,
+    max_event_error_frames: float | None, min_compared_fraction: float | None, require_verdict: str | None,
+    force: bool,
 ) -> None:  # fmt: skip
     """Compare the trajectories of OUT with a ground truth (--truth) or another run (--reference).
 
@@ -53,12 +63,15 @@ def command(
       masks.h5         optional: one dataset per camera, (frames, H, W) uint8 0/1, as many
                        frames as joints.csv has rows
 
-    Exit codes: 0 done (and every threshold given is met); 1 a threshold is exceeded, or an error
-    (a bad truth folder names the file); 2 usage.
+    eval.json also records the thresholds checked, those exceeded and whether all passed ("passed").
+
+    Exit codes: 0 done (and every threshold given is met); 1 an error (a bad truth folder names
+    the file; with --force, an earlier eval.json is removed first, so none is left to misread);
+    2 usage; 3 a threshold is exceeded (eval.json written).
 
     \b
     Example:
-        gaitcap eval OUT --truth sessions/walk01/truth.h5 --max-mpjpe-mm 40
+        gaitcap eval OUT --truth sessions/walk01/truth.h5 --max-lower-limb-mpjpe-mm 40 --require-verdict ok
         gaitcap eval OUT --truth external_sessions/ktk_e/truth
         gaitcap eval OUT --reference OUT_previous
     """
@@ -72,12 +85,15 @@ def command(
         raise click.UsageError("give exactly one of --truth and --reference")
     target = output or (out / EVAL_FILE if out.is_dir() else out.parent / EVAL_FILE)
     refuse_existing(target, force)  # before the work, so that no result is computed and then refused
+    if force and target.is_file():  # replaced whatever this run gives: never left to pass for its result
+        target.unlink()
     if truth is not None:
         ref = read_truth_reference(truth)
     else:
         ref = TruthReference(tracked_path(reference), read_tracked(reference))  # type: ignore[arg-type]
     ev = evaluate_output(out, ref, truth)
-    ev.failures = check_thresholds(ev, Thresholds(max_mpjpe_mm, max_angle_rmse_deg, max_event_error_frames))
+    ev.failures = check_thresholds(ev, Thresholds(max_mpjpe_mm, max_angle_rmse_deg, max_event_error_frames,
+                                                  max_lower_limb_mpjpe_mm, min_compared_fraction, require_verdict))
     write_evaluation(target, ev, force=force)
     click.echo(format_evaluation(ev))
     click.echo(f"\nwrote {target}")

@@ -33,11 +33,12 @@ import logging
 import math
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
+from gaitcap import __version__
 from gaitcap.body.measures import length_errors, segment_lengths
 from gaitcap.errors import InputError
 from gaitcap.evaluation.metrics import (
@@ -55,6 +56,7 @@ from gaitcap.gait.angles import ANGLE_NAMES
 from gaitcap.gait.options import GaitOptions
 from gaitcap.gait.parameters import OVERALL_KEYS, SIDE_KEYS, GaitParameters
 from gaitcap.quality import walking_line
+from gaitcap.track_summary import VERDICTS
 from gaitcap.trajectory import FOOT, LOWER_LIMB, SIDES, GaitEvent, Trajectory, side_suffix
 
 log = logging.getLogger(__name__)
@@ -71,11 +73,16 @@ MAX_MATCH_S = 0.25
 
 @dataclass(frozen=True)
 class Thresholds:
-    """Limits that make ``gaitcap eval`` exit with code 1 (None: not checked)."""
+    """Limits that make ``gaitcap eval`` fail (exit code 3; None: not checked). ``max_event_error_frames``
+    also fails on a reference event not detected; ``min_compared_fraction``: of OUT's frames, those compared
+    (not flagged, with a reference frame); ``require_verdict``: OUT's verdict at least this good."""
 
     max_mpjpe_mm: float | None = None
     max_angle_rmse_deg: float | None = None
     max_event_error_frames: float | None = None
+    max_lower_limb_mpjpe_mm: float | None = None
+    min_compared_fraction: float | None = None
+    require_verdict: str | None = None
 
 
 @dataclass(frozen=True)
@@ -172,6 +179,14 @@ class Evaluation:
     #: the run's own verdict and its reasons (OUT's track.json), when it has one
     verdict: str | None = None
     verdict_reasons: list[str] = field(default_factory=list)
+    #: OUT's own frames (``n_frames`` counts those with a reference frame)
+    n_out_frames: int = 0
+    #: the thresholds checked (:class:`Thresholds`, those given)
+    thresholds: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def n_compared(self) -> int:
+        return self.n_frames - self.n_flagged - self.n_reference_missing
 
     @property
     def mpjpe_mm(self) -> float:
@@ -189,13 +204,15 @@ class Evaluation:
     def to_dict(self) -> dict[str, Any]:
         name, worst = self.max_checked_angle_rmse()
         doc = {
+            "gaitcap_version": __version__,
             "out": self.out_source,
             "reference": self.reference_source,
             "rate_hz": self.rate_hz,
             "verdict": self.verdict,
             "verdict_reasons": self.verdict_reasons,
-            "frames": {"compared": self.n_frames - self.n_flagged - self.n_reference_missing, "total": self.n_frames,
-                       "flagged": self.n_flagged, "reference_missing": self.n_reference_missing},
+            "frames": {"compared": self.n_compared, "total": self.n_frames, "out_total": self.n_out_frames,
+                       "outside_reference": self.n_out_frames - self.n_frames, "flagged": self.n_flagged,
+                       "reference_missing": self.n_reference_missing},
             "points": self.points,
             "positions_mm": self.positions,
             "per_point_mm": self.per_point_mm,
@@ -209,6 +226,7 @@ class Evaluation:
             "silhouette_iou": self.silhouettes,
             "segment_lengths": self.segment_lengths,
             "notes": self.notes,
+            "thresholds": self.thresholds,
             "thresholds_failed": self.failures,
             "passed": not self.failures,
         }  # fmt: skip
@@ -410,6 +428,9 @@ def evaluate(
     """
     a = align(out, reference)
     notes = [f"point never tracked in OUT, not compared: {n}" for n in a.dropped]
+    if len(a.times) < out.n_frames:  # a shorter reference, or one that starts later: said, not hidden
+        notes.append(f"{out.n_frames - len(a.times)} of OUT's {out.n_frames} frames have no reference frame: not "
+                     "compared")  # fmt: skip
     positions, per_point, swaps, bias = _positions(a)
 
     t_lo, t_hi = float(a.times[0]), float(a.times[-1])
@@ -439,21 +460,27 @@ def evaluate(
         n_frames=len(a.times), n_flagged=int(a.flagged.sum()), n_reference_missing=int((a.ref_missing & ~a.flagged).sum()),
         points=list(a.names), positions=positions, per_point_mm=per_point, swaps=swaps, angles_rmse_deg=angles,
         bias_mm=bias, events=events, events_baseline=baseline, parameters=parameters, notes=notes,
+        n_out_frames=out.n_frames,
     )  # fmt: skip
 
 
 def check_thresholds(ev: Evaluation, limits: Thresholds) -> list[str]:
-    """The thresholds ``ev`` exceeds, one sentence each (empty: all passed).
+    """The thresholds ``ev`` exceeds, one sentence each (empty: all passed); records those checked in
+    ``ev.thresholds``.
 
-    A checked value that is not available (every frame flagged, no event matched) fails.
+    A checked value that is not available (every frame flagged, no event matched, no verdict) fails.
     """
+    ev.thresholds = {k: v for k, v in asdict(limits).items() if v is not None}
     failures = []
-    if limits.max_mpjpe_mm is not None:
-        v = ev.mpjpe_mm
+    for limit, key, what in ((limits.max_mpjpe_mm, "all", "MPJPE (all points)"),
+                             (limits.max_lower_limb_mpjpe_mm, "lower_limb", "lower-limb MPJPE")):  # fmt: skip
+        if limit is None:
+            continue
+        v = (ev.positions.get(key) or {}).get("mpjpe_mm", math.nan)
         if not math.isfinite(v):
-            failures.append("MPJPE not available (no frame compared)")
-        elif v > limits.max_mpjpe_mm:
-            failures.append(f"MPJPE {v:.1f} mm > {limits.max_mpjpe_mm:g} mm")
+            failures.append(f"{what} not available (no frame compared)")
+        elif v > limit:
+            failures.append(f"{what} {v:.1f} mm > {limit:g} mm")
     if limits.max_angle_rmse_deg is not None:
         name, v = ev.max_checked_angle_rmse()
         if not math.isfinite(v):
@@ -466,4 +493,19 @@ def check_thresholds(ev: Evaluation, limits: Thresholds) -> list[str]:
             failures.append("event timing not available (no detected event matched a reference event)")
         elif v > limits.max_event_error_frames:
             failures.append(f"event timing error {v:.2f} frames > {limits.max_event_error_frames:g} frames")
+        if ev.events and ev.events.get("n_missed"):
+            failures.append(f"{ev.events['n_missed']} of the reference's {ev.events['n_reference']} events not "
+                            "detected in OUT")  # fmt: skip
+    if limits.min_compared_fraction is not None:
+        share = ev.n_compared / ev.n_out_frames if ev.n_out_frames else 0.0
+        if share < limits.min_compared_fraction:
+            failures.append(f"{ev.n_compared} of OUT's {ev.n_out_frames} frames compared ({share:.0%}) < "
+                            f"{limits.min_compared_fraction:.0%} (flagged, or without a reference frame)")  # fmt: skip
+    if limits.require_verdict is not None:
+        order = {v: k for k, v in enumerate(VERDICTS)}  # ok < doubtful < failed
+        if ev.verdict not in order:
+            failures.append(f"no verdict to require {limits.require_verdict!r} of (OUT has no finished track.json)")
+        elif order[ev.verdict] > order[limits.require_verdict]:
+            failures.append(f"the run's verdict is {ev.verdict}, not {limits.require_verdict}"
+                            + ("" if limits.require_verdict == "ok" else " or better"))  # fmt: skip
     return failures

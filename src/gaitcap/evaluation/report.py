@@ -17,7 +17,8 @@ from gaitcap.io.silhouettes_h5 import SILHOUETTES_FILE
 from gaitcap.io.trajectories_h5 import read_trajectory
 from gaitcap.io.truth_folder import JOINTS_FILE, is_truth_folder, read_truth_folder
 from gaitcap.synth.truth import read_truth
-from gaitcap.track_summary import format_verdict
+from gaitcap.session import CALIBRATION_FILE
+from gaitcap.track_summary import format_verdict, read_track_json
 from gaitcap.trajectory import FOOT, LOWER_LIMB, Trajectory
 
 TRAJECTORIES_FILE = "trajectories.h5"
@@ -84,17 +85,31 @@ def out_masks(path: str | Path) -> Path | None:
 
 
 def other_session(truth: str | Path, tracked_session: str | None) -> str | None:
-    """A note when a truth given to ``gaitcap eval`` is not the tracked session's (``tracked_session``:
-    track.json's ``session``): the truth is that session's folder, a file or folder in it, or none of
-    its kind; None when they match or the run does not say. A moved session also differs: a note,
-    not an error."""
+    """A note when a truth given to ``gaitcap eval`` belongs to another session than the tracked one
+    (``tracked_session``: track.json's ``session``): the truth is a session's folder or a file or
+    folder in one (beside its calibration.toml) other than that; None when they match, the run does
+    not say, or the truth is in no session (a lab's own export, kept anywhere). A moved session also
+    differs: a note, not an error."""
     if not tracked_session:
         return None
     truth, session = Path(truth).resolve(), Path(tracked_session).resolve()
     if session in (truth, truth.parent):
         return None
+    if not any((folder / CALIBRATION_FILE).is_file() for folder in (truth, truth.parent)):
+        return None  # not a session's truth: nothing to tell it by
     return (f"the truth {truth} is not from the session this run tracked ({session}, track.json): "
             "is it the right truth?")
+
+
+def other_run_session(reference: str | Path, tracked_session: str | None) -> str | None:
+    """A note when a reference run (``gaitcap eval --reference``; its trajectories.h5) tracked another
+    session than OUT (``tracked_session``), by their track.json; None when they match or either does
+    not say."""
+    theirs = (read_track_json(Path(reference).parent) or {}).get("session")
+    if not tracked_session or not theirs or Path(theirs).resolve() == Path(tracked_session).resolve():
+        return None
+    return (f"the reference run tracked another session ({theirs}) than this run ({tracked_session}), by their "
+            "track.json: is it the right reference?")
 
 
 def write_evaluation(path: str | Path, ev: Evaluation, force: bool = False) -> Path:

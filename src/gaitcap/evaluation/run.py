@@ -9,7 +9,8 @@ import logging
 from pathlib import Path
 
 from gaitcap.evaluation.compare import Evaluation, compare_lengths, evaluate
-from gaitcap.evaluation.report import TruthReference, other_session, out_masks, read_tracked, tracked_path
+from gaitcap.evaluation.report import (TruthReference, other_run_session, other_session, out_masks, read_tracked,
+                                       tracked_path)  # fmt: skip
 from gaitcap.evaluation.silhouettes import silhouette_iou
 from gaitcap.track_summary import read_track_json, read_verdict, unfinished
 
@@ -32,7 +33,10 @@ def evaluate_output(out: Path, ref: TruthReference, truth: Path | None = None) -
         ev.notes.append(warning)
         log.warning("%s", warning)
     record = read_track_json(tracked_path(out).parent) or {}  # the run's track.json
-    mismatch = other_session(truth, record.get("session")) if truth is not None else None
+    if truth is not None:
+        mismatch = other_session(truth, record.get("session"))
+    else:  # another run: the session it tracked (its track.json), against OUT's
+        mismatch = other_run_session(ref.source, record.get("session"))
     if mismatch:
         ev.notes.append(mismatch)
         log.warning("%s", mismatch)
