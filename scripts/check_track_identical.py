@@ -19,6 +19,7 @@ tracking); ``max12``, ``--max-frames 12`` (the shape window cut short); ``ipf6``
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import shutil
 import subprocess
@@ -44,8 +45,10 @@ def session(work: Path) -> Path:
 
 def track(ses: Path, out: Path, extra: list[str]) -> float:
     t0 = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "gaitcap", "-q", "track", str(ses), "-o", str(out), "--force", *extra],
-                   check=True)  # fmt: skip
+    proc = subprocess.run([sys.executable, "-m", "gaitcap", "-q", "track", str(ses), "-o", str(out), "--force", *extra])
+    finished = (out / "track.json").is_file() and json.loads((out / "track.json").read_text()).get("status") == "ok"
+    if proc.returncode != 0 and not finished:  # a run judged failed exits 1 but is written: compared
+        raise SystemExit(f"gaitcap track {ses} failed (exit {proc.returncode})")
     return time.perf_counter() - t0
 
 
