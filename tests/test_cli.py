@@ -83,6 +83,23 @@ def test_demo_runs_end_to_end(runner, tmp_path):
     assert "knee flexion RMSE left" in result.output
 
 
+def test_demo_fails_when_its_tracking_verdict_is_failed(runner, tmp_path, monkeypatch):
+    """As a smoke test (CI), a demo whose tracking verdict is failed exits 1 (its outputs still written)."""
+    import gaitcap.demo
+
+    real = gaitcap.demo.run_demo
+
+    def judged_failed(*args, **kwargs):
+        result = real(*args, **kwargs)
+        result.track.verdict = "failed"
+        return result
+
+    monkeypatch.setattr(gaitcap.demo, "run_demo", judged_failed)
+    result = runner.invoke(cli, ["demo", "-o", str(tmp_path), "--max-frames", "2"])
+    assert result.exit_code == 1 and "the demo's tracking verdict is failed" in result.output
+    assert (tmp_path / "track" / "track.json").is_file()
+
+
 def test_track_starts_without_the_scipy_modules_imported_late():
     """scipy.signal and scipy.spatial.transform (about half a second of imports) are imported while
     the prefetch thread fits the backgrounds (gaitcap.pipeline._import_late), not when `gaitcap

@@ -29,7 +29,7 @@ def command(ctx: click.Context, out: Path | None, max_frames: int | None) -> Non
     Renders a synthetic 2-camera session from the real walk (gaitcap synth), tracks it with the
     default settings (gaitcap track), compares the result with the ground truth (gaitcap eval)
     and writes the gait report (gaitcap report), printing the main errors and where each result
-    is. Takes about half a minute on two cores.
+    is. Takes about half a minute on two cores. Exit code 1 when the tracking's verdict is failed.
 
     \b
     Example:
@@ -60,3 +60,6 @@ def command(ctx: click.Context, out: Path | None, max_frames: int | None) -> Non
     click.echo(f"tracking: {r.track.out}")
     click.echo(f"evaluation: {r.eval_path}")
     click.echo(f"report: {r.report_html}")
+    if r.track.verdict == "failed":  # a smoke test that did not track the subject fails
+        click.echo("Error: the demo's tracking verdict is failed", err=True)
+        raise SystemExit(1)
