@@ -62,6 +62,28 @@ def test_synth_refuses_existing_output(runner, tmp_path):
     assert (out / "keep.txt").read_text() == "mine"
 
 
+def test_synth_never_deletes_what_is_not_a_session_and_refuses_what_it_cannot_write(runner, tmp_path):
+    """--force replaces an earlier synthetic session, never a folder of other files (it deleted a thesis);
+    an output that cannot be written, or an odd frame size the codecs would crop, is refused before any
+    work, in one line."""
+    out = tmp_path / "s"
+    out.mkdir()
+    (out / "thesis.tex").write_text("mine")
+    (out / "videos").mkdir()
+    result = runner.invoke(cli, ["-q", "synth", "-o", str(out), "--force"])
+    assert result.exit_code == 1
+    assert "holds files that are not a synthetic session's (thesis.tex): not replaced" in result.output
+    assert (out / "thesis.tex").read_text() == "mine"
+    blocker = tmp_path / "afile"
+    blocker.write_text("x")
+    for target, said in ((blocker, "is a file"), (blocker / "sess", "cannot write here")):
+        result = runner.invoke(cli, ["-q", "synth", "-o", str(target)])
+        assert result.exit_code == 1 and said in result.output and "Traceback" not in result.output, result.output
+    result = runner.invoke(cli, ["-q", "synth", "-o", str(tmp_path / "odd"), "--size", "641x479"])
+    assert result.exit_code == 2 and "width and height must be even" in result.output
+    assert not (tmp_path / "odd").exists()
+
+
 def test_demo_runs_end_to_end(runner, tmp_path):
     # two frames keep the test short (the initialisation search dominates); the README runs all 56
     result = runner.invoke(cli, ["demo", "-o", str(tmp_path), "--max-frames", "2"])

@@ -21,9 +21,11 @@ def parse_size(_ctx: click.Context, _param: click.Parameter, value: str) -> tupl
         w, h = (int(v) for v in value.lower().split("x"))
         if w < 64 or h < 64:
             raise ValueError
-        return w, h
     except ValueError:
         raise click.BadParameter(f"{value!r}: expected WIDTHxHEIGHT, e.g. 640x480") from None
+    if w % 2 or h % 2:  # the codecs drop an odd last row or column: videos, calibration and masks would differ
+        raise click.BadParameter(f"{value!r}: width and height must be even (video codecs need them so)")
+    return w, h
 
 
 def parse_floats(_ctx: click.Context, _param: click.Parameter, value: str | None) -> tuple[float, ...] | None:

@@ -147,9 +147,7 @@ def synthesize(
     ``mapping``, ``subject`` and ``static`` go to :func:`gaitcap.markers.motion.read_motion` (None: the
     shipped mapping that fits, the subject with the most markers, the static trial the mapping names)."""
     out = Path(out)
-    occupied = out.is_file() or (out.is_dir() and any(out.iterdir()))
-    if occupied and not force:
-        raise OutputError(f"{out}: already exists (use --force to replace it)")
+    _check_output(out, force)
     traj = read_motion(motion, mapping=mapping, static=static, subject=subject)
     source_t0 = traj.t0_s
     if options.height_m and not traj.meta.get("height_m"):
@@ -183,8 +181,7 @@ def synthesize(
         meta={"source": str(motion), "height_m": height},
     )  # fmt: skip
 
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=out.parent))
+    tmp = _temporary_folder(out)
     try:
         _write_session(tmp, rig, renderer, fit, traj, truth, options, look, motion, source_t0, progress)
         if out.exists():
@@ -196,6 +193,35 @@ def synthesize(
         raise
     log.info("wrote %s: %d frames, %d cameras", out, T, len(cams))
     return SynthResult(session=out, n_frames=T, cameras=rig.names, fit=fit, truth=truth, look=look)
+
+
+#: what a synthetic session folder holds: a folder holding anything else is not replaced (--force)
+_SESSION_ENTRIES = {CALIBRATION_FILE, SESSION_FILE, TRUTH_FILE, VIDEOS_DIR, BACKGROUND_DIR}
+
+
+def _check_output(out: Path, force: bool) -> None:
+    """Refuse an output that exists (unless ``force``), that is not a synthetic session's folder (whose
+    files ``force`` would delete), or that cannot be written: before any work."""
+    if out.is_file():
+        raise OutputError(f"{out}: is a file; give a folder for the session")
+    entries = sorted(p.name for p in out.iterdir()) if out.is_dir() else []
+    if entries and not force:
+        raise OutputError(f"{out}: already exists (use --force to replace it)")
+    others = [e for e in entries if e not in _SESSION_ENTRIES]
+    if others:
+        listed = ", ".join(others[:5]) + (", ..." if len(others) > 5 else "")
+        raise OutputError(f"{out}: holds files that are not a synthetic session's ({listed}): not replaced, even with "
+                          "--force; give a new or empty folder")  # fmt: skip
+    os.rmdir(_temporary_folder(out))  # can a session be written beside it?
+
+
+def _temporary_folder(out: Path) -> Path:
+    """A new hidden folder beside ``out`` to write the session into (renamed to ``out`` when complete)."""
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        return Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=out.parent))
+    except OSError as e:
+        raise OutputError(f"{out}: cannot write here ({e.strerror})") from e
 
 
 def _write_session(
