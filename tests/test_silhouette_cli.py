@@ -85,6 +85,20 @@ def test_existing_output_needs_force(session, tmp_path):
     assert _run(session, "-o", out, "--max-frames", "2", "--force").exit_code == 0
 
 
+def test_a_run_replaced_leaves_none_of_its_pngs_or_overlays(session, tmp_path):
+    """--force removes the earlier run's PNG masks and overlay videos (5 PNGs and a 5-frame overlay stayed
+    beside a 2-frame run); without --force, an earlier run's PNGs alone are refused, not overwritten in part."""
+    out = tmp_path / "out"
+    assert _run(session, "-o", out, "--max-frames", "5", "--png", "--overlay").exit_code == 0
+    assert _run(session, "-o", out, "--max-frames", "2", "--png", "--force").exit_code == 0
+    assert len(list((out / "silhouettes" / "cam0").glob("*.png"))) == 2
+    assert not list((out / "overlay").glob("*.mp4"))
+    (out / "silhouettes.h5").unlink()
+    (out / "silhouettes_quality.csv").unlink()
+    result = _run(session, "-o", out, "--max-frames", "3", "--png")
+    assert result.exit_code == 1 and "000000.png: exists already (use --force" in result.output
+
+
 def test_a_killed_runs_temporary_files_are_removed_by_the_next(session, tmp_path):
     out = tmp_path / "out"
     (out / "overlay").mkdir(parents=True)

@@ -125,9 +125,22 @@ def prepare_extractor(source: Source, config: SilhouetteConfig) -> tuple[Silhoue
 OVERLAY_DIR = "overlay"
 
 
+#: the folder of the PNG masks (``--png``): one folder per camera, one PNG per frame
+PNG_DIR = "silhouettes"
+
+
 def _check_outputs(out: Path, force: bool) -> None:
-    for target in (out / H5_NAME, out / CSV_NAME):
+    """Refuse an earlier run's outputs (unless ``force``); with ``force``, remove its PNG masks and
+    overlay videos, which would otherwise be left beside (or mixed into) this run's, whatever it writes."""
+    earlier = [*sorted(out.glob(f"{PNG_DIR}/*/[0-9][0-9][0-9][0-9][0-9][0-9].png")),
+               *sorted(p for p in out.glob(f"{OVERLAY_DIR}/*.mp4") if not p.name.startswith("."))]  # fmt: skip
+    for target in (out / H5_NAME, out / CSV_NAME, *earlier[:1]):
         refuse_existing(target, force)
+    for path in earlier:
+        try:
+            path.unlink()
+        except OSError as e:
+            raise OutputError(f"{path}: cannot remove the replaced run's file ({e.strerror})") from e
 
 
 def run_silhouettes(
@@ -213,7 +226,7 @@ class _Camera:
         w, h = self.extractor.full_size
         writer.add_camera(cam, w, h, self.extractor.background, camera_attrs(self.source, report, self.fps))
         if png:
-            self.png_dir = out / "silhouettes" / cam
+            self.png_dir = out / PNG_DIR / cam
             self.png_dir.mkdir(parents=True, exist_ok=True)
         if overlay:
             self.overlay = stack.enter_context(VideoWriter(out / OVERLAY_DIR / f"{cam}.mp4", self.fps, (w, h)))
