@@ -192,6 +192,30 @@ def test_plate_with_a_subject_who_never_leaves_the_spot():
     assert np.mean(ious) > 0.85, np.mean(ious)
 
 
+def test_a_plate_of_another_scene_is_unusable_and_said(embedded_session, caplog):
+    """A plate that is not this camera's scene (the other camera's here; another session's: the masks were
+    fragments, reported usable) is told by the median of the sampled frames; the subject walking across
+    its own plate's scene, or on the spot, moves that median little."""
+    from gaitcap.session import Session
+    from gaitcap.video import sample_frames
+
+    ses = Session.open(embedded_session.session)
+    plates = {cam: cv2.imread(str(path)) for cam, path in ses.backgrounds.items()}
+    samples = sample_frames(ses.videos["cam1"], 31)
+    own = SilhouetteExtractor(SilhouetteConfig(), name="cam1")
+    own.fit_background(plate=plates["cam1"], samples=samples)
+    assert own.report.usable
+    swayed = sway_in_place(seed=3)
+    on_the_spot = SilhouetteExtractor(SilhouetteConfig(), name="cam")
+    on_the_spot.fit_background(plate=swayed.plate, samples=swayed.frames[::3])
+    assert on_the_spot.report.usable
+    swapped = SilhouetteExtractor(SilhouetteConfig(), name="cam1")
+    with caplog.at_level(logging.WARNING, logger="gaitcap"):
+        swapped.fit_background(plate=plates["cam2"], samples=samples)
+    assert not swapped.report.usable and "cam1: the plate does not match the video" in caplog.text
+    assert swapped.process(samples[0])[1].flags & NO_BACKGROUND  # every frame flagged, as without a background
+
+
 def _rig_masks(rig, config: SilhouetteConfig, calibrated: bool = True) -> list[np.ndarray]:
     extractors = []
     for cam, plate in zip(rig.cameras, rig.plates):

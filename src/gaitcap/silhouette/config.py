@@ -39,6 +39,10 @@ class BackgroundConfig(Strict):
     max_ambiguous_fraction: float = Field(
         default=0.02, gt=0, lt=1, description="above this fraction of ambiguous pixels the estimate is unusable"
     )
+    max_plate_mismatch: float = Field(
+        default=0.2, gt=0, le=1,
+        description="a plate is unusable when the samples' median differs from it by hidden_diff in more of the image",
+    )
 
 
 class ForegroundConfig(Strict):
