@@ -248,7 +248,7 @@ def background_from_plate(
     return Background(image, noise, report)
 
 
-def plate_mismatch(frames: np.ndarray, plate: np.ndarray, gains: np.ndarray, diff: float, stride: int = 4) -> float:
+def plate_mismatch(frames: np.ndarray, plate: np.ndarray, gains: np.ndarray, diff: float, stride: int = 8) -> float:
     """The fraction of the image (every ``stride``-th pixel) where the median of the samples (N, H, W, 3),
     each divided by its global gain (N, 3), differs from the plate (H, W, 3) by more than ``diff`` grey
     levels in some channel: a subject passing by moves the median little, another room or camera moves
