@@ -77,6 +77,25 @@ def test_plain_video_without_session(tmp_path, scene):
     assert read_mask_attrs(out / "silhouettes.h5", "walk")["background_source"] == "video"
 
 
+def test_neither_a_session_nor_videos_is_said_as_such(tmp_path):
+    result = _run("-o", tmp_path / "out")
+    assert result.exit_code == 2 and "give a SESSION folder or --video files/folders" in result.output
+    assert "not both" not in result.output
+
+
+def test_an_unusable_background_is_warned_once_and_named_in_the_summary(tmp_path):
+    """Someone always in view: the background warning when it is fitted, then the camera's summary line
+    says the masks are unreliable (the warning was printed twice)."""
+    from silhouette_scene import sway_in_place
+
+    scene = sway_in_place(seed=3)
+    video = write_video(tmp_path / "sway.avi", scene.frames)
+    result = _run("--video", video, "-o", tmp_path / "out", "--no-shadow")
+    assert result.exit_code == 0, result.output
+    assert result.output.count("no usable background could be estimated") == 1
+    assert "sway: " in result.output and "(unusable: the masks are unreliable, see the warning above)" in result.output
+
+
 def test_existing_output_needs_force(session, tmp_path):
     out = tmp_path / "out"
     assert _run(session, "-o", out, "--max-frames", "2").exit_code == 0

@@ -51,19 +51,19 @@ def command(
         gaitcap silhouettes sessions/walk01 -o out/walk01 --overlay
         gaitcap silhouettes --video walk.mp4 -o out/walk --png
     """
-    if (session is None) == (not videos):
-        raise click.UsageError("give either a SESSION folder or --video files/folders (not both)")
+    if session is None and not videos:
+        raise click.UsageError("give a SESSION folder or --video files/folders")
+    if session is not None and videos:
+        raise click.UsageError("give a SESSION folder or --video files/folders, not both")
     config = SilhouetteConfig.load(config_path)
     if no_shadow:
         config.shadow.enabled = False
     sources = sources_from_session(session) if session is not None else sources_from_videos(videos)
     summaries = run_silhouettes(sources, out, config, png=png, overlay=overlay, force=force, max_frames=max_frames)
-    for s in summaries:
+    for s in summaries:  # an unusable background was warned about when fitted: named again, not repeated
         flags = ", ".join(f"{k} {v}" for k, v in s.flag_counts.items() if v) or "none"
-        log.info(
-            "%s: %d frames, mean foreground %.2f%%, background from %s; flagged frames: %s",
-            s.camera, s.frames, 100 * s.mean_fraction, s.background.source, flags,
-        )
-        if not s.background.usable:
-            log.warning("%s", s.background.message)
+        usable = "" if s.background.usable else " (unusable: the masks are unreliable, see the warning above)"
+        log.log(logging.INFO if s.background.usable else logging.WARNING,
+                "%s: %d frames, mean foreground %.2f%%, background from %s%s; flagged frames: %s",
+                s.camera, s.frames, 100 * s.mean_fraction, s.background.source, usable, flags)  # fmt: skip
     log.info("wrote %s", out)

@@ -192,9 +192,9 @@ def background_from_video_samples(frames: np.ndarray, cfg: BackgroundConfig, wha
         message = f"{what}: background estimated from {n} frames ({100 * frac:.2f}% ambiguous pixels)"
     else:
         message = (
-            f"{what}: no usable background could be estimated: something covers {100 * frac:.1f}% of the image "
+            f"{what}: no usable background could be estimated: something covers {100 * frac:.2f}% of the image "
             f"in at least {100 * cfg.hidden_occupancy:.0f}% of {n} sampled frames (limit "
-            f"{100 * cfg.max_ambiguous_fraction:.1f}%); the subject probably never leaves the view. "
+            f"{100 * cfg.max_ambiguous_fraction:g}%); the subject probably never leaves the view. "
             "Silhouettes will be unreliable: record an empty-scene plate (background/<camera>.png)."
         )
     if usable:
