@@ -23,7 +23,7 @@ N_FRAMES = 12
 def fake_track(
     session: Path, out: Path, *, config: Path | None = None, tracker: str | None = None,
     height_m: float | None = None, force: bool = False, progress: bool = True, max_frames: int | None = None,
-    save_masks: bool = False, body: Path | None = None, silhouette_config: Path | None = None,
+    save_masks: bool = False, body: Path | None = None, silhouette_config: Path | None = None, seed: int | None = None,
 ) -> TrackSummary:  # fmt: skip
     session, out = Path(session), Path(out)
     if is_finished(out) and not force:

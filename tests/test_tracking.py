@@ -1740,6 +1740,25 @@ def test_track_json_records_the_options_of_the_run(tracked_session):
     assert changed_options(recorded, run_options(max_frames=20)) == ""
 
 
+def test_the_seed_can_be_given_alone_and_draws_another_run(embedded_session, tmp_path):
+    """--seed (run_track's ``seed``) overrides the configuration's seed without a whole -c file: recorded in
+    track.json's options and the run's configuration, and another seed draws another run."""
+    data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
+    data["shape"]["enabled"] = False
+    data["factored_ipf"].update(particles=40, root_particles=80)
+    config = tmp_path / "tracking.yaml"
+    config.write_text(yaml.safe_dump(data))
+    poses = {}
+    for seed in (None, 5):
+        out = tmp_path / f"seed{seed}"
+        run_track(embedded_session.session, out, config=config, progress=False, max_frames=3, seed=seed)
+        assert json.loads((out / "track.json").read_text())["options"]["seed"] == (seed or 0)
+        with h5py.File(out / "trajectories.h5") as f:
+            assert yaml.safe_load(f.attrs["config"])["seed"] == (seed or 0)
+            poses[seed] = f["poses"][()]
+    assert not np.array_equal(poses[None], poses[5])
+
+
 def test_track_json_records_the_stage_times(tracked_session):
     _, out, summary = tracked_session
     stages = json.loads((out / "track.json").read_text())["stages_s"]

@@ -348,7 +348,7 @@ def _changed_options(before: dict[str, Any], task: Task, task_kwargs: dict[str, 
     ``options``; empty for another task, or when they cannot be compared: the run reports that)."""
     if task is not run_track_lazy or not before.get("options"):
         return ""
-    names = ("config", "tracker", "height_m", "max_frames", "body", "silhouette_config")
+    names = ("config", "tracker", "height_m", "max_frames", "body", "silhouette_config", "seed")
     try:
         options = run_options(**{k: task_kwargs[k] for k in names if k in task_kwargs})
     except GaitcapError:  # a configuration that cannot be read: every session's run says so

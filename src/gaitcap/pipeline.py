@@ -161,9 +161,11 @@ def run_track(
     session: Path, out: Path, *, config: Path | None = None, tracker: str | None = None,
     height_m: float | None = None, force: bool = False, progress: bool = True, max_frames: int | None = None,
     on_frame: Callable[[int, FrameTiming], None] | None = None, save_masks: bool = False,
-    body: Path | None = None, silhouette_config: Path | None = None,
+    body: Path | None = None, silhouette_config: Path | None = None, seed: int | None = None,
 ) -> TrackSummary:  # fmt: skip
     """Track one session into ``out`` (see the module docstring). Returns the run's summary.
+
+    ``tracker``, ``seed``: override the configuration's tracker and seed of its random streams.
 
     ``silhouette_config``: the silhouettes' configuration (None: the shipped silhouette.yaml), as
     ``gaitcap silhouettes -c`` takes it.
@@ -184,6 +186,8 @@ def run_track(
     cfg = load_tracking_config(config, model=load_body_model())  # names only: the height comes later
     if tracker is not None:
         cfg.tracker = tracker  # validated by the schema
+    if seed is not None:
+        cfg.seed = seed
     sil_cfg = SilhouetteConfig.load(silhouette_config)
     options = options_record(cfg, sil_cfg, height_m, max_frames, body)  # for track.json, as given
     if reused is not None:

@@ -147,7 +147,7 @@ def format_verdict(verdict: str | None, reasons: list[str] | tuple[str, ...] = (
 
 def run_options(config: str | Path | None = None, tracker: str | None = None, height_m: float | None = None,
                 max_frames: int | None = None, body: str | Path | None = None,
-                silhouette_config: str | Path | None = None) -> dict[str, Any]:  # fmt: skip
+                silhouette_config: str | Path | None = None, seed: int | None = None) -> dict[str, Any]:  # fmt: skip
     """:func:`options_record` of ``gaitcap track``'s options, its configurations read as the run reads them.
 
     Raises:
@@ -160,25 +160,29 @@ def run_options(config: str | Path | None = None, tracker: str | None = None, he
     cfg = load_tracking_config(config, model=load_body_model())
     if tracker is not None:
         cfg.tracker = tracker
+    if seed is not None:
+        cfg.seed = seed
     return options_record(cfg, SilhouetteConfig.load(silhouette_config), height_m, max_frames, body)
 
 
 def options_record(cfg: TrackingConfig, sil_cfg: SilhouetteConfig, height_m: float | None, max_frames: int | None,
                    body: str | Path | None) -> dict[str, Any]:  # fmt: skip
     """What a run records in track.json (``options``), to tell whether a finished run was made with the
-    same options: the tracker, digests of the tracking (``cfg``, as given: before the run adapts it) and
-    silhouette configurations (their contents, not their paths), ``--max-frames``, ``--height`` and ``--body``."""
+    same options: the tracker and its seed, digests of the tracking (``cfg``, as given: before the run adapts
+    it) and silhouette configurations (their contents, not their paths), ``--max-frames``, ``--height`` and
+    ``--body``."""
 
     def digest(text: str) -> str:
         return hashlib.sha256(text.encode()).hexdigest()[:16]
 
-    return {"tracker": cfg.tracker, "tracking_config": digest(cfg.model_dump_json(exclude={"tracker"})),
+    return {"tracker": cfg.tracker, "seed": cfg.seed,
+            "tracking_config": digest(cfg.model_dump_json(exclude={"tracker", "seed"})),
             "silhouette_config": digest(sil_cfg.model_dump_json()), "max_frames": max_frames, "height_m": height_m,
             "body": str(Path(body).resolve()) if body is not None else None}  # fmt: skip
 
 
 #: how :func:`changed_options` names each option
-_OPTION_NAMES = {"tracker": "the tracker", "tracking_config": "the tracking configuration",
+_OPTION_NAMES = {"tracker": "the tracker", "seed": "the seed", "tracking_config": "the tracking configuration",
                  "silhouette_config": "the silhouette configuration", "max_frames": "--max-frames",
                  "height_m": "--height", "body": "--body"}  # fmt: skip
 

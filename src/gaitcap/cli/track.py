@@ -34,6 +34,9 @@ log = logging.getLogger("gaitcap")
                    "trajectories.h5): its height and calibrated proportions, without calibrating the shape again. "
                    "Not with --height.")
 @click.option("--max-frames", type=click.IntRange(min=1), default=None, help="Track only the first N frames.")
+@click.option("--seed", type=int, default=None,
+              help="Override the configuration's seed of the tracker's random streams (a run is the same for the "
+                   "same seed; another seed draws another run: the spread of the results).")
 @click.option("-j", "--jobs", type=click.IntRange(min=1), default=1, show_default=True,
               help="Sessions tracked in parallel (folders of sessions).")
 @click.option("--scheduler", default=None,
@@ -46,6 +49,7 @@ log = logging.getLogger("gaitcap")
 @handle_errors
 def command(ctx: click.Context, source: Path, out: Path, tracker: str | None, config: Path | None,
             silhouette_config: Path | None, height_m: float | None, body: Path | None, max_frames: int | None,
+            seed: int | None,
             jobs: int, scheduler: str | None, save_masks: bool, force: bool) -> None:
     """Track the subject in a session (or every session of a folder).
 
@@ -68,7 +72,7 @@ def command(ctx: click.Context, source: Path, out: Path, tracker: str | None, co
     """
     quiet = bool(ctx.obj.get("quiet"))
     kwargs = {"config": config, "tracker": tracker, "height_m": height_m, "max_frames": max_frames,
-              "save_masks": save_masks, "body": body, "silhouette_config": silhouette_config}
+              "save_masks": save_masks, "body": body, "silhouette_config": silhouette_config, "seed": seed}
     if is_session(source) and scheduler is None:
         summary = run_track(source, out, force=force, progress=not quiet, **kwargs)  # logs its verdict and notes
         log.info("%s", summary.message)
