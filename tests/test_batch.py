@@ -134,6 +134,24 @@ def test_quiet_cli_batch_shows_no_progress(tmp_path, monkeypatch):
         assert runs[-1].endswith(f"progress={shown})")
 
 
+def test_cli_batch_writes_a_machine_readable_summary(tmp_path, monkeypatch):
+    """``gaitcap track FOLDER -o OUT`` writes OUT/batch.json: every session's summary (a failed one's
+    message too) and whether the batch failed, as its exit code says (for a CI job)."""
+    from click.testing import CliRunner
+
+    import gaitcap.cli.track as track_cli
+    from gaitcap.cli.main import cli
+
+    monkeypatch.setattr(track_cli, "run_batch", partial(run_batch, task=fake_track))
+    make_sessions(tmp_path / "in", ["a", "b"], fail=("b",))
+    result = CliRunner().invoke(cli, ["-q", "track", str(tmp_path / "in"), "-o", str(tmp_path / "out")])
+    assert result.exit_code == 1
+    doc = json.loads((tmp_path / "out" / "batch.json").read_text())
+    assert doc["failed"] is True and [s["status"] for s in doc["sessions"]] == ["ok", "failed"]
+    assert doc["sessions"][0]["verdict"] == "doubtful" and doc["sessions"][0]["out"] == str(tmp_path / "out" / "a")
+    assert "never in view" in doc["sessions"][1]["message"]
+
+
 def test_parallel_processes(tmp_path):
     sessions = make_sessions(tmp_path / "in", ["a", "b", "c"], fail=("c",))
     res = run_batch(sessions, tmp_path / "out", task=fake_track, jobs=2)

@@ -24,6 +24,7 @@ name in a worker (a module-level function), which the default :func:`run_track_l
 from __future__ import annotations
 
 import contextlib
+import json
 import logging
 import multiprocessing
 import os
@@ -38,6 +39,7 @@ from pathlib import Path
 from typing import Any
 
 from gaitcap.errors import ConfigError, GaitcapError, InputError, OutputError
+from gaitcap.io.atomic import write_text_atomic
 from gaitcap.session import CALIBRATION_FILE
 from gaitcap.track_summary import (STATUS_FAILED, STATUS_OK, STATUS_SKIPPED, VERDICTS, TrackSummary, changed_options,
                                    is_finished, read_track_json, run_options)  # fmt: skip
@@ -367,6 +369,19 @@ def _note(s: TrackSummary) -> str:
     if s.verdict_reasons:
         return "; ".join(s.verdict_reasons)
     return s.message.splitlines()[0] if s.message else ""
+
+
+#: the batch's summary, machine-readable, in its output folder (written last, atomically)
+BATCH_JSON = "batch.json"
+
+
+def write_batch_json(out_root: str | Path, summaries: Sequence[TrackSummary]) -> Path:
+    """``out_root/batch.json``: each session's summary (its track.json's fields and ``out``, also for a
+    session that failed before writing one) and ``failed``, as the exit code says (:func:`any_failed`)."""
+    path = Path(out_root) / BATCH_JSON
+    doc = {"sessions": [{**s.to_dict(), "out": str(s.out)} for s in summaries], "failed": any_failed(summaries)}
+    write_text_atomic(path, json.dumps(doc, indent=2) + "\n")
+    return path
 
 
 def format_summary(summaries: Sequence[TrackSummary]) -> str:

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import click
 
-from gaitcap.batch import any_failed, find_sessions, format_summary, is_session, run_batch
+from gaitcap.batch import any_failed, find_sessions, format_summary, is_session, run_batch, write_batch_json
 from gaitcap.cli.options import force_option, handle_errors
 from gaitcap.pipeline import TRACKERS, run_track
 
@@ -86,5 +86,6 @@ def command(ctx: click.Context, source: Path, out: Path, tracker: str | None, co
         kwargs["progress"] = False
     summaries = run_batch(find_sessions(source), out, jobs=jobs, force=force, scheduler=scheduler, **kwargs)
     click.echo(format_summary(summaries))
+    write_batch_json(out, summaries)
     if any_failed(summaries):
         sys.exit(1)
