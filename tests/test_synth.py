@@ -143,3 +143,22 @@ def test_bad_motion_file_leaves_nothing_behind(tmp_path):
         synthesize(bad, tmp_path / "out", SynthOptions(), progress=False)
     assert not (tmp_path / "out").exists()
     assert not list(tmp_path.glob("*.partial"))
+
+
+def test_a_stated_height_the_legs_contradict_is_warned_about(caplog):
+    """A height stated by the file or ``synth --height`` is used as it is, but one 15 % or more from what the
+    legs' joint centres give (thigh + shank = 0.491 H) is warned about: the truth and session.yaml state it."""
+    import logging
+    from dataclasses import replace
+
+    from gaitcap.markers.motion import read_motion
+    from gaitcap.synth.fit import _legs_height, estimate_height
+
+    walk = read_motion(embedded_walk())
+    legs = _legs_height(walk)
+    assert legs is not None and 1.4 < legs < 2.0
+    with caplog.at_level(logging.WARNING, logger="gaitcap"):
+        assert estimate_height(replace(walk, meta={**walk.meta, "height_m": legs * 1.05})) == pytest.approx(legs * 1.05)
+        assert "legs show" not in caplog.text
+        assert estimate_height(replace(walk, meta={**walk.meta, "height_m": 0.8 * legs})) == pytest.approx(0.8 * legs)
+    assert f"is -20 % from the {legs:.2f} m its legs show" in caplog.text

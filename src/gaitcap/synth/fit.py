@@ -56,20 +56,38 @@ def _median_distance(traj: Trajectory, a: str, b: str) -> float | None:
     return float(np.median(d)) if d.size else None
 
 
+#: a stated height more than this fraction from the legs' estimate is warned about (the legs' own spread
+#: between people is a few per cent)
+HEIGHT_TOLERANCE = 0.15
+
+
 def estimate_height(traj: Trajectory) -> float:
-    """Subject height: from the file's metadata, else from leg length (thigh + shank = 0.491 H, Winter)."""
+    """Subject height: from the file's metadata (or synth --height), else from leg length (thigh + shank
+    = 0.491 H, Winter); a stated height :data:`HEIGHT_TOLERANCE` or more from the legs' is warned about."""
+    legs_height = _legs_height(traj)
     if traj.meta.get("height_m"):
-        return float(traj.meta["height_m"])
+        stated = float(traj.meta["height_m"])
+        if legs_height is not None and abs(stated / legs_height - 1.0) > HEIGHT_TOLERANCE:
+            log.warning("%s: the subject's height %.2f m (the file's, or --height) is %+.0f %% from the %.2f m its "
+                        "legs show (thigh + shank = 0.491 H): the truth and session.yaml state %.2f m",
+                        traj.meta.get("source", "motion"), stated, 100 * (stated / legs_height - 1), legs_height,
+                        stated)  # fmt: skip
+        return stated
+    if legs_height is None:
+        raise InputError(f"{traj.meta.get('source', 'motion')}: cannot estimate the subject's height (no leg joint centres)")
+    log.info("subject height not in the file: estimated %.3f m from leg length", legs_height)
+    return legs_height
+
+
+def _legs_height(traj: Trajectory) -> float | None:
+    """The height the legs' joint centres give (thigh + shank = 0.491 H), or None without them."""
     legs = [
         (_median_distance(traj, f"hip{s}", f"knee{s}") or np.nan) + (_median_distance(traj, f"knee{s}", f"ankle{s}") or np.nan)
         for s in ("_l", "_r")
     ]
-    leg = np.nanmean(legs)
-    if not np.isfinite(leg):
-        raise InputError(f"{traj.meta.get('source', 'motion')}: cannot estimate the subject's height (no leg joint centres)")
-    height = float(leg / 0.491)
-    log.info("subject height not in the file: estimated %.3f m from leg length", height)
-    return height
+    if not np.isfinite(legs).any():
+        return None
+    return float(np.nanmean(legs) / 0.491)
 
 
 def estimate_scales(base: BodyModel, traj: Trajectory) -> dict[str, tuple[float, float, float]]:
