@@ -220,6 +220,8 @@ def test_cli_thresholds_flip_the_exit_code(tmp_path, session, truth):
     doc = json.loads((out / "eval.json").read_text())
     assert doc["thresholds_failed"] == ["MPJPE (all points) 10.0 mm > 5 mm"] and doc["passed"] is False
     assert doc["thresholds"] == {"max_mpjpe_mm": 5.0} and doc["gaitcap_version"]
+    folder = runner.invoke(cli, ["eval", str(out), "--truth", str(session), "-o", str(tmp_path), "--force"])
+    assert folder.exit_code == 1 and f"{tmp_path}: is a folder; -o names the JSON file" in folder.output
     # an evaluation that fails with --force leaves no earlier eval.json to be read as its result
     (out / "trajectories.h5").write_bytes(b"not hdf5")
     broken = runner.invoke(cli, ["eval", str(out), "--truth", str(session), "--force"])

@@ -7,6 +7,7 @@ from pathlib import Path
 import click
 
 from gaitcap.cli.options import force_option, handle_errors
+from gaitcap.errors import OutputError
 from gaitcap.io.atomic import refuse_existing
 
 #: exit code when a threshold is exceeded (an error is 1, a usage error 2: a CI job tells a regression apart)
@@ -84,6 +85,8 @@ def command(
     if (truth is None) == (reference is None):
         raise click.UsageError("give exactly one of --truth and --reference")
     target = output or (out / EVAL_FILE if out.is_dir() else out.parent / EVAL_FILE)
+    if target.is_dir():
+        raise OutputError(f"{target}: is a folder; -o names the JSON file to write")
     refuse_existing(target, force)  # before the work, so that no result is computed and then refused
     if force and target.is_file():  # replaced whatever this run gives: never left to pass for its result
         target.unlink()
