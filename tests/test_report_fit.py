@@ -243,6 +243,11 @@ def test_a_run_that_lost_the_subject_still_gets_its_fit_report(tracked_copy):
     assert "No gait analysis." in html and "Verdict: doubtful" in html
     assert sum(mime == "image/jpeg" for mime, _ in _decoded_images(html)) >= 2
     assert not (lost / "gait" / "parameters.json").exists()
+    assert "the tracking failed" not in html  # doubtful: the analysis's own reason alone
+    doc = json.loads((lost / "track.json").read_text())
+    (lost / "track.json").write_text(json.dumps({**doc, "verdict": "failed", "verdict_reasons": ["none fits"]}))
+    CliRunner().invoke(cli, ["report", str(lost), "--session", str(root / "session")])
+    assert "<b>No gait analysis.</b> the tracking failed (its verdict, above): " in (lost / "gait" / "report.html").read_text()
 
 
 def test_every_flagged_run_gets_its_worst_frame_before_a_long_run_fills_the_sheet():

@@ -171,6 +171,8 @@ def render_fit_report(traj: Trajectory, view: FitView, problem: str, title: str 
     """The report of a tracking run whose gait analysis could not run (``problem`` says why): the
     verdict and how the model fits the videos."""
     parts = _head(title, view)
+    if view.verdict is not None and view.verdict.verdict == "failed":  # the cause, before its consequence
+        problem = f"the tracking failed (its verdict, above): {problem}"
     parts.append(f"<div class='warn'><b>No gait analysis.</b> {html.escape(problem)}</div>")
     parts.append(fit_section(view, traj, [], sheet_frames or []))
     parts.append("</body></html>")
