@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import json
+import re
 from dataclasses import replace
 
 import h5py
@@ -45,6 +46,8 @@ def test_report_on_a_tracking_folder_writes_every_output(tmp_path) -> None:
         assert f["left/knee_flexion"].shape[1] == 101 and f["left/knee_flexion"].shape[0] == p["left"]["n_strides"]
     html = (gait / "report.html").read_text()
     assert html.count("data:image/png;base64,") == 4 and "http" not in html.replace("http-equiv", "")
+    assert re.search(r"Walking direction -?\d+° from the calibration's x axis \(nearest to [+-][xy]\)", html), html[:2000]
+    assert "A blank cell: not measured" in html
     assert "tracking_verdict" not in p  # no track.json: not a tracking run's verdict to carry
     (out / "track.json").write_text(json.dumps({"status": "ok", "verdict": "failed",
                                                 "verdict_reasons": ["none of the 100 frames fits the silhouettes"]}))

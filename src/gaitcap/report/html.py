@@ -140,6 +140,18 @@ def angle_time_section(analysis: GaitAnalysis, view: FitView) -> str:
     return f"<h2>Flexion angles over time</h2>{img}<p class='note'>{note}</p>"
 
 
+def _direction_text(direction: object) -> str:
+    """A walking direction (x, y, z) in the calibration's frame as a heading a person reads, in degrees
+    from the x axis towards y ("90° from x, along +y"), or as given when it is not a vector."""
+    try:
+        x, y = float(direction[0]), float(direction[1])  # type: ignore[index]
+    except (TypeError, ValueError, IndexError):
+        return html.escape(str(direction))
+    heading = math.degrees(math.atan2(y, x))
+    along = max((abs(x), "+x" if x > 0 else "-x"), (abs(y), "+y" if y > 0 else "-y"))[1]
+    return f"{heading:.0f}° from the calibration's x axis (nearest to {along})"
+
+
 def parameter_table(analysis: GaitAnalysis) -> str:
     p = analysis.parameters
     rows = ["<tr><th>Parameter</th><th>Overall</th><th>Left</th><th>Right</th><th>Symmetry index (%)</th></tr>"]
@@ -155,7 +167,9 @@ def parameter_table(analysis: GaitAnalysis) -> str:
         f"<tr><td>Complete gait cycles</td><td>{p.overall['n_strides']}</td><td>{p.sides['left']['n_strides']}</td>"
         f"<td>{p.sides['right']['n_strides']}</td><td></td></tr>"
     )
-    return "<table>" + "".join(rows) + "</table>"
+    note = ("<p class='note'>A blank cell: not measured (no complete cycle or step of that side), or no symmetry "
+            "index for that parameter (it needs both sides).</p>")  # fmt: skip
+    return "<table>" + "".join(rows) + "</table>" + note
 
 
 def _head(title: str, view: FitView) -> list[str]:
@@ -199,7 +213,7 @@ def render_report(analysis: GaitAnalysis, title: str = "Gait report", view: FitV
     parts.append(
         f"<p class='note'>Source: {html.escape(str(traj.meta.get('source', '')))} — {traj.n_frames} frames at "
         f"{traj.rate_hz:g} Hz ({traj.n_frames / traj.rate_hz:.2f} s). Walking direction "
-        f"{info.get('walking_direction')} ({html.escape(str(info.get('direction_method')))}"
+        f"{_direction_text(info.get('walking_direction'))} ({html.escape(str(info.get('direction_method')))}"
         f"{', walking in place, belt speed %.2f m/s' % -info['belt_velocity_m_s'] if info.get('in_place') else ''}"
         f"{_passes_note(analysis)}). "
         f"Events: {len(analysis.events)} detected ({html.escape(str(info.get('event_method')))}), "
