@@ -76,6 +76,10 @@ def test_truth_file_contents(vicon_session):
     np.testing.assert_allclose(strikes, [1.6605 - 1.52, 2.74 - 1.52], atol=1e-6)
     with pytest.raises(InputError, match="no masks for camera 'cam9'"):
         truth.mask("cam9", 0)
+    with h5py.File(vicon_session.session / "truth.h5") as f:  # units, as trajectories.h5's
+        assert [f[k].attrs["units"] for k in ("points", "times", "raw_points", "fit_residual_m", "events/time_s")] == [
+            "m", "s", "m", "m", "s"]  # fmt: skip
+        assert list(f["poses"].attrs["dof_units"][:4]) == ["m", "m", "m", "rad"]
 
 
 def test_truth_points_fall_inside_the_rendered_silhouettes(vicon_session, opensim_session):

@@ -30,9 +30,10 @@ from gaitcap.trajectory import GaitEvent, Trajectory
 
 _STR = h5py.string_dtype("utf-8")
 
-#: the units of the datasets that hold lengths or times (here and in the tracker's file, gaitcap.io.track_h5)
+#: the units of the datasets that hold lengths or times (here, in the tracker's file, gaitcap.io.track_h5, and
+#: in synth's truth.h5)
 UNITS = {"points": "m", "points_unfiltered": "m", "uncertainty": "m", "spread": "m", "times": "s",
-         "events/time_s": "s"}  # fmt: skip
+         "events/time_s": "s", "raw_points": "m", "fit_residual_m": "m"}  # fmt: skip
 
 
 def label_units(f: h5py.File) -> None:

@@ -35,6 +35,7 @@ from gaitcap.camera import CameraRig
 from gaitcap.errors import OutputError
 from gaitcap.io.atomic import default_dir_mode
 from gaitcap.io.calibration_toml import write_calibration
+from gaitcap.io.trajectories_h5 import label_units
 from gaitcap.io.video_write import CODECS, AtomicVideoWriter
 from gaitcap.markers.motion import read_motion
 from gaitcap.session import BACKGROUND_DIR, CALIBRATION_FILE, SESSION_FILE, VIDEOS_DIR
@@ -271,11 +272,13 @@ def _write_truth_header(
     f.create_dataset("times", data=truth.times())
     poses = f.create_dataset("poses", data=fit.poses)
     poses.attrs["dof_names"] = list(fit.model.dof_names)
+    poses.attrs["dof_units"] = ["rad" if r else "m" for r in fit.model.is_rotation]
     raw = f.create_dataset("raw_points", data=traj.points)
     raw.attrs["names"] = list(traj.names)
     res = f.create_dataset("fit_residual_m", data=np.array([fit.residual_m[n] for n in traj.names if n in fit.residual_m]))
     res.attrs["names"] = [n for n in traj.names if n in fit.residual_m]
     write_events(f.create_group("events"), truth.events)
+    label_units(f)  # points, times, raw points, fit residuals, event times
     scales, shifts = fit.model.proportions()
     f.attrs["gaitcap_version"] = __version__
     f.attrs["source_motion"] = str(motion)
