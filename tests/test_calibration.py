@@ -343,6 +343,25 @@ def test_cli_export_and_reimport(tmp_path):
     np.testing.assert_allclose(back["cam03"].center, read_qualisys(QUALISYS / "Calib.qca.txt")["cam03"].center, atol=1e-9)
 
 
+def test_import_and_export_keep_each_cameras_own_error(tmp_path):
+    """import-opencv keeps a file's avg_reprojection_error as that camera's intrinsics error (check shows it);
+    export writes each camera's own error, and none where none was measured (it wrote the rig's overall
+    error, or 0, into every file)."""
+    toml = tmp_path / "calibration.toml"
+    assert _run("import-opencv", CHESS / "left_intrinsics.yml", "-o", toml).exit_code == 0
+    meta = read_calibration_metadata(toml)
+    assert meta["intrinsics_rms_px"] == {"left_intrinsics": pytest.approx(0.39259, abs=1e-5)}
+    assert "left_intrinsics 0.393" in _run("check", toml).output
+    assert _run("export", toml, "-o", tmp_path / "yml").exit_code == 0
+    fs = cv2.FileStorage(str(tmp_path / "yml" / "left_intrinsics.yml"), cv2.FILE_STORAGE_READ)
+    assert fs.getNode("avg_reprojection_error").real() == pytest.approx(0.39259, abs=1e-5)
+    fs.release()
+    assert _run("export", QUALISYS / "Calib.qca.txt", "-o", tmp_path / "q").exit_code == 0  # not measured here
+    fs = cv2.FileStorage(str(tmp_path / "q" / "cam01.yml"), cv2.FILE_STORAGE_READ)
+    assert fs.getNode("avg_reprojection_error").empty()
+    fs.release()
+
+
 def test_cli_extrinsics_from_floor_board(tmp_path):
     board = Board(9, 6, 0.12)
     truth = _rig_truth()[:2]
