@@ -54,8 +54,8 @@ from gaitcap.silhouette.config import SilhouetteConfig
 from gaitcap.silhouette.joint import JointExtractor, floor_check
 from gaitcap.silhouette.run import Source, camera_attrs, file_attrs, prepare_extractor, quality_row
 from gaitcap.timeseries import finite_runs
-from gaitcap.track_summary import (EVAL_FILE, GAIT_DIR, TRACK_JSON, TrackSummary, format_verdict, is_finished,
-                                   options_record, write_track_json)  # fmt: skip
+from gaitcap.track_summary import (EVAL_FILE, GAIT_DIR, TRACK_JSON, TRAJECTORIES_H5, TrackSummary, format_verdict,
+                                   is_finished, options_record, write_track_json)  # fmt: skip
 from gaitcap.tracking.backward import (choose_backward, exchanged_legs, leg_points, legs_apart, mean_pose,
                                        merge_passes, order_legs)
 from gaitcap.tracking.condensation import Condensation
@@ -75,7 +75,7 @@ from gaitcap.video import iter_synchronised
 log = logging.getLogger("gaitcap.pipeline")
 
 TRACKERS = {"condensation": Condensation, "ipf": IntervalPF, "factored-ipf": FactoredIPF}
-OUTPUTS = ("trajectories.h5", "joints.csv", "joints.trc", "track.json")
+OUTPUTS = (TRAJECTORIES_H5, "joints.csv", "joints.trc", TRACK_JSON)
 PREFETCH_FRAMES = 2  # observations prepared ahead of the tracker (bounded: memory stays flat)
 
 __all__ = ["TrackSummary", "run_track", "TRACKERS"]
@@ -301,7 +301,7 @@ def read_body(path: Path) -> ReusedBody:
         InputError: the file is missing, not a tracking run's, or its body cannot be rebuilt (named).
     """
     path = Path(path)
-    file = path / "trajectories.h5" if path.is_dir() else path
+    file = path / TRAJECTORIES_H5 if path.is_dir() else path
     if not file.is_file():
         raise InputError(f"{file}: no such file: --body takes an earlier gaitcap track output folder")
     record = read_track_record(file)
@@ -533,7 +533,7 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
     attrs = {"config": yaml.safe_dump(cfg.model_dump(), sort_keys=False), "tracker": cfg.tracker,
              "height_m": float(height), "height_source": height_source, "session": str(session.resolve()),
              "shape": shape_note, **proportions_attrs(filt.model)}  # fmt: skip
-    writer = TrackWriter(out / "trajectories.h5", model.point_names, model.dof_names, videos.fps, attrs,
+    writer = TrackWriter(out / TRAJECTORIES_H5, model.point_names, model.dof_names, videos.fps, attrs,
                          tuple("rad" if r else "m" for r in model.is_rotation))  # fmt: skip
     timing = FrameTiming()
     support = None

@@ -18,17 +18,16 @@ from gaitcap.io.trajectories_h5 import read_trajectory
 from gaitcap.io.truth_folder import JOINTS_FILE, is_truth_folder, read_truth_folder
 from gaitcap.synth.truth import read_truth
 from gaitcap.session import CALIBRATION_FILE
-from gaitcap.track_summary import format_verdict, read_track_json
+from gaitcap.track_summary import TRAJECTORIES_H5, format_verdict, read_track_json
 from gaitcap.trajectory import FOOT, LOWER_LIMB, Trajectory
 
-TRAJECTORIES_FILE = "trajectories.h5"
 TRUTH_FILE = "truth.h5"
 
 
 def tracked_path(path: str | Path) -> Path:
     """``path`` itself if it is a file, else ``path/trajectories.h5`` (a tracking output folder)."""
     path = Path(path)
-    return path / TRAJECTORIES_FILE if path.is_dir() else path
+    return path / TRAJECTORIES_H5 if path.is_dir() else path
 
 
 def read_tracked(path: str | Path) -> Trajectory:
