@@ -238,12 +238,20 @@ def read_track_json(out: str | Path) -> dict[str, Any] | None:
     return data if isinstance(data, dict) else None
 
 
-def unfinished(trajectories: str | Path) -> str | None:
-    """A warning for a ``trajectories.h5`` whose folder holds no finished ``track.json``: a run there did
-    not finish (a re-run killed before its end leaves the earlier run's files, its track.json removed), or the
-    file is not a ``gaitcap track`` output; None for a finished run's or another kind of file."""
+def run_record(trajectories: str | Path) -> dict[str, Any] | None:
+    """The ``track.json`` beside a tracking run's ``trajectories.h5`` (:func:`read_track_json`), or None
+    (none there, or ``trajectories`` is another kind of file)."""
     path = Path(trajectories)
-    if path.name != TRAJECTORIES_H5 or is_finished(path.parent):
+    return read_track_json(path.parent) if path.name == TRAJECTORIES_H5 else None
+
+
+def unfinished(trajectories: str | Path, record: dict[str, Any] | None) -> str | None:
+    """A warning for a ``trajectories.h5`` whose folder holds no finished ``track.json`` (``record``, as
+    :func:`run_record` read it): a run there did not finish (a re-run killed before its end leaves the
+    earlier run's files, its track.json removed), or the file is not a ``gaitcap track`` output; None for
+    a finished run's or another kind of file."""
+    path = Path(trajectories)
+    if path.name != TRAJECTORIES_H5 or (record is not None and record.get("status") == STATUS_OK):
         return None
     return (f"{path.parent}: no finished {TRACK_JSON} beside {path.name}: a run there did not finish (a re-run "
             "stopped before its end leaves the earlier run's files) or the file is not gaitcap track's; it is "

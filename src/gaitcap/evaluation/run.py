@@ -12,7 +12,7 @@ from gaitcap.evaluation.compare import Evaluation, compare_lengths, evaluate
 from gaitcap.evaluation.report import (TruthReference, other_run_session, other_session, out_masks, read_tracked,
                                        tracked_path)  # fmt: skip
 from gaitcap.evaluation.silhouettes import silhouette_iou
-from gaitcap.track_summary import read_track_json, read_verdict, unfinished
+from gaitcap.track_summary import read_verdict, run_record, unfinished
 
 log = logging.getLogger(__name__)
 
@@ -29,10 +29,11 @@ def evaluate_output(out: Path, ref: TruthReference, truth: Path | None = None) -
         ev.notes += notes
     elif ref.masks is not None:
         ev.notes.append("silhouettes not compared: OUT holds no silhouettes.h5 (track with --save-masks)")
-    if warning := unfinished(tracked_path(out)):
+    found = run_record(tracked_path(out))  # the run's track.json, read once
+    if warning := unfinished(tracked_path(out), found):
         ev.notes.append(warning)
         log.warning("%s", warning)
-    record = read_track_json(tracked_path(out).parent) or {}  # the run's track.json
+    record = found or {}
     if truth is not None:
         mismatch = other_session(truth, record.get("session"))
     else:  # another run: the session it tracked (its track.json), against OUT's

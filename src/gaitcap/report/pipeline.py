@@ -20,7 +20,8 @@ from gaitcap.report.fit import FitRecord, angle_bands, load_fit_record, select_f
 from gaitcap.report.html import FitView, render_fit_report, render_report
 from gaitcap.report.plots import FLEXION_ANGLES
 from gaitcap.report.sheet import contact_sheet
-from gaitcap.track_summary import GAIT_DIR, TRAJECTORIES_H5, Verdict, read_track_json, read_verdict, unfinished
+from gaitcap.track_summary import (GAIT_DIR, TRAJECTORIES_H5, Verdict, read_track_json, read_verdict, run_record,
+                                   unfinished)  # fmt: skip
 from gaitcap.trajectory import SIDES, GaitEvent, Trajectory, side_suffix
 
 log = logging.getLogger("gaitcap.report")
@@ -55,12 +56,12 @@ def resolve_input(source: Path) -> Path:
     return source
 
 
-def _title(path: Path) -> str:
-    """The report's title: a tracking run's session (as track.json records it) and its output folder, or the
-    marker file's name."""
+def _title(path: Path, record: dict | None) -> str:
+    """The report's title: a tracking run's session (as its track.json, ``record``, says) and its output
+    folder, or the marker file's name."""
     if path.name != TRAJECTORIES_H5:
         return f"Gait report — {path.name}"
-    session = (read_track_json(path.parent) or {}).get("session")
+    session = (record or {}).get("session")
     run = path.parent.resolve().name
     return f"Gait report — {Path(session).name} ({run})" if session else f"Gait report — {run}"
 
@@ -125,14 +126,15 @@ def fit_view(path: Path, traj: Trajectory, events: list[GaitEvent], direction: W
     return FitView(verdict, fit, sheet, bands, fit.flagged), [f.index for f in frames]
 
 
-def _fit_only(path: Path, traj: Trajectory, html_path: Path, session: Path | None, error: InputError) -> InputError:
+def _fit_only(path: Path, traj: Trajectory, html_path: Path, session: Path | None, error: InputError,
+              record: dict | None) -> InputError:  # fmt: skip
     """When the gait analysis of a tracking run fails (a run that lost the subject): write a
     report.html of its verdict and fit, and return the error to raise, saying so (the same error
     when ``path`` is not a tracking run)."""
     view, frames = fit_view(path, traj, [], None, session)
     if view.fit is None:
         return error
-    write_text_atomic(html_path, render_fit_report(traj, view, str(error), _title(path), frames))
+    write_text_atomic(html_path, render_fit_report(traj, view, str(error), _title(path, record), frames))
     verdict = f"; {view.verdict.line()}" if view.verdict is not None else ""
     return InputError(f"{error}{verdict}; the tracking's fit is shown in {html_path}")
 
@@ -154,7 +156,8 @@ def run_report(
     videos (``session``: the session folder, when not where the run recorded it). ``recorded_events``:
     the events the source holds (a marker file's) instead of those detected."""
     path = resolve_input(Path(source))
-    if warning := unfinished(path):
+    record = run_record(path)  # a tracking run's track.json, read once here
+    if warning := unfinished(path, record):
         log.warning("%s", warning)
     traj = load_trajectory(path, mapping, subject, static)
     if recorded_events and not traj.events:
@@ -163,7 +166,7 @@ def run_report(
     try:
         a = analyse(traj, options, recorded=recorded_events)
     except InputError as e:
-        raise _fit_only(path, traj, out / "report.html", session, e) from e
+        raise _fit_only(path, traj, out / "report.html", session, e, record) from e
     files = {
         "events": out / "events.csv", "parameters_json": out / "parameters.json",
         "parameters_csv": out / "parameters.csv", "strides": out / "strides.csv",
@@ -171,13 +174,12 @@ def run_report(
         "c3d": out / "trajectories.c3d", "html": out / "report.html",
     }  # fmt: skip
     gait_outputs.write_events_csv(files["events"], a.events, traj)
-    verdict = read_verdict(read_track_json(path.parent)) if path.name == TRAJECTORIES_H5 else None
-    gait_outputs.write_parameters(files["parameters_json"], files["parameters_csv"], a.parameters, verdict)
+    gait_outputs.write_parameters(files["parameters_json"], files["parameters_csv"], a.parameters, read_verdict(record))
     gait_outputs.write_strides_csv(files["strides"], a.parameters)
     gait_outputs.write_angles_csv(files["angles"], traj, a.angles)
     gait_outputs.write_cycles_h5(files["cycles"], a)
     write_c3d(files["c3d"], traj.with_events(a.events))
     view, sheet_frames = fit_view(path, traj, a.events, a.direction, session)
-    write_text_atomic(files["html"], render_report(a, _title(path), view, sheet_frames))
+    write_text_atomic(files["html"], render_report(a, _title(path, record), view, sheet_frames))
     log.info("wrote %d files to %s", len(files), out)
     return ReportResult(a, out, tuple(files.values()), view.verdict)
