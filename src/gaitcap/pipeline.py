@@ -55,11 +55,11 @@ from gaitcap.silhouette.joint import JointExtractor, floor_check
 from gaitcap.silhouette.run import Source, camera_attrs, file_attrs, prepare_extractor, quality_row
 from gaitcap.timeseries import finite_runs
 from gaitcap.track_summary import (EVAL_FILE, GAIT_DIR, TRACK_JSON, TRAJECTORIES_H5, TrackSummary, format_verdict,
-                                   is_finished, options_record, write_track_json)  # fmt: skip
+                                   is_finished, options_record, run_configs, write_track_json)  # fmt: skip
 from gaitcap.tracking.backward import (choose_backward, exchanged_legs, leg_points, legs_apart, mean_pose,
                                        merge_passes, order_legs)
 from gaitcap.tracking.condensation import Condensation
-from gaitcap.tracking.config import TrackingConfig, load_tracking_config
+from gaitcap.tracking.config import TrackingConfig
 from gaitcap.tracking.factored_ipf import FactoredIPF
 from gaitcap.tracking.init import estimate_height, initialise, settle_legs, subject_positions
 from gaitcap.tracking.ipf import IntervalPF
@@ -183,12 +183,7 @@ def run_track(
         raise ConfigError("give the subject's height (--height) or an earlier run's body (--body), not both: "
                           "the body carries its height")  # fmt: skip
     reused = read_body(body) if body is not None else None
-    cfg = load_tracking_config(config, model=load_body_model())  # names only: the height comes later
-    if tracker is not None:
-        cfg.tracker = tracker  # validated by the schema
-    if seed is not None:
-        cfg.seed = seed
-    sil_cfg = SilhouetteConfig.load(silhouette_config)
+    cfg, sil_cfg = run_configs(config, tracker, seed, silhouette_config)
     options = options_record(cfg, sil_cfg, height_m, max_frames, body)  # for track.json, as given
     if reused is not None:
         cfg.shape.enabled = False  # the body is the subject's already

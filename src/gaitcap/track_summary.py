@@ -153,16 +153,27 @@ def run_options(config: str | Path | None = None, tracker: str | None = None, he
     Raises:
         ConfigError: a configuration that cannot be read (as the run would).
     """
+    return options_record(*run_configs(config, tracker, seed, silhouette_config), height_m, max_frames, body)
+
+
+def run_configs(config: str | Path | None, tracker: str | None, seed: int | None,
+                silhouette_config: str | Path | None) -> tuple[TrackingConfig, SilhouetteConfig]:  # fmt: skip
+    """The tracking configuration (``config``, None: the shipped one; ``tracker`` and ``seed`` override its
+    own) and the silhouette configuration a run of ``gaitcap track`` reads.
+
+    Raises:
+        ConfigError: a configuration that cannot be read.
+    """
     from gaitcap.body.model import load_body_model
     from gaitcap.silhouette.config import SilhouetteConfig
     from gaitcap.tracking.config import load_tracking_config
 
-    cfg = load_tracking_config(config, model=load_body_model())
+    cfg = load_tracking_config(config, model=load_body_model())  # names only: the run's height comes later
     if tracker is not None:
-        cfg.tracker = tracker
+        cfg.tracker = tracker  # validated by the schema
     if seed is not None:
         cfg.seed = seed
-    return options_record(cfg, SilhouetteConfig.load(silhouette_config), height_m, max_frames, body)
+    return cfg, SilhouetteConfig.load(silhouette_config)
 
 
 def options_record(cfg: TrackingConfig, sil_cfg: SilhouetteConfig, height_m: float | None, max_frames: int | None,
@@ -193,6 +204,7 @@ def changed_options(recorded: dict[str, Any] | None, options: dict[str, Any]) ->
     the run recorded none (runs before they were recorded)."""
     if not recorded:
         return ""
+
     def shown(key: str, value: Any) -> str:
         return ("all frames" if key == "max_frames" else "not given") if value is None else str(value)
 
