@@ -133,17 +133,6 @@ def read_opencv_error(path: str | Path) -> float | None:
         fs.release()
 
 
-def camera_error(metadata: dict, name: str) -> float | None:
-    """A camera's own reprojection error (px) in a calibration.toml ``[metadata]``: its intrinsics' (as
-    OpenCV files record it), else its extrinsics', else the overall one; None when not measured."""
-    for key in ("intrinsics_rms_px", "reprojection_rms_px"):
-        table = metadata.get(key)
-        if isinstance(table, dict) and isinstance(table.get(name), (int, float)):
-            return float(table[name])
-    overall = metadata.get("error")
-    return float(overall) if isinstance(overall, (int, float)) and overall >= 0 else None
-
-
 def _mat(fs: cv2.FileStorage, key: str, path: Path) -> np.ndarray:
     node = fs.getNode(key)
     if node.empty():

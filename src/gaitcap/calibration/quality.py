@@ -103,12 +103,28 @@ def check_rig_geometry(rig: CameraRig, source: str | Path) -> None:
         raise CalibrationError(f"{source}: " + "; ".join(problems))
 
 
-def _per_camera_errors(metadata: dict[str, Any]) -> dict[str, float]:
-    """``[metadata] reprojection_rms_px`` (camera -> px), empty when absent."""
-    table = metadata.get("reprojection_rms_px")
+def recorded_errors(metadata: dict[str, Any], key: str = "reprojection_rms_px") -> dict[str, float]:
+    """A per-camera table of calibration.toml's ``[metadata]`` (camera -> px): ``reprojection_rms_px``
+    (the extrinsics', as ``calibrate extrinsics`` records it) or ``intrinsics_rms_px``; empty when absent."""
+    table = metadata.get(key)
     if not isinstance(table, dict):
         return {}
     return {str(k): float(v) for k, v in table.items() if isinstance(v, (int, float))}
+
+
+def overall_error(metadata: dict[str, Any]) -> float | None:
+    """``[metadata] error``, the overall reprojection RMS (px), or None when absent or not measured (-1)."""
+    overall = metadata.get("error")
+    return float(overall) if isinstance(overall, (int, float)) and overall >= 0 else None
+
+
+def camera_error(metadata: dict[str, Any], name: str) -> float | None:
+    """A camera's own reprojection error (px) in a calibration.toml ``[metadata]``: its intrinsics' (as
+    OpenCV files record it), else its extrinsics', else the overall one; None when not measured."""
+    for key in ("intrinsics_rms_px", "reprojection_rms_px"):
+        if (error := recorded_errors(metadata, key).get(name)) is not None:
+            return error
+    return overall_error(metadata)
 
 
 def check_recorded_errors(rig: CameraRig, metadata: dict[str, Any], source: str | Path) -> list[str]:
@@ -119,11 +135,10 @@ def check_recorded_errors(rig: CameraRig, metadata: dict[str, Any], source: str 
     Raises:
         CalibrationError: naming ``source`` and each camera (or the overall error) and its value.
     """
-    per_cam = _per_camera_errors(metadata)
+    per_cam = recorded_errors(metadata)
     errors = {f"camera {c.name!r}": per_cam[c.name] for c in rig if c.name in per_cam}
-    overall = metadata.get("error")
-    if not errors and isinstance(overall, (int, float)) and overall >= 0:  # -1: not measured
-        errors = {"overall": float(overall)}
+    if not errors and (overall := overall_error(metadata)) is not None:
+        errors = {"overall": overall}
 
     def listing(limit: float) -> str:  # those above limit, with their errors
         return ", ".join(f"{e:.2f} px overall" if what == "overall" else f"{what} {e:.2f} px"
@@ -170,8 +185,8 @@ def check_rig(
     """
     meta = metadata or {}
     rep = CheckReport()
-    per_cam = _per_camera_errors(meta)
-    intrinsics = meta.get("intrinsics_rms_px") if isinstance(meta.get("intrinsics_rms_px"), dict) else {}
+    per_cam = recorded_errors(meta)
+    intrinsics = recorded_errors(meta, "intrinsics_rms_px")
     w = max([10, *(len(cam.name) for cam in rig)])  # the names' column: long names keep the table aligned
     rep.lines.append(f"{'camera':<{w}} {'size':>10} {'fx':>9} {'fy':>9} {'cx':>8} {'cy':>8}  {'position x, y, z (m)':<24} {'rms px':>7}")
     for cam in rig:
@@ -204,17 +219,16 @@ def check_rig(
             rep.lines.append(f"  {a.name} - {b.name}: {d:.3f}")
             if d < 0.01:
                 rep.problems.append(f"cameras {a.name!r} and {b.name!r} are at the same place (extrinsics missing?)")
-    if "error" in meta and float(meta["error"]) >= 0:
-        overall = float(meta["error"])
+    if (overall := overall_error(meta)) is not None:
         rep.lines.append(f"reprojection error (overall RMS): {overall:.3f} px")
         if overall > max_error_px and not per_cam and not intrinsics:  # else named per camera
             rep.problems.append(f"reprojection error {overall:.2f} px > {max_error_px:g} px")
     else:
         rep.notes.append("no reprojection error recorded in [metadata] (imported or unknown)")
     if intrinsics:
-        rep.lines.append("intrinsics reprojection RMS (px): " + ", ".join(f"{c} {float(e):.3f}" for c, e in intrinsics.items()))
-        rep.problems.extend(f"camera {c!r}: intrinsics reprojection error {float(e):.2f} px > {max_error_px:g} px"
-                            for c, e in intrinsics.items() if float(e) > max_error_px)  # fmt: skip
+        rep.lines.append("intrinsics reprojection RMS (px): " + ", ".join(f"{c} {e:.3f}" for c, e in intrinsics.items()))
+        rep.problems.extend(f"camera {c!r}: intrinsics reprojection error {e:.2f} px > {max_error_px:g} px"
+                            for c, e in intrinsics.items() if e > max_error_px)  # fmt: skip
     if "check_3d_mm" in meta and float(meta["check_3d_mm"]) >= 0:
         rep.lines.append(f"3D check: {float(meta['check_3d_mm']):.2f} mm RMS")
     return rep

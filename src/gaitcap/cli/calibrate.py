@@ -12,10 +12,9 @@ import numpy as np
 
 from gaitcap.calibration import extrinsics as ext
 from gaitcap.calibration.boards import Board, parse_board_size, parse_length
-from gaitcap.calibration.formats import (camera_error, read_opencv_camera, read_opencv_error, read_qualisys,
-                                         write_opencv_camera)  # fmt: skip
+from gaitcap.calibration.formats import read_opencv_camera, read_opencv_error, read_qualisys, write_opencv_camera
 from gaitcap.calibration.intrinsics import MIN_VIEWS, calibrate_intrinsics
-from gaitcap.calibration.quality import MAX_ERROR_PX, check_rig
+from gaitcap.calibration.quality import MAX_ERROR_PX, camera_error, check_rig
 from gaitcap.calibration.views import IMAGE_SUFFIXES, VIDEO_SUFFIXES, detect_views, paired_views
 from gaitcap.camera import Camera, CameraRig
 from gaitcap.cli.options import force_option, handle_errors
