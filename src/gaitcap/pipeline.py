@@ -16,7 +16,6 @@ from __future__ import annotations
 import csv
 import io
 import logging
-import shutil
 import sys
 import threading
 import time
@@ -39,7 +38,7 @@ from gaitcap.body.recorded import recorded_model
 from gaitcap.camera import CameraRig
 from gaitcap.errors import ConfigError, InputError, OutputError, TrackingError
 from gaitcap.gait.passes import directed_passes
-from gaitcap.io.atomic import remove_stale_parts, write_text_atomic
+from gaitcap.io.atomic import remove_replaced, remove_stale_parts, write_text_atomic
 from gaitcap.io.silhouettes_h5 import SILHOUETTES_FILE, SilhouetteWriter
 from gaitcap.io.spool import FrameSpool
 from gaitcap.io.track_h5 import (QUALITY_NOT_INITIALISED, QUALITY_OK, QUALITY_OUT_OF_VIEW, QUALITY_POOR_FIT,
@@ -136,14 +135,7 @@ def _prepare_out(out: Path, save_masks: bool = False) -> None:
     if not save_masks:
         (out / SILHOUETTES_FILE).unlink(missing_ok=True)
     derived = [p for p in (out / EVAL_FILE, out / GAIT_DIR) if p.exists()]
-    for path in derived:
-        try:
-            if path.is_dir():
-                shutil.rmtree(path)
-            else:
-                path.unlink()
-        except OSError as e:
-            raise OutputError(f"{path}: cannot remove the replaced run's {path.name} ({e.strerror})") from e
+    remove_replaced(derived)
     if derived:
         log.info("%s: removed the replaced run's %s", out, " and ".join(p.name for p in derived))
     remove_stale_parts(out)  # temporary files of a run that was killed

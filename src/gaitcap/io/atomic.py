@@ -7,8 +7,9 @@ from __future__ import annotations
 
 import contextlib
 import os
+import shutil
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from gaitcap.errors import OutputError
@@ -35,6 +36,22 @@ def refuse_existing(path: str | Path, force: bool) -> None:
     that nothing is computed and then refused)."""
     if Path(path).exists() and not force:
         raise OutputError(f"{path}: exists already (use --force to overwrite)")
+
+
+def remove_replaced(paths: Iterable[Path]) -> None:
+    """Remove an earlier run's outputs (files or folders) that a new run replaces.
+
+    Raises:
+        OutputError: naming the first that cannot be removed.
+    """
+    for path in paths:
+        try:
+            if path.is_dir():
+                shutil.rmtree(path)
+            else:
+                path.unlink()
+        except OSError as e:
+            raise OutputError(f"{path}: cannot remove the replaced run's {path.name} ({e.strerror})") from e
 
 
 def remove_stale_parts(folder: str | Path) -> None:

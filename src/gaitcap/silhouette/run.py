@@ -23,7 +23,7 @@ import yaml
 
 from gaitcap import __version__
 from gaitcap.errors import InputError, OutputError
-from gaitcap.io.atomic import atomic_path, refuse_existing, remove_stale_parts
+from gaitcap.io.atomic import atomic_path, refuse_existing, remove_replaced, remove_stale_parts
 from gaitcap.io.silhouettes_h5 import SILHOUETTES_FILE, SilhouetteWriter
 from gaitcap.io.video_write import AtomicVideoWriter as VideoWriter
 from gaitcap.camera import Camera
@@ -136,11 +136,7 @@ def _check_outputs(out: Path, force: bool) -> None:
                *sorted(p for p in out.glob(f"{OVERLAY_DIR}/*.mp4") if not p.name.startswith("."))]  # fmt: skip
     for target in (out / H5_NAME, out / CSV_NAME, *earlier[:1]):
         refuse_existing(target, force)
-    for path in earlier:
-        try:
-            path.unlink()
-        except OSError as e:
-            raise OutputError(f"{path}: cannot remove the replaced run's file ({e.strerror})") from e
+    remove_replaced(earlier)
 
 
 def run_silhouettes(
