@@ -14,6 +14,7 @@ import cv2
 import h5py
 import numpy as np
 import pytest
+import yaml
 from click.testing import CliRunner
 from gait_walker import Walker
 
@@ -284,3 +285,22 @@ def test_a_run_without_its_track_json_is_reported_with_a_warning(tracked_session
         assert res.exit_code == code, res.output
         assert res.output.count("track.json: unreadable (") == 1, res.output
         assert "taken as no finished run" in res.output and "no finished track.json beside" in res.output
+
+
+def test_uncertain_frames_use_the_runs_own_threshold(tracked_copy):
+    """A run tracked with another ``verdict.uncertain_mm`` has its frames judged by it, as its verdict was."""
+    _, root = tracked_copy
+    shutil.copytree(root / "run", root / "run40")
+    h5 = root / "run40" / "trajectories.h5"
+    with h5py.File(h5, "r+") as f:
+        config = yaml.safe_load(f.attrs["config"])
+        config["verdict"]["uncertain_mm"] = 40.0
+        f.attrs["config"] = yaml.safe_dump(config)
+    default = load_fit_record(root / "run" / "trajectories.h5")
+    fit = load_fit_record(h5)
+    assert default.uncertain_mm == UNCERTAIN_MM and fit.uncertain_mm == 40.0
+    mm = fit.lower_limb_uncertainty_mm()
+    np.testing.assert_array_equal(fit.uncertain, np.nan_to_num(mm) > 40.0)
+    res = CliRunner().invoke(cli, ["report", str(root / "run40"), "--session", str(root / "session"), "-o", str(root / "g40")])
+    assert res.exit_code in (0, 3), res.output
+    assert "mean lower-limb uncertainty above 40 mm" in (root / "g40" / "report.html").read_text()

@@ -5,7 +5,8 @@ Frames that need a look ("attention" frames):
 
 - *flagged*: the tracker's per-frame quality is not ok (a fit below ``quality.min_fit``, the subject
   out of view, or not found);
-- *uncertain*: the mean uncertainty of the lower-limb points exceeds :data:`UNCERTAIN_MM`. The
+- *uncertain*: the mean uncertainty of the lower-limb points exceeds the run's ``verdict.uncertain_mm``
+  (:data:`UNCERTAIN_MM` when its config does not say), the threshold its verdict counted. The
   reported uncertainty is calibrated so that 95 % of the errors fall within two of it
   (gaitcap.quality); on the varied suite the mean lower-limb uncertainty of a run was about 1.6
   times its lower-limb error (median 71 mm for 44 mm, ``scripts/bench_uncertainty.py``), so 90 mm
@@ -45,8 +46,8 @@ from gaitcap.trajectory import LOWER_LIMB, GaitEvent, Trajectory
 
 log = logging.getLogger("gaitcap.report")
 
-#: a frame whose mean lower-limb uncertainty exceeds this (mm) is shown as uncertain (the verdict's
-#: default ``uncertain_mm``, tracking.yaml)
+#: a frame whose mean lower-limb uncertainty exceeds this (mm) is shown as uncertain, for a run whose
+#: config does not say (the verdict's default ``uncertain_mm``, tracking.yaml)
 UNCERTAIN_MM = VerdictConfig().uncertain_mm
 #: the quality.min_fit of a run whose config does not say
 DEFAULT_MIN_FIT = 0.55
@@ -74,12 +75,15 @@ class FitRecord:
         record: what the tracker recorded per frame (T frames).
         track_json: the ``track.json`` document (empty when absent).
         min_fit: the run's ``quality.min_fit``.
+        uncertain_mm: the run's ``verdict.uncertain_mm``: a frame whose mean lower-limb uncertainty
+            exceeds it is shown as uncertain.
     """
 
     run_dir: Path
     record: TrackRecord
     track_json: dict[str, Any] = field(default_factory=dict)
     min_fit: float = DEFAULT_MIN_FIT
+    uncertain_mm: float = UNCERTAIN_MM
 
     @property
     def verdict(self) -> Verdict | None:
@@ -101,9 +105,9 @@ class FitRecord:
 
     @property
     def uncertain(self) -> np.ndarray:
-        """(T,) bool: the lower-limb uncertainty exceeds :data:`UNCERTAIN_MM`."""
+        """(T,) bool: the lower-limb uncertainty exceeds :attr:`uncertain_mm`."""
         with np.errstate(invalid="ignore"):
-            return self.lower_limb_uncertainty_mm() > UNCERTAIN_MM
+            return self.lower_limb_uncertainty_mm() > self.uncertain_mm
 
     def quality_name(self, t: int) -> str:
         return QUALITY_NAMES.get(int(self.record.quality[t]), "flagged").replace("_", " ")
@@ -116,15 +120,20 @@ def load_fit_record(trajectories: Path) -> FitRecord | None:
     if record is None:
         return None
     run_dir = trajectories.parent
-    return FitRecord(run_dir, record, read_track_json(run_dir) or {}, _min_fit(record.attrs.get("config")))
+    config = record.attrs.get("config")
+    return FitRecord(run_dir, record, read_track_json(run_dir) or {},
+                     _config_value(config, "quality", "min_fit", DEFAULT_MIN_FIT),
+                     _config_value(config, "verdict", "uncertain_mm", UNCERTAIN_MM))  # fmt: skip
 
 
-def _min_fit(config_yaml: Any) -> float:
+def _config_value(config_yaml: Any, section: str, key: str, default: float) -> float:
+    """``section.key`` of the run's tracking config (the YAML text trajectories.h5 keeps), or
+    ``default`` when it does not say (an older run, another tool's file)."""
     try:
-        value = (parse_yaml(config_yaml) or {}).get("quality", {}).get("min_fit")
+        value = (parse_yaml(config_yaml) or {}).get(section, {}).get(key)
     except (yaml.YAMLError, AttributeError, TypeError):
         value = None
-    return float(value) if isinstance(value, int | float) else DEFAULT_MIN_FIT
+    return float(value) if isinstance(value, int | float) and not isinstance(value, bool) else default
 
 
 def _thin(indices: list[int], n: int) -> list[int]:
@@ -173,7 +182,7 @@ def attention_frames(fit: FitRecord, spacing: int) -> dict[int, str]:
 def _attention_label(fit: FitRecord, t: int, kind: str) -> str:
     if kind == "flagged":
         return fit.quality_name(t)
-    return f"uncertainty > {UNCERTAIN_MM:g} mm"
+    return f"uncertainty > {fit.uncertain_mm:g} mm"
 
 
 def select_frames(fit: FitRecord, events: list[GaitEvent], t0_s: float = 0.0) -> list[SheetFrame]:

@@ -15,7 +15,7 @@ from gaitcap import __version__
 from gaitcap.gait.analysis import GaitAnalysis
 from gaitcap.gait.parameters import OVERALL_KEYS, SIDE_KEYS, STATUS_IMPLAUSIBLE, STATUS_NOT_ENOUGH_STEPS
 from gaitcap.report import plots
-from gaitcap.report.fit import UNCERTAIN_MM, FitRecord
+from gaitcap.report.fit import FitRecord
 from gaitcap.report.sheet import ContactSheet, SheetRow
 from gaitcap.track_summary import VERDICTS, Verdict
 from gaitcap.trajectory import GaitEvent, Trajectory
@@ -109,7 +109,7 @@ def fit_section(view: FitView, traj: Trajectory, events: list[GaitEvent], sheet_
     parts = [
         "<h2>How well the model fits the videos</h2>",
         f"<p>{rec.n_frames} frame{'s' if rec.n_frames != 1 else ''} tracked: {n_flag} flagged by the tracker (fit below {fit.min_fit:g}, subject out "
-        f"of view or not found), {n_unc} more with a mean lower-limb uncertainty above {UNCERTAIN_MM:g} mm; median "
+        f"of view or not found), {n_unc} more with a mean lower-limb uncertainty above {fit.uncertain_mm:g} mm; median "
         f"fit {np.nanmedian(rec.fit):.2f}.</p>",
         _img(plots.fit_timeline(fit, traj.times(), sheet_frames, events), "fit and uncertainty"),
     ]  # fmt: skip

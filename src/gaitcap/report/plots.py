@@ -17,7 +17,7 @@ from gaitcap.gait.analysis import GaitAnalysis, forward_by_frame  # noqa: E402
 from gaitcap.gait.angles import ANGLE_NAMES  # noqa: E402
 from gaitcap.gait.events import heel_track, pelvis_track, toe_track  # noqa: E402
 from gaitcap.evaluation.metrics import runs  # noqa: E402
-from gaitcap.report.fit import UNCERTAIN_MM, FitRecord  # noqa: E402
+from gaitcap.report.fit import FitRecord  # noqa: E402
 from gaitcap.trajectory import SIDES, side_suffix  # noqa: E402
 
 COLOURS = {"left": "#d62728", "right": "#2ca02c"}
@@ -139,7 +139,7 @@ def fit_timeline(fit: FitRecord, times: np.ndarray, sheet: list[int], events: li
     a1.axhline(fit.min_fit, color="#d62728", ls="--", lw=1, label=f"min_fit {fit.min_fit:g}")
     a2.plot(times, fit.lower_limb_uncertainty_mm(), color="#1f77b4", lw=1.4, marker=".", ms=4,
             label="lower-limb uncertainty (mean)")  # fmt: skip
-    a2.axhline(UNCERTAIN_MM, color="#ff7f0e", ls="--", lw=1, label=f"{UNCERTAIN_MM:g} mm")
+    a2.axhline(fit.uncertain_mm, color="#ff7f0e", ls="--", lw=1, label=f"{fit.uncertain_mm:g} mm")
     for ax in (a1, a2):
         _shade(ax, times, fit.flagged, "#d62728", "flagged")
         _shade(ax, times, fit.uncertain & ~fit.flagged, "#ff7f0e", "uncertain")
