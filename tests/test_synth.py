@@ -1,5 +1,6 @@
 from __future__ import annotations
 
+import shutil
 from pathlib import Path
 
 import cv2
@@ -166,3 +167,28 @@ def test_a_stated_height_the_legs_contradict_is_warned_about(caplog):
         assert "legs show" not in caplog.text
         assert estimate_height(replace(walk, meta={**walk.meta, "height_m": 0.8 * legs})) == pytest.approx(0.8 * legs)
     assert f"is -20 % from the {legs:.2f} m its legs show" in caplog.text
+
+
+def test_a_walk_too_short_for_a_gait_cycle_is_warned_about(tmp_path, caplog):
+    """Three frames of a 60 Hz marker file make a 1-frame session: rendered, but said to hold no gait cycle."""
+    import logging
+
+    lines = (FIXTURES / "subject01_walk1.trc").read_text().splitlines()
+    header = lines[2].split("\t")
+    header[2] = header[7] = "3"
+    short = tmp_path / "short.trc"
+    shutil.copy(FIXTURES / "subject01_static.trc", tmp_path / "subject01_static.trc")
+    short.write_text("\n".join(lines[:2] + ["\t".join(header)] + lines[3:6] + lines[6:9]) + "\n")
+    with caplog.at_level(logging.WARNING, logger="gaitcap"):
+        res = synthesize(short, tmp_path / "out", SynthOptions(size=(160, 120), codec="ffv1"), progress=False)
+    assert res.n_frames == 1
+    assert "short.trc: the walk lasts 0.00 s, 1 frame at 25 fps: too short for a gait cycle" in caplog.text
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="gaitcap"):
+        from gaitcap.synth.session import _warn_short
+        from gaitcap.markers.motion import read_motion
+
+        walk = read_motion(FIXTURES / "subject01_walk1.trc").resample(25.0)
+        assert walk.n_frames >= 25
+        _warn_short(walk, "walk.trc", 25.0)
+    assert "too short" not in caplog.text

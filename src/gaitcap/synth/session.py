@@ -139,6 +139,19 @@ def _floor_mat(points: np.ndarray, direction: np.ndarray, width: float) -> tuple
     return centre, direction[:2] / np.linalg.norm(direction[:2]), length, width
 
 
+#: a session shorter than this (s) holds no gait cycle: its report finds no parameters
+MIN_CYCLE_S = 1.0
+
+
+def _warn_short(traj: Trajectory, motion: str | Path, fps: float) -> None:
+    """Warn when the walk, at the videos' ``fps``, is too short for a gait cycle (a few frames of a
+    marker file's start, or a static trial given as the walk)."""
+    if traj.n_frames < MIN_CYCLE_S * fps:
+        log.warning("%s: the walk lasts %.2f s, %d frame%s at %g fps: too short for a gait cycle (the report "
+                    "needs a stride, about %g s), so the session can be tracked but not analysed", Path(motion).name,
+                    (traj.n_frames - 1) / fps, traj.n_frames, "" if traj.n_frames == 1 else "s", fps, MIN_CYCLE_S)  # fmt: skip
+
+
 def synthesize(
     motion: str | Path, out: str | Path, options: SynthOptions = SynthOptions(), force: bool = False, progress: bool = True,
     mapping: str | Path | None = None, subject: str | None = None, static: str | Path | None = None,
@@ -156,6 +169,7 @@ def synthesize(
     if options.subject_height_m is not None:
         traj = scale_walk(traj, options.subject_height_m, estimate_height(traj))
     traj = traj.resample(options.fps)
+    _warn_short(traj, motion, options.fps)
     spec = load_body_spec(options.body_config)
     log.info("fitting the body model to %d frames of %s (to complete the truth)", traj.n_frames, Path(motion).name)
     fit = fit_body(spec, traj)
