@@ -74,7 +74,6 @@ from gaitcap.video import iter_synchronised
 log = logging.getLogger("gaitcap.pipeline")
 
 TRACKERS = {"condensation": Condensation, "ipf": IntervalPF, "factored-ipf": FactoredIPF}
-OUTPUTS = (TRAJECTORIES_H5, "joints.csv", "joints.trc", TRACK_JSON)
 PREFETCH_FRAMES = 2  # observations prepared ahead of the tracker (bounded: memory stays flat)
 
 __all__ = ["TrackSummary", "run_track", "TRACKERS"]
