@@ -57,6 +57,32 @@ def test_written_layout_follows_opensim(tmp_path, rng):
     assert row3[0] == "3" and row3[5:8] == ["", "", ""]  # the gap of point b in frame 3
 
 
+def _opensim_cells(line: str) -> list[str]:
+    """A data row cut as OpenSim 4.6's TRCFileAdapter cuts it (FileAdapter::tokenize on tabs): every cell a tab
+    ends is kept, even empty, but the last cell only when it is not empty."""
+    cells = line.split("\t")
+    return cells if cells[-1] else cells[:-1]
+
+
+def test_rows_with_the_last_marker_missing_keep_their_columns_for_opensim(tmp_path, rng):
+    """A frame the tracker flagged is NaN for every point; OpenSim refused such a joints.trc ("Unexpected number of
+    columns in line 17. Expected = 62. Received = 61"): the row's empty last cell was dropped."""
+    traj = _random_traj(rng, n_frames=5)
+    pts = traj.points.copy()
+    pts[1] = np.nan  # a flagged frame: every point missing
+    pts[3, 2] = np.nan  # the last marker alone missing
+    traj = Trajectory(traj.names, pts, rate_hz=traj.rate_hz, t0_s=traj.t0_s)
+    path = write_trc(tmp_path / "x.trc", traj)
+    rows = path.read_text().split("\n")[6:-1]
+    assert len(rows) == 5
+    for row in rows:
+        assert len(_opensim_cells(row)) == 2 + 3 * len(traj.names), row
+    back = read_markers(path, up_axis="y")
+    np.testing.assert_array_equal(np.isnan(back.points), np.isnan(pts))
+    np.testing.assert_allclose(back.points, pts, atol=1e-6, equal_nan=True)
+    assert [len(_opensim_cells(r)) for r in WALK.read_text().split("\n")[6:9]] == [2 + 3 * 41] * 3  # OpenSim's own file
+
+
 def test_metres_and_millimetres_give_the_same_markers(tmp_path, rng):
     traj = _random_traj(rng)
     a = read_markers(write_trc(tmp_path / "m.trc", traj, units="m"))

@@ -8,9 +8,10 @@ Layout (tab separated)::
     Frame#  Time  <name1>  <tab> <tab>  <name2> ...
                   X1  Y1  Z1  X2  Y2  Z2 ...
     <blank line>
-    1  0.000000  x  y  z  ...
+    1  0.000000  x  y  z  ...  <tab>
 
-Missing samples are empty cells (read as NaN). The file frame is kept by the reader (metres,
+Missing samples are empty cells (read as NaN); each data row ends with a tab, as OpenSim writes
+them (its reader drops an empty last cell that no tab follows). The file frame is kept by the reader (metres,
 axes as in the file); rotation to gaitcap's z-up frame is the caller's job
 (:func:`gaitcap.markers.motion.read_markers`). The writer takes a z-up trajectory and writes
 it in the requested up-axis convention (OpenSim expects y up).
@@ -97,8 +98,11 @@ def read_trc(path: str | Path) -> Trajectory:
 
 
 def _format_row(frame: int, time_s: float, values: np.ndarray, fmt: str) -> str:
+    """One data row, ended by a tab as OpenSim's own writer ends it: OpenSim's reader (TRCFileAdapter)
+    keeps an empty cell only when a tab follows it, so without it a row whose last marker is missing
+    (every cell of a frame the tracker flagged) is one column short and the whole file is refused."""
     cells = ["" if not math.isfinite(v) else format(v, fmt) for v in values]
-    return "\t".join([str(frame), f"{time_s:.6f}", *cells])
+    return "\t".join([str(frame), f"{time_s:.6f}", *cells]) + "\t"
 
 
 def write_trc(path: str | Path, trajectory: Trajectory, units: str = "mm", up_axis: str = "y") -> Path:
