@@ -273,7 +273,8 @@ def test_sacral_marker_gives_the_anatomical_pelvis_frame():
     from gaitcap.report.pipeline import with_pelvis_markers
 
     joints = with_pelvis_markers(read_motion(PIG), read_markers(PIG))
-    np.testing.assert_allclose(joints.point("LPSI"), read_markers(PIG).point("SACR"))
+    np.testing.assert_allclose(joints.point("SACR"), read_markers(PIG).point("SACR"))
+    assert not joints.has("LPSI") and not joints.has("RPSI")  # the file has none: not named as if it had
     _, direction = detect_events(joints)
     ang, _ = joint_angles(joints, direction)
     hip = read_c3d_angles(PIG).get("LHipAngles")[:, 0]
@@ -297,3 +298,19 @@ def test_report_with_the_files_recorded_events(tmp_path):
     res = CliRunner().invoke(cli, ["report", str(lonely), "-o", str(tmp_path / "x"), "--recorded-events",
                                    "--static", str(OPENSIM.with_name("subject01_static.trc"))])  # fmt: skip
     assert res.exit_code == 1 and "walk.trc: --recorded-events: the file records no gait event" in res.output
+
+
+def test_exported_c3d_names_only_the_pelvis_markers_the_file_has(tmp_path):
+    """gait-pig.c3d has a sacral marker and no PSIS: report's trajectories.c3d held LPSI and RPSI, both the
+    SACR samples (a lab's software would take them for two PSIS markers at the same place)."""
+    import ezc3d
+
+    res = CliRunner().invoke(cli, ["report", str(PIG), "-o", str(tmp_path / "gait")])
+    assert res.exit_code == 0, res.output
+    c3d = ezc3d.c3d(str(tmp_path / "gait" / "trajectories.c3d"))
+    labels = list(c3d["parameters"]["POINT"]["LABELS"]["value"])
+    assert "LPSI" not in labels and "RPSI" not in labels
+    assert {"LASI", "RASI", "SACR"} <= set(labels)
+    sacr = c3d["data"]["points"][:3, labels.index("SACR")].T / 1000.0
+    np.testing.assert_allclose(sacr, read_markers(PIG).point("SACR"), atol=1e-5, equal_nan=True)
+    assert "ASIS/PSIS" in (tmp_path / "gait" / "report.html").read_text()  # still the anatomical pelvis frame

@@ -8,9 +8,9 @@ X anterior, Y to the subject's left, Z proximal (up), for both sides.
   that the pelvis angles stay about the way the subject faces (rotation near 0, not near 180
   degrees; tilt and obliquity with their usual signs).
 - pelvis: Y = hip_r -> hip_l. When ASIS and PSIS markers are in the trajectory (``LASI/RASI/LPSI/
-  RPSI`` or ``asis_l/asis_r/psis_l/psis_r``), the Plug-in-Gait pelvis: Y = RASI -> LASI,
-  X = mid-PSIS -> mid-ASIS made orthogonal to Y. From joint centres only, the pelvis tilt is not
-  determined by the two hip centres: Z is taken along pelvis -> thorax when a thorax point exists
+  RPSI``, ``LASI/RASI/SACR`` or ``asis_l/asis_r/psis_l/psis_r``), the Plug-in-Gait pelvis:
+  Y = RASI -> LASI, X = mid-PSIS (or SACR) -> mid-ASIS made orthogonal to Y. From joint centres
+  only, the pelvis tilt is not determined by the two hip centres: Z is taken along pelvis -> thorax when a thorax point exists
   (so "tilt" is then the forward inclination of the pelvis-thorax line, i.e. of the trunk, and
   lacks Plug-in-Gait's anatomical anterior tilt of typically about 10 degrees), else along the
   world vertical (tilt = 0 by construction). Obliquity and rotation are well determined.
@@ -57,7 +57,9 @@ ANGLE_NAMES: tuple[str, ...] = (
     "knee_flexion", "ankle_dorsiflexion",
 )  # fmt: skip
 
-_PELVIS_MARKERS = (("LASI", "RASI", "LPSI", "RPSI"), ("asis_l", "asis_r", "psis_l", "psis_r"))
+#: ASIS left, ASIS right, PSIS left, PSIS right; a sacral marker stands for both PSIS (their mid-point)
+_PELVIS_MARKERS = (("LASI", "RASI", "LPSI", "RPSI"), ("LASI", "RASI", "SACR", "SACR"),
+                   ("asis_l", "asis_r", "psis_l", "psis_r"))  # fmt: skip
 _STRAIGHT_KNEE_DEG = 15.0  # below this flexion the femur Y blends towards the pelvis Y
 
 

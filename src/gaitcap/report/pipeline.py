@@ -84,14 +84,15 @@ def load_trajectory(path: Path, mapping: str | Path | None = None, subject: str 
 def with_pelvis_markers(joints: Trajectory, markers: Trajectory) -> Trajectory:
     """Add the ASIS/PSIS markers (LASI RASI LPSI RPSI) of a marker file to its joint centres, so
     the pelvis angles use the anatomical pelvis frame (see gaitcap.gait.angles). A sacral marker
-    (SACR) stands for both PSIS markers when they are missing: the frame uses only their mid-point."""
-    names = PELVIS_MARKERS
-    sources = list(names)
+    (SACR) stands for both PSIS markers when they are missing: it is added under its own name
+    (LASI RASI SACR), and the frame uses it as their mid-point; the exported C3D then names no PSIS
+    marker the file does not have."""
+    names: tuple[str, ...] = PELVIS_MARKERS
     if not (markers.has("LPSI") and markers.has("RPSI")) and markers.has(SACRAL_MARKER):
-        sources[2:] = [SACRAL_MARKER, SACRAL_MARKER]
-    if not all(markers.has(n) for n in sources) or markers.n_frames != joints.n_frames:
+        names = (*PELVIS_MARKERS[:2], SACRAL_MARKER)
+    if not all(markers.has(n) for n in names) or markers.n_frames != joints.n_frames:
         return joints
-    extra = np.stack([markers.point(n) for n in sources], axis=1)
+    extra = np.stack([markers.point(n) for n in names], axis=1)
     return replace(joints, names=joints.names + names, points=np.concatenate([joints.points, extra], axis=1))
 
 
