@@ -56,6 +56,7 @@ def test_c3d_export_is_read_back_by_ezc3d_and_c3d(tmp_path) -> None:
     c = ezc3d.c3d(str(path))
     assert c["header"]["points"]["first_frame"] == 152
     assert tuple(c["parameters"]["POINT"]["LABELS"]["value"]) == tr.names
+    assert c["parameters"]["POINT"]["UNITS"]["value"] == ["mm"]
     pts = c["data"]["points"][:3].transpose(2, 1, 0) / 1000.0
     np.testing.assert_allclose(pts[~np.isnan(tr.points)], tr.points[~np.isnan(tr.points)], atol=1e-5)
     assert np.isnan(pts[10]).all()
@@ -84,3 +85,22 @@ def test_c3d_export_is_read_back_by_ezc3d_and_c3d(tmp_path) -> None:
     ok = np.isfinite(tr.points[0]).all(axis=1)
     np.testing.assert_allclose(frames[0][ok, :3] / 1000.0, tr.points[0][ok], atol=1e-5)
     assert (frames[0][~ok, 3] == -1).all() and (frames[10][:, 3] == -1).all()  # missing = invalid points
+
+
+def test_c3d_export_states_its_up_axis(tmp_path) -> None:
+    """The file said nothing of its axes (no POINT:X_SCREEN/Y_SCREEN, which Vicon writes as +X/+Z and viewers and
+    readers orient the data from); gaitcap's own reader took z up only by default."""
+    from gaitcap.io.c3d import read_c3d_markers
+
+    tr = _traj()
+    path = tmp_path / "out.c3d"
+    write_c3d(path, tr)
+    point = ezc3d.c3d(str(path))["parameters"]["POINT"]
+    assert point["X_SCREEN"]["value"] == ["+X"] and point["Y_SCREEN"]["value"] == ["+Z"]
+    import c3d
+
+    with open(path, "rb") as f, warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        r = c3d.Reader(f)
+        assert r.get("POINT:Y_SCREEN").string_value.strip() == "+Z"
+    assert read_c3d_markers(path).meta["up_axis"] == "z"

@@ -1,7 +1,8 @@
 """C3D export of point trajectories with gait events in the EVENT group (write only, ezc3d).
 
-Points are written in millimetres (POINT:UNITS = "mm"), NaN samples as invalid points (residual
--1). The header's first frame is ``round(t0_s * rate) + 1`` (1-based), so event times, which C3D
+Points are written in millimetres (POINT:UNITS = "mm") in gaitcap's z-up world frame, stated as
+Vicon states it (POINT:X_SCREEN = "+X", POINT:Y_SCREEN = "+Z"), NaN samples as invalid points
+(residual -1). The header's first frame is ``round(t0_s * rate) + 1`` (1-based), so event times, which C3D
 stores in seconds from the start of the capture (EVENT:TIMES row 2, row 1 = minutes = 0), stay on
 the trajectory's own time axis. Events use the Vicon/Nexus vocabulary: contexts ``Left``/``Right``,
 labels ``Foot Strike``/``Foot Off``.
@@ -36,6 +37,9 @@ def write_c3d(path: str | Path, traj: Trajectory, subject: str = "") -> None:
     c["parameters"]["POINT"]["RATE"]["value"] = [float(traj.rate_hz)]
     c["parameters"]["POINT"]["LABELS"]["value"] = tuple(traj.names)
     c["parameters"]["POINT"]["UNITS"]["value"] = ["mm"]
+    # the axes, as Vicon states them: gaitcap's world is z up (viewers orient the display from these)
+    c.add_parameter("POINT", "X_SCREEN", ["+X"])
+    c.add_parameter("POINT", "Y_SCREEN", ["+Z"])
     data = np.ones((4, len(traj.names), traj.n_frames))
     data[:3] = np.transpose(traj.points * 1000.0, (2, 1, 0))
     c["data"]["points"] = data
