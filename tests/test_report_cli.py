@@ -101,3 +101,21 @@ def test_embedded_vicon_walk_events_and_angles_match_the_recording() -> None:
             assert np.nanstd(d) < 2.0  # same shape; the offset is the frame definitions'
     assert a.parameters.ok and a.parameters.overall["n_strides"] == 2
     assert a.parameters.overall["speed_m_s"] == pytest.approx(0.9, abs=0.1)  # the data README: about 0.9 m/s
+
+
+def test_angle_note_says_hip_flexion_lacks_the_pelvis_tilt_without_pelvis_markers(tmp_path) -> None:
+    """Without ASIS/PSIS markers (every tracking run) the note named only pelvic tilt, while hip flexion is measured
+    from the same pelvis and reads 5-11 degrees below Plug-in-Gait's (scripts/validate_gait.py, joint centres only):
+    a clinician read hip hyperextension that is not there."""
+    out = tmp_path / "OUT"
+    write_trajectory(out / "trajectories.h5", Walker(duration=4.0, rate_hz=25.0).trajectory())
+    res = CliRunner().invoke(cli, ["report", str(out)])
+    assert res.exit_code == 0, res.output
+    text = re.sub(r"\s+", " ", (out / "gait" / "report.html").read_text())
+    assert "Without ASIS/PSIS markers" in text
+    note = text[text.index("Without ASIS/PSIS markers"):]
+    note = note[: note.index("</p>")]
+    assert "hip flexion" in note and "Plug-in-Gait" in note and "see the docs" not in note
+    res = CliRunner().invoke(cli, ["report", str(embedded_walk()), "-o", str(tmp_path / "walk")])
+    assert res.exit_code == 0, res.output
+    assert "Without ASIS/PSIS markers" not in (tmp_path / "walk" / "report.html").read_text()  # its own pelvis markers

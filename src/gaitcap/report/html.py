@@ -152,6 +152,16 @@ def _direction_text(direction: object) -> str:
     return f"{heading:.0f}° from the calibration's x axis (nearest to {along})"
 
 
+#: the angle note of a pelvis frame without ASIS/PSIS markers (a tracking run's): what it does to the angles
+_NO_PELVIS_MARKERS = (
+    " Without ASIS/PSIS markers the pelvis's anatomical anterior tilt (typically about 10°) is not known: pelvic tilt "
+    "is then the inclination of the pelvis-thorax line (0 without a thorax point), and hip flexion, measured from "
+    "that pelvis, reads lower than Plug-in-Gait's by about as much (5° and 11° on the two Plug-in-Gait walks of "
+    "scripts/validate_gait.py); compare the shapes and ranges of motion, not these two angles' values, with "
+    "marker-based norms (see gaitcap.gait.angles)."
+)
+
+
 def parameter_table(analysis: GaitAnalysis) -> str:
     p = analysis.parameters
     rows = ["<tr><th>Parameter</th><th>Overall</th><th>Left</th><th>Right</th><th>Symmetry index (%)</th></tr>"]
@@ -238,8 +248,7 @@ def render_report(analysis: GaitAnalysis, title: str = "Gait report", view: FitV
         parts.append(
             f"<p class='note'>Plug-in-Gait order and signs (see gaitcap.gait.angles). Pelvis frame: "
             f"{html.escape(analysis.angle_notes.get('pelvis_frame', ''))}."
-            + ("" if "ASIS" in analysis.angle_notes.get("pelvis_frame", "") else
-               " Without ASIS/PSIS markers pelvic tilt is not anatomical (see the docs).")
+            + ("" if "ASIS" in analysis.angle_notes.get("pelvis_frame", "") else _NO_PELVIS_MARKERS)
             + " Hip rotation comes from the knee's flexion plane: reliable only while the knee is flexed.</p>"
         )
     parts.append(angle_time_section(analysis, view))
