@@ -119,3 +119,16 @@ def test_angle_note_says_hip_flexion_lacks_the_pelvis_tilt_without_pelvis_marker
     res = CliRunner().invoke(cli, ["report", str(embedded_walk()), "-o", str(tmp_path / "walk")])
     assert res.exit_code == 0, res.output
     assert "Without ASIS/PSIS markers" not in (tmp_path / "walk" / "report.html").read_text()  # its own pelvis markers
+
+
+def test_readme_lists_every_file_report_writes() -> None:
+    """The README documented track's and silhouettes' outputs but none of report's: where angles.csv's unit
+    (degrees), events.csv's frame or the C3D's axes are said was nowhere a user reads."""
+    from pathlib import Path
+
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    assert "## Outputs of `gaitcap report`" in readme
+    section = readme.split("## Outputs of `gaitcap report`", 1)[1].split("\n## ", 1)[0]
+    for name in FILES:
+        assert f"`{name}`" in section, name
+    assert "degrees" in section and "Y_SCREEN" in section
