@@ -47,7 +47,7 @@ def test_report_on_a_tracking_folder_writes_every_output(tmp_path) -> None:
     html = (gait / "report.html").read_text()
     assert html.count("data:image/png;base64,") == 4 and "http" not in html.replace("http-equiv", "")
     assert re.search(r"Walking direction -?\d+° from the calibration's x axis \(nearest to [+-][xy]\)", html), html[:2000]
-    assert "A blank cell: not measured" in html
+    assert "A dash (–): not measured" in html and "A blank cell: not defined" in html
     assert "tracking_verdict" not in p  # no track.json: not a tracking run's verdict to carry
     (out / "track.json").write_text(json.dumps({"status": "ok", "verdict": "failed",
                                                 "verdict_reasons": ["none of the 100 frames fits the silhouettes"]}))
@@ -70,7 +70,9 @@ def test_report_with_less_than_one_cycle_exits_3_and_says_why(tmp_path) -> None:
     assert p["status"] == "not_enough_steps" and "not enough steps" in p["reason"]
     assert f"; 5 of the {tr.n_frames} frames have no position (flagged by the tracker or missing)" in p["reason"]
     assert p["left"]["n_strides"] == 0 and p["overall"]["speed_m_s"] is None
-    assert "Not enough steps" in (out / "gait" / "report.html").read_text()
+    html = (out / "gait" / "report.html").read_text()
+    assert "Not enough steps" in html
+    assert "<td>–</td>" in html and "A dash (–): not measured" in html  # the table's dashes, explained
 
 
 def test_report_errors_are_one_line_exit_1(tmp_path) -> None:

@@ -177,8 +177,9 @@ def parameter_table(analysis: GaitAnalysis) -> str:
         f"<tr><td>Complete gait cycles</td><td>{p.overall['n_strides']}</td><td>{p.sides['left']['n_strides']}</td>"
         f"<td>{p.sides['right']['n_strides']}</td><td></td></tr>"
     )
-    note = ("<p class='note'>A blank cell: not measured (no complete cycle or step of that side), or no symmetry "
-            "index for that parameter (it needs both sides).</p>")  # fmt: skip
+    note = ("<p class='note'>A dash (–): not measured (no complete cycle or step of that side). A blank cell: not "
+            "defined (no overall value of a parameter taken side by side, or no symmetry index: it needs both "
+            "sides).</p>")  # fmt: skip
     return "<table>" + "".join(rows) + "</table>" + note
 
 
