@@ -81,6 +81,7 @@ def test_trajectories_h5_layout(tracked_session):
         for key in ("points", "points_unfiltered", "uncertainty", "spread"):
             assert f[key].attrs["units"] == "m", key
         assert f["times"].attrs["units"] == "s"
+        assert f["quality"].attrs["codes"] == "0 ok, 1 poor_fit, 2 out_of_view, 3 not_initialised"
         unc, spread = f["uncertainty"][()], f["spread"][()]
         assert np.all(np.isfinite(unc)) and np.all(unc > 0) and unc.shape == spread.shape == (20, 20)
         assert np.all(np.isfinite(spread)) and np.all(spread >= 0) and not np.allclose(unc, spread)

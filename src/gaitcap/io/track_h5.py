@@ -9,7 +9,7 @@ Layout: ``/points`` (T, P, 3) metres, NaN where flagged (filtered when smoothing
 NaN in frames without a pose (subject out of view or not found); ``/times`` (T,); ``/uncertainty`` (T, P) metres, calibrated after tracking
 (gaitcap.quality; the particles' spread when none is given); ``/spread`` (T, P) metres, the weighted
 spread of the tracker's particles; ``/quality`` (T,) uint8 (0 ok,
-1 poor fit, 2 subject out of view, 3 not initialised); ``/poses`` (T, D) attr ``dof_names``;
+1 poor fit, 2 subject out of view, 3 not initialised; attr ``codes`` says so); ``/poses`` (T, D) attr ``dof_names``;
 ``/likelihood`` (T,); ``/fit`` (T,); datasets of lengths and times carry ``units`` (``m``, ``s``;
 ``/poses`` ``dof_units``: ``m`` or ``rad`` per DOF, when given); root attrs ``gaitcap_version``, ``config`` (YAML),
 ``tracker``, ``height_m``, ``height_source``, ``session`` (the session folder, absolute), ``shape``
@@ -42,6 +42,8 @@ if TYPE_CHECKING:
 QUALITY_OK, QUALITY_POOR_FIT, QUALITY_OUT_OF_VIEW, QUALITY_NOT_INITIALISED = 0, 1, 2, 3
 QUALITY_NAMES = {QUALITY_OK: "ok", QUALITY_POOR_FIT: "poor_fit", QUALITY_OUT_OF_VIEW: "out_of_view",
                  QUALITY_NOT_INITIALISED: "not_initialised"}  # fmt: skip
+#: ``/quality``'s ``codes`` attribute: the file says what its numbers mean
+QUALITY_CODES = ", ".join(f"{code} {name}" for code, name in QUALITY_NAMES.items())
 
 
 def tracked_frames(quality: np.ndarray) -> np.ndarray:
@@ -74,6 +76,7 @@ class TrackWriter:
             "quality": f.create_dataset("quality", (0,), maxshape=(None,), chunks=(1024,), dtype=np.uint8),
         }  # fmt: skip
         self._ds["poses"].attrs["dof_names"] = list(dof_names)
+        self._ds["quality"].attrs["codes"] = QUALITY_CODES
         if dof_units is not None:
             if len(dof_units) != D:
                 raise ValueError(f"dof_units must have {D} entries, got {len(dof_units)}")
