@@ -290,6 +290,30 @@ def test_cli_refuses_an_existing_output_before_the_work(tmp_path):
     assert r.exit_code == 1 and "left.txt: unknown calibration file type" in r.output
 
 
+def test_cli_numeric_options_out_of_range_are_usage_errors(tmp_path):
+    """--video-step 0 divided by zero on a video (a traceback), --max-views 0 used every view and 1 or 2
+    calibrated from fewer than the 3 views calibrate_intrinsics asks for, a --max-blur or --max-error of
+    0 or below refused every view or camera: each is now a usage error naming the option."""
+    images = sorted(CHESS.glob("left0*.jpg"))
+    video = tmp_path / "board.avi"
+    writer = cv2.VideoWriter(str(video), cv2.VideoWriter_fourcc(*"MJPG"), 10, (640, 480))
+    for path in images[:3]:
+        writer.write(cv2.imread(str(path)))
+    writer.release()
+    cases = [("intrinsics", video, "--video-step", "0"), ("intrinsics", *images, "--max-views", "0"),
+             ("intrinsics", *images, "--max-views", "2"), ("intrinsics", *images, "--max-blur", "-1"),
+             ("stereo", CHESS, CHESS, "--max-error", "0"),
+             ("extrinsics", tmp_path, "--video-step", "0"), ("extrinsics", tmp_path, "--max-error", "-1")]
+    for i, args in enumerate(cases):
+        out = () if args[0] == "extrinsics" else ("-o", tmp_path / f"out{i}.toml")
+        r = _run(*args, *out)
+        option = next(a for a in args if str(a).startswith("--"))
+        assert r.exit_code == 2 and f"Invalid value for '{option}'" in r.output, (args, r.output)
+        assert "Traceback" not in r.output and not (tmp_path / f"out{i}.toml").exists()
+    r = _run("check", tmp_path, "--max-error", "0")
+    assert r.exit_code == 2 and "Invalid value for '--max-error'" in r.output
+
+
 def test_cli_check_missing_key(tmp_path):
     bad = tmp_path / "calibration.toml"
     bad.write_text('[cam1]\nname = "cam1"\nsize = [640, 480]\nmatrix = [[500,0,320],[0,500,240],[0,0,1]]\n'

@@ -26,6 +26,11 @@ from gaitcap.session import CALIBRATION_FILE, VIDEOS_DIR, VIDEO_EXTENSIONS, find
 
 log = logging.getLogger("gaitcap.cli.calibrate")
 
+#: a video step is a count of frames (0 would read none: a division by zero); a threshold in px or
+#: a fraction of a square is above 0 (at or below it every view or camera is refused)
+_STEP = click.IntRange(min=1)
+_POSITIVE = click.FloatRange(min=0, min_open=True)
+
 
 def board_options(func):
     """--board, --square, --charuco, --marker, --dictionary."""
@@ -117,9 +122,9 @@ def command() -> None:
 @click.option("--name", default=None, help="Camera name (default: the output file stem).")
 @click.option("--fix-aspect-ratio", is_flag=True, help="Force fx = fy.")
 @click.option("--fix-k3", is_flag=True, help="Estimate k1, k2, p1, p2 only (few views or a small board).")
-@click.option("--max-views", type=int, default=25, show_default=True, help="Use at most this many well-spread views.")
-@click.option("--video-step", type=int, default=10, show_default=True, help="Read every n-th video frame.")
-@click.option("--max-blur", type=float, default=0.25, show_default=True, help="Reject views whose edges are blurred over this fraction of a square.")
+@click.option("--max-views", type=click.IntRange(min=MIN_VIEWS), default=25, show_default=True, help="Use at most this many well-spread views.")
+@click.option("--video-step", type=_STEP, default=10, show_default=True, help="Read every n-th video frame.")
+@click.option("--max-blur", type=_POSITIVE, default=0.25, show_default=True, help="Reject views whose edges are blurred over this fraction of a square.")
 @force_option
 @handle_errors
 def intrinsics_cmd(inputs, board_size, square, charuco, marker, dictionary, output, name, fix_aspect_ratio, fix_k3, max_views, video_step, max_blur, force):
@@ -167,9 +172,9 @@ def _default_views(session: Path, name: str) -> Path:
 @click.option("--points", type=click.Path(path_type=Path, dir_okay=False), default=None,
               help="Scene calibration instead of a board: a YAML file with 'points' (name: [x, y, z], metres, z up, "
                    "floor z = 0; at least 4) and 'pixels' (camera: {name: [u, v], or null where not seen}).")
-@click.option("--video-step", type=int, default=1, show_default=True, help="Read every n-th video frame.")
+@click.option("--video-step", type=_STEP, default=1, show_default=True, help="Read every n-th video frame.")
 @click.option("--no-adjust", is_flag=True, help="Skip the joint refinement (bundle adjustment).")
-@click.option("--max-error", type=float, default=MAX_ERROR_PX, show_default=True,
+@click.option("--max-error", type=_POSITIVE, default=MAX_ERROR_PX, show_default=True,
               help="Largest reprojection RMS (px) of a camera for calibration.toml to be written.")
 @handle_errors
 def extrinsics_cmd(session, board_size, square, charuco, marker, dictionary, intrinsics_files, views_opt, points, video_step, no_adjust, max_error):
@@ -268,7 +273,7 @@ def _refuse_poor_extrinsics(res: ext.ExtrinsicsResult, target: Path, max_error: 
 @board_options
 @click.option("--fix-aspect-ratio", is_flag=True, help="Force fx = fy for each camera.")
 @click.option("-o", "--output", type=click.Path(path_type=Path), required=True, help="calibration.toml of the pair.")
-@click.option("--max-error", type=float, default=MAX_ERROR_PX, show_default=True,
+@click.option("--max-error", type=_POSITIVE, default=MAX_ERROR_PX, show_default=True,
               help="Largest stereo reprojection RMS (px) for the result to be written.")
 @force_option
 @handle_errors
@@ -314,7 +319,7 @@ def _frame_sizes(session: Path, names: list[str]) -> dict[str, tuple[int, int]]:
 
 @command.command("check")
 @click.argument("target", type=click.Path(path_type=Path, exists=True))
-@click.option("--max-error", type=float, default=1.0, show_default=True, help="Largest acceptable reprojection RMS, px.")
+@click.option("--max-error", type=_POSITIVE, default=MAX_ERROR_PX, show_default=True, help="Largest acceptable reprojection RMS, px.")
 @handle_errors
 def check_cmd(target, max_error):
     """Print each camera's intrinsics, position, the distances between cameras and the
