@@ -40,6 +40,27 @@ def test_every_command_help_has_an_example(runner):
             assert r.exit_code == 0 and "Example" in r.output, f"{name} {subname}"
 
 
+def test_every_measurement_option_states_its_unit():
+    """Every option taking a measurement (a float, or a size or length given as text) says its unit in
+    its help: synth's --fps and --size and calibrate's --marker did not."""
+    ctx = click.Context(cli)
+    unit = re.compile(r"(?<![A-Za-z])(px|mm|cm|m|metres|deg|degrees|s|Hz|frames|pixels|fraction|frames per second)\b")
+    missing = []
+
+    def walk(command, path):
+        if isinstance(command, click.Group):
+            for name in command.list_commands(ctx):
+                walk(command.get_command(ctx, name), [*path, name])
+            return
+        for p in command.params:
+            measured = isinstance(p.type, click.types.FloatParamType) or p.name in ("size", "square", "marker")
+            if isinstance(p, click.Option) and measured and not unit.search(f"{p.opts[-1]} {p.help or ''}"):
+                missing.append(f"{' '.join(path)} {p.opts[-1]}")
+
+    walk(cli, [])
+    assert not missing, f"options whose help gives no unit: {', '.join(missing)}"
+
+
 def test_synth_bad_size_is_a_usage_error(runner, tmp_path):
     result = runner.invoke(cli, ["synth", "-o", str(tmp_path / "s"), "--size", "big"])
     assert result.exit_code == 2

@@ -38,7 +38,7 @@ def board_options(func):
         click.option("--board", "board_size", default="9x6", show_default=True, help="Inner corners COLSxROWS (ChArUco: squares)."),
         click.option("--square", default="25mm", show_default=True, help="Square side, e.g. 25mm, 2.5cm, 0.025m."),
         click.option("--charuco", is_flag=True, help="A ChArUco board instead of a checkerboard."),
-        click.option("--marker", default=None, help="ChArUco marker side (default 3/4 of the square)."),
+        click.option("--marker", default=None, help="ChArUco marker side, e.g. 18mm, 1.8cm, 0.018m; a bare number is mm (default 3/4 of the square)."),
         click.option("--dictionary", default="DICT_4X4_50", show_default=True, help="ChArUco ArUco dictionary."),
     ]):
         func = opt(func)

@@ -41,8 +41,8 @@ def parse_floats(_ctx: click.Context, _param: click.Parameter, value: str | None
 @click.argument("motion", required=False, type=click.Path(dir_okay=False, path_type=Path))
 @click.option("-o", "--output", "out", required=True, type=click.Path(path_type=Path), help="Session folder to create.")
 @click.option("--cameras", default=2, show_default=True, type=click.IntRange(1, 8), help="Number of cameras.")
-@click.option("--size", default="640x480", show_default=True, callback=parse_size, help="Image size WIDTHxHEIGHT.")
-@click.option("--fps", default=25.0, show_default=True, type=click.FloatRange(min=1), help="Video frame rate.")
+@click.option("--size", default="640x480", show_default=True, callback=parse_size, help="Image size WIDTHxHEIGHT, pixels.")
+@click.option("--fps", default=25.0, show_default=True, type=click.FloatRange(min=1), help="Video frame rate, frames per second.")
 @click.option("--shadow/--no-shadow", default=True, show_default=True, help="Cast the lights' shadows on the floor.")
 @click.option("--distortion/--no-distortion", default=True, show_default=True, help="Lens distortion (drawn per seed).")
 @click.option("--azimuths", default=None, callback=parse_floats,
