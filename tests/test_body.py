@@ -132,7 +132,7 @@ def _spec_with(tmp_path, edit):
     data = yaml.safe_load(default_config_path("body.yaml").read_text())
     edit(data)
     path = tmp_path / "body.yaml"
-    path.write_text(yaml.safe_dump(data))
+    path.write_text(yaml.safe_dump(data, sort_keys=False))  # the segments in order, parents first
     return path
 
 
@@ -146,6 +146,20 @@ def test_min_greater_than_max_names_the_key(tmp_path):
     path = _spec_with(tmp_path, lambda d: d["segments"]["shank_l"]["dofs"][0].update(limits=[90, 10]))
     with pytest.raises(ConfigError, match=r"body.yaml: segments\.shank_l\.dofs\.0\.limits.*greater than max"):
         load_body_spec(path)
+
+
+def test_impossible_rotation_limits_and_a_wrapped_translation_are_rejected(tmp_path):
+    """body.yaml's "impossible values are rejected": a knee limit of 400 degrees and wrap on a translation
+    were accepted."""
+    path = _spec_with(tmp_path, lambda d: d["segments"]["shank_l"]["dofs"][0].update(limits=[-10, 400]))
+    with pytest.raises(ConfigError, match=r"segments\.shank_l\.dofs\.0: .*knee_flexion_l: limits \[-10\.0, 400\.0\] "
+                                          r"must lie within \[-180, 180\] degrees"):
+        load_body_spec(path)
+    path = _spec_with(tmp_path, lambda d: d["segments"]["pelvis"]["dofs"][0].update(wrap=True))
+    with pytest.raises(ConfigError, match=r"segments\.pelvis\.dofs\.0: .*pelvis_tx: wrap is for an angle"):
+        load_body_spec(path)
+    path = _spec_with(tmp_path, lambda d: d["segments"]["pelvis"]["dofs"][2].update(limits=[-5, 400]))
+    load_body_spec(path)  # a translation's limits are metres, not bound to a half turn
 
 
 def test_negative_radius_and_non_finite_values_rejected(tmp_path):

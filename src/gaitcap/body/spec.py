@@ -38,6 +38,15 @@ class DofSpec(Strict):
             raise ValueError(f"limits min {v[0]} is greater than max {v[1]}")
         return v
 
+    @model_validator(mode="after")
+    def _check_kind(self) -> DofSpec:
+        if self.kind == "rotation" and self.limits is not None and not -180 <= self.limits[0] <= self.limits[1] <= 180:
+            raise ValueError(f"{self.name}: limits {list(self.limits)} must lie within [-180, 180] degrees (a rotation "
+                             f"beyond a half turn is the same pose as one the other way)")  # fmt: skip
+        if self.kind == "translation" and self.wrap:
+            raise ValueError(f"{self.name}: wrap is for an angle that wraps round (the heading), not a translation")
+        return self
+
 
 class ShapeSpec(Strict):
     """A tapered capsule from ``a`` to ``b`` (segment frame, fractions of height)."""
