@@ -82,3 +82,13 @@ def test_calibration_not_toml(tmp_path):
     path.write_text("[cam1\n")
     with pytest.raises(CalibrationError, match="not valid TOML"):
         read_calibration(path)
+
+
+def test_distortions_of_every_opencv_length_are_read_and_another_length_is_named():
+    """The message said 4, 5 or 8 coefficients while 12 and 14 were accepted too."""
+    K = np.array([[500.0, 0, 320], [0, 500, 240], [0, 0, 1]])
+    for n in (4, 5, 8, 12, 14):
+        assert Camera("c", (640, 480), K, np.zeros(n)).dist.size == n
+    with pytest.raises(CalibrationError, match=r"camera 'c': distortions must hold 4, 5, 8, 12 or 14 finite "
+                                               r"coefficients .*got 6"):
+        Camera("c", (640, 480), K, np.zeros(6))

@@ -20,6 +20,9 @@ import numpy as np
 
 from gaitcap.errors import CalibrationError
 
+#: the lengths of OpenCV's distortion vector (k1, k2, p1, p2, then k3; k4-k6; s1-s4; tx, ty)
+DISTORTION_SIZES = (4, 5, 8, 12, 14)
+
 
 def _as_points(points: np.ndarray, name: str = "points") -> np.ndarray:
     pts = np.asarray(points, dtype=np.float64)
@@ -36,7 +39,7 @@ class Camera:
         name: camera name; the session's video for it is ``videos/<name>.<ext>``.
         size: image size ``(width, height)`` in pixels.
         matrix: intrinsic matrix K, shape (3, 3).
-        dist: distortion coefficients, shape (4,), (5,) or (8,) (OpenCV order).
+        dist: distortion coefficients, shape (4,), (5,), (8,), (12,) or (14,) (OpenCV order).
         rvec: Rodrigues rotation world -> camera, shape (3,).
         tvec: translation world -> camera in metres, shape (3,).
     """
@@ -55,9 +58,10 @@ class Camera:
         if K[0, 0] <= 0 or K[1, 1] <= 0:
             raise CalibrationError(f"camera {self.name!r}: focal lengths must be positive")
         dist = np.asarray(self.dist, dtype=np.float64).ravel()
-        if dist.size not in (4, 5, 8, 12, 14) or not np.all(np.isfinite(dist)):
+        if dist.size not in DISTORTION_SIZES or not np.all(np.isfinite(dist)):
             raise CalibrationError(
-                f"camera {self.name!r}: distortions must hold 4, 5 or 8 finite coefficients, got {dist.size}"
+                f"camera {self.name!r}: distortions must hold 4, 5, 8, 12 or 14 finite coefficients (OpenCV's "
+                f"k1, k2, p1, p2[, k3[, k4, k5, k6[, s1..s4[, tx, ty]]]]), got {dist.size}"
             )
         rvec = np.asarray(self.rvec, dtype=np.float64).ravel()
         tvec = np.asarray(self.tvec, dtype=np.float64).ravel()

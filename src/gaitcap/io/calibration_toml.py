@@ -5,7 +5,7 @@
 name = "cam01"
 size = [640.0, 480.0]                       # [w, h] pixels
 matrix = [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]
-distortions = [k1, k2, p1, p2]              # OpenCV order
+distortions = [k1, k2, p1, p2]              # OpenCV order: 4, 5 (+ k3), 8, 12 or 14 values
 rotation = [rx, ry, rz]                     # Rodrigues vector, world -> camera
 translation = [tx, ty, tz]                  # world -> camera, metres
 fisheye = false
