@@ -61,6 +61,20 @@ def test_every_measurement_option_states_its_unit():
     assert not missing, f"options whose help gives no unit: {', '.join(missing)}"
 
 
+def test_a_height_at_the_ends_of_its_range_is_a_usage_error(runner, tmp_path):
+    """--height 2.6 (or 0.5) passed the option's [0.5, 2.6] and failed after the backgrounds were fitted with
+    'subject height 2.6 m is outside 0.5-2.6 m' (the body model's range is open), leaving an empty output
+    folder; now the option's range is the model's."""
+    session = tmp_path / "session"
+    session.mkdir()
+    for command in (["track", str(session), "-o", str(tmp_path / "out")], ["synth", "-o", str(tmp_path / "out")]):
+        for height in ("0.5", "2.6"):
+            result = runner.invoke(cli, [*command, "--height", height])
+            assert result.exit_code == 2 and "Invalid value for '--height'" in result.output, result.output
+            assert "0.5<x<2.6" in result.output
+    assert not (tmp_path / "out").exists()
+
+
 def test_synth_bad_size_is_a_usage_error(runner, tmp_path):
     result = runner.invoke(cli, ["synth", "-o", str(tmp_path / "s"), "--size", "big"])
     assert result.exit_code == 2

@@ -88,7 +88,7 @@ class BodyModel:
         self.spec = spec
         self.height_m = float(height_m if height_m is not None else spec.height_m)
         if not (0.5 < self.height_m < 2.6):
-            raise ConfigError(f"subject height {self.height_m} m is outside 0.5-2.6 m")
+            raise ConfigError(f"subject height {self.height_m} m: must be above 0.5 m and below 2.6 m")
         self.scales = _per_segment(spec, "scales", scales, 1.0, positive=True)
         self.shifts = _per_segment(spec, "shifts", shifts, 0.0, positive=False)
         self._build()

@@ -48,7 +48,7 @@ def parse_floats(_ctx: click.Context, _param: click.Parameter, value: str | None
 @click.option("--azimuths", default=None, callback=parse_floats,
               help="Camera azimuths in degrees from the walking direction (left positive), e.g. 90,-45 "
                    "(default: a layout drawn from the seed).")
-@click.option("--height", "height_m", type=click.FloatRange(0.5, 2.6), default=None,
+@click.option("--height", "height_m", type=click.FloatRange(0.5, 2.6, min_open=True, max_open=True), default=None,
               help="The recorded subject's height (m) when the motion file has none.")
 @click.option("--subject-height", "subject_height_m", type=click.FloatRange(0.8, 2.2), default=None,
               help="Scale the walk to a subject of this height (m), e.g. 1.1 for a child.")

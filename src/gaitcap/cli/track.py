@@ -27,7 +27,7 @@ log = logging.getLogger("gaitcap")
 @click.option("--silhouette-config", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
               help="Silhouette configuration YAML (default: the shipped configs/silhouette.yaml), as "
                    "`gaitcap silhouettes -c` takes it.")
-@click.option("--height", "height_m", type=click.FloatRange(0.5, 2.6), default=None,
+@click.option("--height", "height_m", type=click.FloatRange(0.5, 2.6, min_open=True, max_open=True), default=None,
               help="Subject height in metres (default: session.yaml, else estimated).")
 @click.option("--body", type=click.Path(exists=True, path_type=Path), default=None,
               help="Track with the body of an earlier run of the same subject (its output folder, or its "
