@@ -141,6 +141,33 @@ def test_a_config_file_of_a_few_keys_is_told_to_start_from_the_shipped_one(tmp_p
     assert f"start from a copy of {default_config_path('tracking.yaml')}" in str(e.value)
 
 
+def test_a_config_leaving_out_keys_the_shipped_file_sets_otherwise_is_warned_about(tmp_path, caplog):
+    """A key left out takes the schema's default: where that is not the shipped value (the particle budget,
+    the shape calibration on, the priors), the run would differ from the shipped one without a word."""
+    import logging
+
+    data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
+    full = tmp_path / "full.yaml"
+    full.write_text(yaml.safe_dump(data))
+    shipped = data["factored_ipf"]["particles"]
+    del data["factored_ipf"]["particles"], data["shape"]["enabled"], data["prior"], data["smoothing"]["order"]
+    mine = tmp_path / "mine.yaml"
+    mine.write_text(yaml.safe_dump(data))
+    with caplog.at_level(logging.WARNING, logger="gaitcap"):
+        load_tracking_config(full)
+        assert "leaves out" not in caplog.text
+        cfg = load_tracking_config(mine)
+    assert cfg.factored_ipf.particles != shipped and not cfg.shape.enabled
+    line = caplog.text
+    assert "mine.yaml leaves out prior, factored_ipf.particles, shape.enabled, which the shipped tracking.yaml" in line
+    assert f"factored_ipf.particles: default {cfg.factored_ipf.particles}, shipped {shipped}" in line
+    assert "smoothing.order" not in line  # its default is the shipped value
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="gaitcap"):
+        load_tracking_config(mine)  # read again (a batch's next session): said once
+    assert "leaves out" not in caplog.text
+
+
 def test_shape_refit_budget_below_two_particles_is_rejected(tmp_path):
     data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
     data["shape"]["refit_particles"] = [60, 1]

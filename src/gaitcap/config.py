@@ -8,6 +8,7 @@ that name the file and the dotted key, and suggest the closest valid key for a t
 from __future__ import annotations
 
 import difflib
+import logging
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, TypeVar
@@ -18,6 +19,10 @@ from pydantic import BaseModel, ConfigDict, ValidationError
 from gaitcap.errors import ConfigError
 
 M = TypeVar("M", bound=BaseModel)
+
+log = logging.getLogger("gaitcap.config")
+#: the files whose left-out keys were warned about (:func:`load_config_file`)
+_WARNED: set[tuple[str, tuple[str, ...]]] = set()
 
 CONFIG_DIR = Path(__file__).resolve().parent / "configs"
 
@@ -140,12 +145,65 @@ def load_yaml_model(model: type[M], path: str | Path) -> M:
 
 def load_config_file(model: type[M], path: str | Path | None, shipped: str) -> M:
     """The configuration ``path`` (None: the shipped ``configs/<shipped>``). A file given in place of
-    the shipped one is read whole: one that lacks keys is told to start from a copy of the shipped one."""
+    the shipped one is read whole: one that lacks required keys is told to start from a copy of the
+    shipped one, and one that leaves out keys whose schema default is not the shipped value is warned
+    about, naming them (:func:`defaults_unlike_shipped`)."""
+    shipped_path = default_config_path(shipped)
     if path is None:
-        return load_yaml_model(model, default_config_path(shipped))
-    return model_from_mapping(model, read_yaml(path), str(path),
-                              f"a configuration file replaces the shipped one whole (a file of a few keys is not "
-                              f"merged into it): start from a copy of {default_config_path(shipped)}")  # fmt: skip
+        return load_yaml_model(model, shipped_path)
+    data = read_yaml(path)
+    cfg = model_from_mapping(model, data, str(path),
+                             f"a configuration file replaces the shipped one whole (a file of a few keys is not "
+                             f"merged into it): start from a copy of {shipped_path}")  # fmt: skip
+    differ = defaults_unlike_shipped(model, data, read_yaml(shipped_path))
+    said = (str(Path(path).resolve()), tuple(differ))
+    if differ and said not in _WARNED:  # once a process: a batch reads the file for every session
+        _WARNED.add(said)
+        log.warning("%s leaves out %s, which the shipped %s sets otherwise, so the schema's defaults are taken "
+                    "(%s): copy the keys from %s to track as shipped", path, ", ".join(differ), shipped_path.name,
+                    "; ".join(f"{k}: {v}" for k, v in differ.items()), shipped_path)  # fmt: skip
+    return cfg
+
+
+def defaults_unlike_shipped(model: type[BaseModel], data: Any, shipped: Any, prefix: str = "") -> dict[str, str]:
+    """The keys (dotted) the shipped file sets that ``data`` leaves out and whose schema default is not
+    the shipped value, each with ``"default X, shipped Y"``. Sections that are schemas of their own are
+    compared key by key; any other value (a list, a mapping of free keys) as a whole."""
+    data = data if isinstance(data, Mapping) else {}
+    shipped = shipped if isinstance(shipped, Mapping) else {}
+    out: dict[str, str] = {}
+    for name, field in model.model_fields.items():
+        if name not in shipped:
+            continue
+        sub = field.annotation
+        if isinstance(sub, type) and issubclass(sub, BaseModel):
+            if name in data or field.is_required():
+                out.update(defaults_unlike_shipped(sub, data.get(name), shipped[name], f"{prefix}{name}."))
+            else:
+                out.update(defaults_unlike_shipped(sub, {}, shipped[name], f"{prefix}{name}."))
+            continue
+        if name in data or field.is_required():
+            continue
+        default = field.get_default(call_default_factory=True)
+        if _plain(default) != _plain(shipped[name]):
+            out[f"{prefix}{name}"] = f"default {_short(default)}, shipped {_short(shipped[name])}"
+    return out
+
+
+def _plain(value: Any) -> Any:
+    """``value`` with tuples as lists and models as mappings, to compare a default with YAML."""
+    if isinstance(value, BaseModel):
+        return _plain(value.model_dump())
+    if isinstance(value, tuple | list):
+        return [_plain(v) for v in value]
+    if isinstance(value, Mapping):
+        return {k: _plain(v) for k, v in value.items()}
+    return value
+
+
+def _short(value: Any, width: int = 40) -> str:
+    text = repr(_plain(value))
+    return text if len(text) <= width else text[: width - 3] + "..."
 
 
 def default_config_path(name: str) -> Path:
