@@ -264,3 +264,17 @@ def test_ctrl_c_inside_a_compiled_kernel_is_an_abort_not_a_traceback(runner, mon
     result = runner.invoke(cli, ["markers", "walk.c3d"])
     assert result.exit_code == 1 and "Aborted!" in result.output and "SystemError" not in result.output
     assert not isinstance(result.exception, SystemError)
+
+
+def test_the_project_and_its_copied_data_carry_their_licences():
+    """The project's own licence file (pyproject says MIT) and a licence or attribution file beside
+    every folder of copied third-party data (the embedded walk, each fixture folder)."""
+    root = Path(__file__).resolve().parents[1]
+    assert "MIT License" in (root / "LICENSE").read_text()
+    assert "Apache License" in (root / "src" / "gaitcap" / "data" / "LICENSE.txt").read_text()
+    fixtures = root / "tests" / "fixtures"
+    assert "Apache License" in (fixtures / "walking" / "LICENSE-Apache-2.0.txt").read_text()
+    for folder in ("opencv_chessboard_9x6", "pose2sim_qualisys"):
+        assert (fixtures / "calibration" / folder / "LICENSE.txt").stat().st_size > 0
+    for readme in (fixtures / "walking" / "README.md", fixtures / "calibration" / "README.md"):
+        assert "Attribution" in readme.read_text() or "attribute" in readme.read_text()
