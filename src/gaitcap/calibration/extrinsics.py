@@ -378,6 +378,33 @@ def scene_reprojection(rig: CameraRig, scene: ScenePoints) -> dict[str, dict[str
     return out
 
 
+def scene_point_errors(rig: CameraRig, scene: ScenePoints, inlier_px: float = 8.0) -> dict[str, dict[str, float]]:
+    """``camera -> {point: pixel distance}`` of each point from where the camera projects it when
+    posed from the points that agree (``solvePnPRansac`` with ``inlier_px``, then refined on its
+    inliers): a wrong click stands out, where a pose fitted to every point spreads its error over the
+    good ones too. Where no such consensus is found (too few points, or most of them off), the
+    distance from the given pose (:func:`scene_reprojection`)."""
+    out = scene_reprojection(rig, scene)
+    for cam in rig:
+        table = {n: uv for n, uv in scene.pixels.get(cam.name, {}).items() if uv is not None and n in scene.points}
+        if len(table) < 2 * MIN_PNP_POINTS - 2:
+            continue
+        names = list(table)
+        obj = np.array([scene.points[n] for n in names], float)
+        img = np.array([table[n] for n in names], float)
+        try:
+            ok, _, _, inliers = cv2.solvePnPRansac(obj.reshape(-1, 1, 3), img.reshape(-1, 1, 2), cam.matrix, cam.dist,
+                                                   reprojectionError=inlier_px, iterationsCount=200)  # fmt: skip
+            if not ok or inliers is None or len(inliers) < max(MIN_PNP_POINTS, len(names) // 2 + 1):
+                continue
+            keep = inliers.ravel()
+            r, t = _pnp(obj[keep], img[keep], cam, f"camera {cam.name!r}")
+        except (CalibrationError, cv2.error):
+            continue
+        uv = replace(cam, rvec=r, tvec=t).project(obj)
+        out[cam.name] = {n: float(d) for n, d in zip(names, np.linalg.norm(uv - img, axis=1), strict=True)}
+    return out
+
 
 def scene_pixel_disagreement(a: ScenePoints, b: ScenePoints) -> dict[str, dict[str, float]]:
     """``camera -> {point: pixel distance}`` between two pixel tables of the same points.

@@ -250,19 +250,21 @@ def _carry_intrinsics_quality(path: Path, names: list[str], carried: dict[str, d
 def _refuse_poor_extrinsics(res: ext.ExtrinsicsResult, target: Path, max_error: float,
                             scene: ext.ScenePoints | None) -> None:  # fmt: skip
     """Refuse to write a result of fewer than two cameras, or with a camera's reprojection RMS above
-    ``max_error`` px (with ``scene``, each such camera's worst points and their errors named)."""
+    ``max_error`` px (with ``scene``, each such camera's worst points named, each point's error taken
+    against the pose of the points that agree: :func:`gaitcap.calibration.extrinsics.scene_point_errors`)."""
     if len(res.rig) < 2:
         raise CalibrationError(f"{target}: not written: only {', '.join(res.rig.names)} calibrated; tracking needs "
                                "two or more cameras (give every camera's intrinsics)")  # fmt: skip
     poor = {name: rms for name, rms in res.rms_px.items() if rms > max_error}
     if not poor:
         return
-    residuals = ext.scene_reprojection(res.rig, scene) if scene is not None else {}
+    residuals = ext.scene_point_errors(res.rig, scene) if scene is not None else {}
     lines = []
     for name, rms in poor.items():
         worst = sorted(residuals.get(name, {}).items(), key=lambda item: -item[1])[:3]
         lines.append(f"camera {name!r}: reprojection RMS {rms:.2f} px > {max_error:g} px"
-                     + (" (worst points: " + ", ".join(f"{n} {d:.1f} px" for n, d in worst) + ")" if worst else ""))
+                     + (" (worst points, each against the pose the points that agree give: "
+                        + ", ".join(f"{n} {d:.1f} px" for n, d in worst) + ")" if worst else ""))
     raise CalibrationError(f"{target}: not written: a poor calibration:\n  " + "\n  ".join(lines)
                            + "\n  check those points' pixels (or the board views), or give --max-error to accept it")
 
