@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from gaitcap.cli.options import force_option, handle_errors
+from gaitcap.cli.options import FiniteFloatRange, force_option, handle_errors
 from gaitcap.errors import OutputError
 from gaitcap.io.atomic import refuse_existing
 
@@ -23,15 +23,15 @@ EXIT_THRESHOLD = 3
               help="Another tracking output (folder or trajectories.h5) to compare with.")
 @click.option("-o", "--output", type=click.Path(path_type=Path), default=None,
               help="Where to write the JSON results (default: OUT/eval.json, or eval.json beside a file).")
-@click.option("--max-mpjpe-mm", type=click.FloatRange(min=0), default=None, help="Fail above this MPJPE (all points).")
-@click.option("--max-lower-limb-mpjpe-mm", type=click.FloatRange(min=0), default=None,
+@click.option("--max-mpjpe-mm", type=FiniteFloatRange(min=0), default=None, help="Fail above this MPJPE (all points).")
+@click.option("--max-lower-limb-mpjpe-mm", type=FiniteFloatRange(min=0), default=None,
               help="Fail above this MPJPE of the lower limb (hips, knees, ankles: the README's accuracy figure).")
-@click.option("--max-angle-rmse-deg", type=click.FloatRange(min=0), default=None,
+@click.option("--max-angle-rmse-deg", type=FiniteFloatRange(min=0), default=None,
               help="Fail when the RMSE of hip/knee flexion or ankle dorsiflexion (either side) is above this.")
-@click.option("--max-event-error-frames", type=click.FloatRange(min=0), default=None,
+@click.option("--max-event-error-frames", type=FiniteFloatRange(min=0), default=None,
               help="Fail when a gait event of OUT is further than this from the reference's (frames), or a "
                    "reference event is not detected.")
-@click.option("--min-compared-fraction", type=click.FloatRange(min=0, max=1), default=None,
+@click.option("--min-compared-fraction", type=FiniteFloatRange(min=0, max=1), default=None,
               help="Fail when fewer than this fraction (0-1) of OUT's frames are compared (flagged frames, or "
                    "frames the reference does not cover, are not).")
 @click.option("--require-verdict", type=click.Choice(["ok", "doubtful"]), default=None,

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import click
 
-from gaitcap.cli.options import (force_option, handle_errors, mapping_option, seed_option, static_option,
-                                 subject_option)  # fmt: skip
+from gaitcap.cli.options import (FiniteFloatRange, force_option, handle_errors, mapping_option, seed_option,
+                                 static_option, subject_option)  # fmt: skip
 from gaitcap.data import embedded_walk
 from gaitcap.io.video_write import CODECS
 from gaitcap.synth.session import SynthOptions, synthesize
@@ -42,15 +42,15 @@ def parse_floats(_ctx: click.Context, _param: click.Parameter, value: str | None
 @click.option("-o", "--output", "out", required=True, type=click.Path(path_type=Path), help="Session folder to create.")
 @click.option("--cameras", default=2, show_default=True, type=click.IntRange(1, 8), help="Number of cameras.")
 @click.option("--size", default="640x480", show_default=True, callback=parse_size, help="Image size WIDTHxHEIGHT, pixels.")
-@click.option("--fps", default=25.0, show_default=True, type=click.FloatRange(min=1), help="Video frame rate, frames per second.")
+@click.option("--fps", default=25.0, show_default=True, type=FiniteFloatRange(min=1), help="Video frame rate, frames per second.")
 @click.option("--shadow/--no-shadow", default=True, show_default=True, help="Cast the lights' shadows on the floor.")
 @click.option("--distortion/--no-distortion", default=True, show_default=True, help="Lens distortion (drawn per seed).")
 @click.option("--azimuths", default=None, callback=parse_floats,
               help="Camera azimuths in degrees from the walking direction (left positive), e.g. 90,-45 "
                    "(default: a layout drawn from the seed).")
-@click.option("--height", "height_m", type=click.FloatRange(0.5, 2.6, min_open=True, max_open=True), default=None,
+@click.option("--height", "height_m", type=FiniteFloatRange(0.5, 2.6, min_open=True, max_open=True), default=None,
               help="The recorded subject's height (m) when the motion file has none.")
-@click.option("--subject-height", "subject_height_m", type=click.FloatRange(0.8, 2.2), default=None,
+@click.option("--subject-height", "subject_height_m", type=FiniteFloatRange(0.8, 2.2), default=None,
               help="Scale the walk to a subject of this height (m), e.g. 1.1 for a child.")
 @click.option("--codec", default="mp4v", show_default=True, type=click.Choice(sorted(CODECS)),
               help="mp4v (.mp4, lossy), ffv1 (.mkv, lossless) or mjpg (.avi).")

@@ -9,7 +9,7 @@ from pathlib import Path
 import click
 
 from gaitcap.batch import any_failed, find_sessions, format_summary, is_session, run_batch, write_batch_json
-from gaitcap.cli.options import force_option, handle_errors
+from gaitcap.cli.options import FiniteFloatRange, force_option, handle_errors
 from gaitcap.pipeline import TRACKERS, run_track
 
 log = logging.getLogger("gaitcap")
@@ -27,7 +27,7 @@ log = logging.getLogger("gaitcap")
 @click.option("--silhouette-config", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
               help="Silhouette configuration YAML (default: the shipped configs/silhouette.yaml), as "
                    "`gaitcap silhouettes -c` takes it.")
-@click.option("--height", "height_m", type=click.FloatRange(0.5, 2.6, min_open=True, max_open=True), default=None,
+@click.option("--height", "height_m", type=FiniteFloatRange(0.5, 2.6, min_open=True, max_open=True), default=None,
               help="Subject height in metres (default: session.yaml, else estimated).")
 @click.option("--body", type=click.Path(exists=True, path_type=Path), default=None,
               help="Track with the body of an earlier run of the same subject (its output folder, or its "
