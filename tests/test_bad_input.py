@@ -210,3 +210,22 @@ def test_a_corrupt_video_is_named_without_ffmpegs_noise(tmp_path):
     assert res.returncode == 1, res.stderr
     assert "cam1.mp4: cannot open as a video" in res.stderr
     assert "moov" not in res.stderr and "WARN" not in res.stderr, res.stderr
+
+
+def test_a_negative_seed_is_refused_before_the_run(tmp_path):
+    """Found with ``seed: -3`` in a copy of tracking.yaml, and ``--seed -1`` on track and synth: numpy's
+    seed sequences take no negative number, so the run ended in a traceback after reading the videos."""
+    from click.testing import CliRunner
+
+    from gaitcap.cli.main import cli
+    from gaitcap.config import default_config_path
+
+    path = tmp_path / "tracking.yaml"
+    path.write_text(default_config_path("tracking.yaml").read_text().replace("\nseed: 0 ", "\nseed: -3 "))
+    with pytest.raises(ConfigError) as e:
+        load_tracking_config(path)
+    assert message(e) == f"{path}: seed: Input should be greater than or equal to 0"
+    for command in (["track", str(tmp_path), "-o", str(tmp_path / "out")], ["synth", "-o", str(tmp_path / "out")]):
+        result = CliRunner().invoke(cli, [*command, "--seed", "-1"])
+        assert result.exit_code == 2 and "Invalid value for '--seed': -1 is not in the range x>=0" in result.output
+    assert not (tmp_path / "out").exists()

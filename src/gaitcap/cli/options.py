@@ -78,4 +78,4 @@ def static_option(func: F) -> F:
 
 
 def seed_option(func: F) -> F:
-    return click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")(func)
+    return click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True, help="Random seed.")(func)

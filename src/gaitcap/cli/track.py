@@ -34,7 +34,7 @@ log = logging.getLogger("gaitcap")
                    "trajectories.h5): its height and calibrated proportions, without calibrating the shape again. "
                    "Not with --height.")
 @click.option("--max-frames", type=click.IntRange(min=1), default=None, help="Track only the first N frames.")
-@click.option("--seed", type=int, default=None,
+@click.option("--seed", type=click.IntRange(min=0), default=None,
               help="Override the configuration's seed of the tracker's random streams (a run is the same for the "
                    "same seed; another seed draws another run: the spread of the results).")
 @click.option("-j", "--jobs", type=click.IntRange(min=1), default=1, show_default=True,

@@ -318,7 +318,7 @@ class TrackingConfig(Strict):
     backward: BackwardConfig = Field(default_factory=BackwardConfig)
     lost_legs: LostLegsConfig = Field(default_factory=LostLegsConfig)
     threads: int | None = Field(default=None, ge=1)
-    seed: int = 0
+    seed: int = Field(default=0, ge=0)  # numpy's seed sequences take no negative number
 
     @field_validator("intervals", "prior")
     @classmethod
