@@ -283,7 +283,7 @@ def test_the_project_and_its_copied_data_carry_their_licences():
 @pytest.mark.parametrize("args", [
     ["track", "SESSION", "-o", "OUT", "--height", "nan"],
     ["synth", "-o", "OUT", "--fps", "nan"],
-    ["synth", "-o", "OUT", "--fps", "inf"],
+    ["eval", "SESSION", "--truth", "SESSION", "--max-angle-rmse-deg", "inf"],
     ["synth", "-o", "OUT", "--subject-height", "nan"],
     ["eval", "SESSION", "--truth", "SESSION", "--max-mpjpe-mm", "nan"],
     ["eval", "SESSION", "--truth", "SESSION", "--min-compared-fraction", "nan"],
@@ -297,3 +297,19 @@ def test_a_number_option_refuses_nan_and_infinity(runner, tmp_path, args):
     assert result.exit_code == 2, result.output
     assert f"{args[-1]!r} is not a finite number" in result.output
     assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize(("args", "expected"), [
+    (["--fps", "1e9"], "Invalid value for '--fps': 1000000000.0 is not in the range 1<=x<=1000."),
+    (["--size", "99998x99998"], "'99998x99998': width and height must be 64 to 8192 pixels"),
+    (["--size", "8x6"], "'8x6': width and height must be 64 to 8192 pixels"),
+    (["--size", "0x0"], "'0x0': width and height must be 64 to 8192 pixels"),
+])  # fmt: skip
+def test_synth_refuses_a_size_or_rate_that_cannot_be_rendered(runner, tmp_path, args, expected):
+    """Found with synth --fps 1e9: the walk resampled at that rate asked for terabytes and the process was
+    killed by the system (exit 137, nothing said); a huge --size the same; --size 8x6 was told to be
+    'WIDTHxHEIGHT', which it is. Now a usage error giving the range."""
+    result = runner.invoke(cli, ["synth", "-o", str(tmp_path / "s"), *args])
+    assert result.exit_code == 2
+    assert expected in " ".join(result.output.split())
+    assert not (tmp_path / "s").exists()

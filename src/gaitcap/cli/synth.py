@@ -16,13 +16,21 @@ from gaitcap.synth.session import SynthOptions, synthesize
 log = logging.getLogger("gaitcap")
 
 
+#: the sides --size takes, pixels (beyond, the frames and masks held while rendering fill the memory)
+SIZE_RANGE = (64, 8192)
+
+#: the highest --fps (a walk of a few seconds at 1e9 fps asked for terabytes and was killed)
+MAX_FPS = 1000.0
+
+
 def parse_size(_ctx: click.Context, _param: click.Parameter, value: str) -> tuple[int, int]:
     try:
         w, h = (int(v) for v in value.lower().split("x"))
-        if w < 64 or h < 64:
-            raise ValueError
     except ValueError:
         raise click.BadParameter(f"{value!r}: expected WIDTHxHEIGHT, e.g. 640x480") from None
+    lo, hi = SIZE_RANGE
+    if not (lo <= w <= hi and lo <= h <= hi):
+        raise click.BadParameter(f"{value!r}: width and height must be {lo} to {hi} pixels")
     if w % 2 or h % 2:  # the codecs drop an odd last row or column: videos, calibration and masks would differ
         raise click.BadParameter(f"{value!r}: width and height must be even (video codecs need them so)")
     return w, h
@@ -42,7 +50,7 @@ def parse_floats(_ctx: click.Context, _param: click.Parameter, value: str | None
 @click.option("-o", "--output", "out", required=True, type=click.Path(path_type=Path), help="Session folder to create.")
 @click.option("--cameras", default=2, show_default=True, type=click.IntRange(1, 8), help="Number of cameras.")
 @click.option("--size", default="640x480", show_default=True, callback=parse_size, help="Image size WIDTHxHEIGHT, pixels.")
-@click.option("--fps", default=25.0, show_default=True, type=FiniteFloatRange(min=1), help="Video frame rate, frames per second.")
+@click.option("--fps", default=25.0, show_default=True, type=FiniteFloatRange(1, MAX_FPS), help="Video frame rate, frames per second.")
 @click.option("--shadow/--no-shadow", default=True, show_default=True, help="Cast the lights' shadows on the floor.")
 @click.option("--distortion/--no-distortion", default=True, show_default=True, help="Lens distortion (drawn per seed).")
 @click.option("--azimuths", default=None, callback=parse_floats,
