@@ -229,3 +229,13 @@ def test_a_negative_seed_is_refused_before_the_run(tmp_path):
         result = CliRunner().invoke(cli, [*command, "--seed", "-1"])
         assert result.exit_code == 2 and "Invalid value for '--seed': -1 is not in the range x>=0" in result.output
     assert not (tmp_path / "out").exists()
+
+
+def test_a_yaml_file_not_in_utf8_is_named(tmp_path):
+    """Found with a session.yaml saved in Latin-1 (``notes: "café"``): every command that read it ended in
+    a UnicodeDecodeError traceback."""
+    root = make_session(tmp_path / "s")
+    (root / "session.yaml").write_bytes('subject: {height_m: 1.7}\nnotes: "caf\u00e9"\n'.encode("latin-1"))
+    with pytest.raises(ConfigError) as e:
+        Session.open(root)
+    assert message(e) == f"{root / 'session.yaml'}: line 2: not UTF-8 text (byte 0xe9); save the file as UTF-8"

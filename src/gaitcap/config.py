@@ -73,6 +73,10 @@ def read_yaml(path: str | Path) -> Any:
         raise ConfigError(f"{path}: file not found") from e
     except OSError as e:
         raise ConfigError(f"{path}: cannot read ({e.strerror})") from e
+    except UnicodeDecodeError as e:
+        line = e.object[: e.start].count(b"\n") + 1
+        raise ConfigError(f"{path}: line {line}: not UTF-8 text (byte 0x{e.object[e.start]:02x}); save the file as "
+                          f"UTF-8") from e
     try:
         return parse_yaml(text)
     except yaml.YAMLError as e:
