@@ -239,3 +239,13 @@ def test_a_yaml_file_not_in_utf8_is_named(tmp_path):
     with pytest.raises(ConfigError) as e:
         Session.open(root)
     assert message(e) == f"{root / 'session.yaml'}: line 2: not UTF-8 text (byte 0xe9); save the file as UTF-8"
+
+
+def test_a_yaml_syntax_error_is_one_line_with_its_line_number(tmp_path):
+    """Found with a session.yaml whose ``notes`` line lost an indent: PyYAML's message spanned four lines
+    and gave the line against ``"<unicode string>"``, not the file; now one line, after the file's name."""
+    root = make_session(tmp_path / "s", session_yaml="subject:\n  height_m: 1.7\n notes: x\n")
+    with pytest.raises(ConfigError) as e:
+        Session.open(root)
+    assert message(e) == (f"{root / 'session.yaml'}: not valid YAML: did not find expected key at line 3, column 2 "
+                          "(while parsing a block mapping at line 1)")  # fmt: skip

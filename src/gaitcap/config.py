@@ -80,7 +80,19 @@ def read_yaml(path: str | Path) -> Any:
     try:
         return parse_yaml(text)
     except yaml.YAMLError as e:
-        raise ConfigError(f"{path}: not valid YAML: {e}") from e
+        raise ConfigError(f"{path}: not valid YAML: {yaml_problem(e)}") from e
+
+
+def yaml_problem(err: yaml.YAMLError) -> str:
+    """A parser's error on one line, with its line and column in the file (PyYAML's own text spans
+    three to four lines and names the text as ``"<unicode string>"``, not the file)."""
+    if not isinstance(err, yaml.MarkedYAMLError) or err.problem_mark is None:
+        return " ".join(str(err).split())
+    mark = err.problem_mark
+    text = f"{err.problem} at line {mark.line + 1}, column {mark.column + 1}"
+    if err.context and err.context_mark is not None:
+        text += f" ({err.context} at line {err.context_mark.line + 1})"
+    return text
 
 
 def _allowed_keys(model: type[BaseModel], loc: tuple[Any, ...]) -> list[str]:
