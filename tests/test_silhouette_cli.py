@@ -157,6 +157,18 @@ def test_unreadable_plate_is_one_clear_error(session, tmp_path):
     assert result.exit_code == 1 and "cam0.png" in result.output
 
 
+def test_greyscale_plate_of_a_colour_video_is_one_clear_error(session, scene, tmp_path):
+    """Found with a session whose cam1.png was saved in greyscale: the plate differed from every colour
+    frame, the run went on with a warning ('the plate does not match the video') and masks of a third of the
+    image, exit 0. Now refused, naming the plate, before anything is written."""
+    cv2.imwrite(str(session / "background" / "cam0.png"), cv2.cvtColor(scene.plate, cv2.COLOR_BGR2GRAY))
+    result = _run(session, "-o", tmp_path / "out")
+    assert result.exit_code == 1
+    assert (f"{session / 'background' / 'cam0.png'}: background plate is greyscale but the video cam0.avi is in "
+            "colour" in result.output)  # fmt: skip
+    assert not (tmp_path / "out" / "silhouettes.h5").exists()
+
+
 def test_bad_config_key_is_one_clear_error(session, tmp_path):
     cfg = tmp_path / "s.yaml"
     cfg.write_text("foreground:\n  treshold_sigma: 3\n")

@@ -116,9 +116,22 @@ def prepare_extractor(source: Source, config: SilhouetteConfig) -> tuple[Silhoue
                 f"{source.video.name} is {info.width}x{info.height}"
             )
     samples = sample_frames(source.video, bcfg.samples)
+    if plate is not None and ((_colour(plate) == 0 and _colour(samples) >= 2) or
+                              (_colour(plate) >= 2 and _colour(samples) == 0)):  # fmt: skip
+        plate_kind, video_kind = ("greyscale", "in colour") if _colour(plate) == 0 else ("in colour", "greyscale")
+        raise InputError(f"{source.plate}: background plate is {plate_kind} but the video {source.video.name} is "
+                         f"{video_kind}: save the plate from this camera as the video records it")
     extractor = SilhouetteExtractor(config, name=source.camera)
     extractor.fit_background(plate=plate, samples=samples)
     return extractor, info.fps
+
+
+def _colour(images: np.ndarray) -> float:
+    """How far BGR ``images`` are from grey: the mean difference of neighbouring channels, grey levels
+    (0 for a greyscale image read as BGR; 3 to 28 for decoded colour video on the suite's and the
+    external sessions' rooms)."""
+    x = images.reshape(-1, 3)[:: max(1, images.size // 3 // 200_000)].astype(np.int16)
+    return float(np.abs(np.diff(x, axis=1)).mean())
 
 
 #: the folder of the overlay videos (``--overlay``), in the output folder
