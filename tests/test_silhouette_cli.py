@@ -169,6 +169,17 @@ def test_greyscale_plate_of_a_colour_video_is_one_clear_error(session, scene, tm
     assert not (tmp_path / "out" / "silhouettes.h5").exists()
 
 
+def test_a_session_whose_cameras_run_at_different_rates_is_refused(session, scene, tmp_path):
+    """Found with a session whose cam1 was re-encoded at 30 fps: track refused it, silhouettes took the
+    cameras' frames k together (the floor check across cameras) as if they were one instant, exit 0."""
+    write_video(session / "videos" / "cam1.avi", scene.frames, fps=30.0)
+    result = _run(session, "-o", tmp_path / "out")
+    assert result.exit_code == 1
+    assert "the cameras' frame rates differ: cam0 25 fps, cam1 30 fps; re-encode the videos at one rate" in result.output
+    assert not (tmp_path / "out" / "silhouettes.h5").exists()
+    assert _run("--video", session / "videos", "-o", tmp_path / "plain").exit_code == 0  # plain videos: apart
+
+
 def test_bad_config_key_is_one_clear_error(session, tmp_path):
     cfg = tmp_path / "s.yaml"
     cfg.write_text("foreground:\n  treshold_sigma: 3\n")

@@ -13,6 +13,7 @@ from __future__ import annotations
 import contextlib
 import csv
 import logging
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -190,9 +191,11 @@ def run_silhouettes(
     attrs = file_attrs(config)
     # prepare every camera first: bad input fails before anything is written
     prepared = [_Camera(s, *prepare_extractor(s, config)) for s in sources]
+    calibrated = all(s.calibration is not None for s in sources)
+    if calibrated:  # a session's cameras are read frame by frame together and checked against each other
+        _check_rates(prepared)
     for folder in (out, out / OVERLAY_DIR):  # temporary files of a run that was killed
         remove_stale_parts(folder)
-    calibrated = all(s.calibration is not None for s in sources)
     groups = [prepared] if calibrated else [[c] for c in prepared]
     with atomic_path(out / CSV_NAME) as csv_tmp, csv_tmp.open("w", newline="") as fh, SilhouetteWriter(
         out / H5_NAME, attrs
@@ -212,6 +215,15 @@ def run_silhouettes(
                     if progress is not None:
                         progress(c.source.camera, index)
         return [c.summary() for c in prepared]  # raises, writing nothing, when a video had no frame
+
+
+def _check_rates(prepared: Sequence[_Camera]) -> None:
+    """Refuse a session whose videos' frame rates differ (their frames k are not the same instant), in
+    the words of :func:`gaitcap.session_check.check_session_videos`."""
+    first = prepared[0].fps
+    if not all(math.isclose(c.fps, first, rel_tol=1e-3) for c in prepared):
+        listing = ", ".join(f"{c.source.camera} {c.fps:g} fps" for c in prepared)
+        raise InputError(f"the cameras' frame rates differ: {listing}; re-encode the videos at one rate")
 
 
 @dataclass
