@@ -249,3 +249,22 @@ def test_a_yaml_syntax_error_is_one_line_with_its_line_number(tmp_path):
         Session.open(root)
     assert message(e) == (f"{root / 'session.yaml'}: not valid YAML: did not find expected key at line 3, column 2 "
                           "(while parsing a block mapping at line 1)")  # fmt: skip
+
+
+def test_a_rotation_matrix_in_calibration_toml_is_named_as_such(tmp_path):
+    """Found by writing a camera's rotation as its 3x3 matrix (as other tools export it): the message said
+    'rotation and translation must be 3 finite numbers', though both were finite; now it says what the file
+    takes instead."""
+    import tomllib
+
+    import tomli_w
+
+    root = make_session(tmp_path / "s")
+    toml = root / "calibration.toml"
+    data = tomllib.loads(toml.read_text())
+    data["cam1"]["rotation"] = cv2.Rodrigues(np.asarray(data["cam1"]["rotation"]))[0].tolist()
+    toml.write_text(tomli_w.dumps(data))
+    with pytest.raises(CalibrationError) as e:
+        Session.open(root)
+    assert message(e) == (f"{toml}: camera 'cam1': rotation is a 3x3 matrix; calibration.toml takes the Rodrigues "
+                          "vector [rx, ry, rz] (radians, world -> camera): convert it with cv2.Rodrigues")  # fmt: skip

@@ -65,6 +65,10 @@ class Camera:
             )
         rvec = np.asarray(self.rvec, dtype=np.float64).ravel()
         tvec = np.asarray(self.tvec, dtype=np.float64).ravel()
+        if rvec.size == 9:
+            raise CalibrationError(f"camera {self.name!r}: rotation is a 3x3 matrix; calibration.toml takes the "
+                                   "Rodrigues vector [rx, ry, rz] (radians, world -> camera): convert it with "
+                                   "cv2.Rodrigues")  # fmt: skip
         if rvec.shape != (3,) or tvec.shape != (3,) or not np.all(np.isfinite(np.r_[rvec, tvec])):
             raise CalibrationError(f"camera {self.name!r}: rotation and translation must be 3 finite numbers")
         w, h = (int(v) for v in self.size)
