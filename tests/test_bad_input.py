@@ -268,3 +268,15 @@ def test_a_rotation_matrix_in_calibration_toml_is_named_as_such(tmp_path):
         Session.open(root)
     assert message(e) == (f"{toml}: camera 'cam1': rotation is a 3x3 matrix; calibration.toml takes the Rodrigues "
                           "vector [rx, ry, rz] (radians, world -> camera): convert it with cv2.Rodrigues")  # fmt: skip
+
+
+def test_two_cameras_of_one_name_in_calibration_toml_name_the_file_and_tables(tmp_path):
+    """Found by giving a session's second table the first one's ``name``: the error said 'duplicate camera
+    names: cam0', without the file or the tables."""
+    root = make_session(tmp_path / "s")
+    toml = root / "calibration.toml"
+    toml.write_text(toml.read_text().replace('name = "cam1"', 'name = "cam0"'))
+    with pytest.raises(CalibrationError) as e:
+        Session.open(root)
+    assert message(e) == (f"{toml}: the tables [cam0], [cam1] give the same camera name 'cam0': each camera needs its "
+                          "own (its video's name)")  # fmt: skip

@@ -54,6 +54,12 @@ def read_calibration(path: str | Path) -> CameraRig:
         cams.append(Camera.from_dict(table, source=str(path)))
     if not cams:
         raise CalibrationError(f"{path}: no camera tables found")
+    names = [cam.name for cam in cams]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        tables = [key for key in data if key != METADATA_TABLE and str(data[key].get("name", key)) in dup]
+        raise CalibrationError(f"{path}: the tables {', '.join(f'[{k}]' for k in tables)} give the same camera name "
+                               f"{', '.join(map(repr, dup))}: each camera needs its own (its video's name)")
     return CameraRig(tuple(cams))
 
 
