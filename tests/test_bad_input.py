@@ -144,7 +144,7 @@ def test_output_under_a_file_is_refused(tmp_path):
     blocker.write_text("a file, not a folder")
     with pytest.raises(OutputError) as e:
         write_trajectory(blocker / "OUT" / "trajectories.h5", small_trajectory())
-    assert message(e) == f"{blocker / 'OUT' / 'trajectories.h5'}: cannot write here (Not a directory)"
+    assert message(e) == f"{blocker}: is a file, not a folder: cannot write {blocker / 'OUT' / 'trajectories.h5'} under it"
 
 
 def test_read_only_output_folder(read_only_dir):
@@ -280,3 +280,23 @@ def test_two_cameras_of_one_name_in_calibration_toml_name_the_file_and_tables(tm
         Session.open(root)
     assert message(e) == (f"{toml}: the tables [cam0], [cam1] give the same camera name 'cam0': each camera needs its "
                           "own (its video's name)")  # fmt: skip
+
+
+def test_an_output_folder_that_is_a_file_is_named_before_the_work(tmp_path):
+    """Found with ``gaitcap silhouettes SESSION -o FILE`` and ``gaitcap report OUT -o FILE``: the error came
+    after the backgrounds were fitted (or the gait analysed) and said 'FILE/silhouettes_quality.csv: cannot
+    write here (File exists)', of a file that did not exist; now it names the file in the way, and
+    silhouettes says so before reading the videos."""
+    from gaitcap.silhouette.run import run_silhouettes, sources_from_session
+
+    blocker = tmp_path / "results"
+    blocker.write_text("a file, not a folder")
+    with pytest.raises(OutputError) as e:
+        write_text_atomic(blocker / "events.csv", "")
+    assert message(e) == f"{blocker}: is a file, not a folder: cannot write {blocker / 'events.csv'} under it"
+    sources = sources_from_session(make_session(tmp_path / "s"))
+    sources[0] = sources[0].__class__(sources[0].camera, tmp_path / "missing.avi", None, sources[0].calibration)
+    for out in (blocker, blocker / "sub"):  # refused before the (here missing) video is opened
+        with pytest.raises(OutputError) as e:
+            run_silhouettes(sources, out)
+        assert message(e).startswith(f"{blocker}: is a file, not a folder; give an output folder")

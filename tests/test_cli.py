@@ -111,7 +111,7 @@ def test_synth_never_deletes_what_is_not_a_session_and_refuses_what_it_cannot_wr
     assert (out / "thesis.tex").read_text() == "mine"
     blocker = tmp_path / "afile"
     blocker.write_text("x")
-    for target, said in ((blocker, "is a file"), (blocker / "sess", "cannot write here")):
+    for target, said in ((blocker, "is a file"), (blocker / "sess", f"{blocker}: is a file, not a folder: cannot write {blocker / 'sess'} under it")):
         result = runner.invoke(cli, ["-q", "synth", "-o", str(target)])
         assert result.exit_code == 1 and said in result.output and "Traceback" not in result.output, result.output
     result = runner.invoke(cli, ["-q", "synth", "-o", str(tmp_path / "odd"), "--size", "641x479"])

@@ -38,7 +38,7 @@ from gaitcap.body.recorded import recorded_model
 from gaitcap.camera import CameraRig
 from gaitcap.errors import ConfigError, InputError, OutputError, TrackingError
 from gaitcap.gait.passes import directed_passes
-from gaitcap.io.atomic import remove_replaced, remove_stale_parts, write_text_atomic
+from gaitcap.io.atomic import check_output_folder, remove_replaced, remove_stale_parts, write_text_atomic
 from gaitcap.io.silhouettes_h5 import SILHOUETTES_FILE, SilhouetteWriter
 from gaitcap.io.spool import FrameSpool
 from gaitcap.io.track_h5 import (QUALITY_NOT_INITIALISED, QUALITY_OK, QUALITY_OUT_OF_VIEW, QUALITY_POOR_FIT,
@@ -118,8 +118,7 @@ def _check_out(out: Path, force: bool) -> None:
     """Refuse an output that cannot be written (creates nothing)."""
     if is_finished(out) and not force:
         raise OutputError(f"{out}: already holds a finished run (use --force to redo it)")
-    if out.exists() and not out.is_dir():
-        raise OutputError(f"{out}: exists and is not a folder")
+    check_output_folder(out)
 
 
 def _prepare_out(out: Path, save_masks: bool = False) -> None:

@@ -38,6 +38,25 @@ def refuse_existing(path: str | Path, force: bool) -> None:
         raise OutputError(f"{path}: exists already (use --force to overwrite)")
 
 
+def file_in_the_way(folder: str | Path) -> Path | None:
+    """The file (not a folder) at ``folder`` or at one of its parents, which keeps ``folder`` from being
+    a folder; None when there is none."""
+    folder = Path(folder)
+    return next((p for p in (folder, *folder.parents) if p.exists() and not p.is_dir()), None)
+
+
+def check_output_folder(folder: str | Path) -> None:
+    """Raise :class:`OutputError` when a file stands where the output folder ``folder`` (or one of its
+    parents) must be (called before the work, so that nothing is computed and then refused)."""
+    blocker = file_in_the_way(folder)
+    if blocker is not None:
+        raise OutputError(f"{blocker}: is a file, not a folder; give an output folder{_under(blocker, folder)}")
+
+
+def _under(blocker: Path, folder: str | Path) -> str:
+    return "" if blocker == Path(folder) else f" (for {folder})"
+
+
 def remove_replaced(paths: Iterable[Path]) -> None:
     """Remove an earlier run's outputs (files or folders) that a new run replaces.
 
@@ -74,6 +93,9 @@ def atomic_path(target: str | Path, suffix: str | None = None) -> Iterator[Path]
             prefix=f".{target.name}.", suffix=suffix or (target.suffix + ".part"), dir=target.parent
         )
     except OSError as e:
+        blocker = file_in_the_way(target.parent)
+        if blocker is not None:
+            raise OutputError(f"{blocker}: is a file, not a folder: cannot write {target} under it") from e
         raise OutputError(f"{target}: cannot write here ({e.strerror})") from e
     os.close(fd)
     tmp_path = Path(tmp)
