@@ -134,3 +134,26 @@ def test_readme_lists_every_file_report_writes() -> None:
     for name in FILES:
         assert f"`{name}`" in section, name
     assert "degrees" in section and "Y_SCREEN" in section
+
+
+def test_a_report_stopped_half_way_leaves_no_earlier_report_beside_its_files(tmp_path, monkeypatch) -> None:
+    """Found by interrupting 'gaitcap report OUT' (Ctrl-C after 3 s) over an earlier report: events.csv,
+    parameters.json ... were the new run's and report.html the earlier run's, a set that looked complete.
+    Now the earlier files are removed first: the stopped run leaves only what it wrote, and no report.html."""
+    import gaitcap.report.pipeline as report_pipeline
+
+    out = tmp_path / "OUT"
+    write_trajectory(out / "trajectories.h5", Walker(duration=4.0, rate_hz=25.0).trajectory())
+    assert CliRunner().invoke(cli, ["report", str(out)]).exit_code == 0
+    assert all((out / "gait" / f).is_file() for f in FILES)
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(report_pipeline, "write_c3d", interrupted)
+    res = CliRunner().invoke(cli, ["report", str(out)])
+    assert res.exit_code == 1 and "Aborted!" in res.output
+    assert sorted(p.name for p in (out / "gait").iterdir()) == sorted(FILES[:6])  # the new run's, before the C3D
+    monkeypatch.undo()
+    assert CliRunner().invoke(cli, ["report", str(out)]).exit_code == 0  # a re-run writes the whole set
+    assert all((out / "gait" / f).is_file() for f in FILES)

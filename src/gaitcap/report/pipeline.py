@@ -13,7 +13,7 @@ from gaitcap.gait.analysis import GaitAnalysis, analyse
 from gaitcap.gait.events import WalkingDirection
 from gaitcap.gait.options import GaitOptions
 from gaitcap.io import gait_outputs
-from gaitcap.io.atomic import write_text_atomic
+from gaitcap.io.atomic import remove_replaced, write_text_atomic
 from gaitcap.io.c3d_export import write_c3d
 from gaitcap.io.trajectories_h5 import read_trajectory
 from gaitcap.report.fit import FitRecord, angle_bands, load_fit_record, select_frames
@@ -164,16 +164,19 @@ def run_report(
     if recorded_events and not traj.events:
         raise InputError(f"{path}: --recorded-events: the file records no gait event")
     out = Path(out_dir) if out_dir is not None else (Path(source) if Path(source).is_dir() else path.parent) / GAIT_DIR
-    try:
-        a = analyse(traj, options, recorded=recorded_events)
-    except InputError as e:
-        raise _fit_only(path, traj, out / "report.html", session, e, record) from e
     files = {
         "events": out / "events.csv", "parameters_json": out / "parameters.json",
         "parameters_csv": out / "parameters.csv", "strides": out / "strides.csv",
         "angles": out / "angles.csv", "cycles": out / "cycles.h5",
         "c3d": out / "trajectories.c3d", "html": out / "report.html",
     }  # fmt: skip
+    # an earlier report's files go first: a run that stops half-way (Ctrl-C, an analysis that fails) leaves
+    # only its own, not a set of two runs' (report.html, written last, says that the set is complete)
+    remove_replaced([p for p in files.values() if p.is_file()])
+    try:
+        a = analyse(traj, options, recorded=recorded_events)
+    except InputError as e:
+        raise _fit_only(path, traj, files["html"], session, e, record) from e
     gait_outputs.write_events_csv(files["events"], a.events, traj)
     gait_outputs.write_parameters(files["parameters_json"], files["parameters_csv"], a.parameters, read_verdict(record))
     gait_outputs.write_strides_csv(files["strides"], a.parameters)
