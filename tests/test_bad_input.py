@@ -300,3 +300,20 @@ def test_an_output_folder_that_is_a_file_is_named_before_the_work(tmp_path):
         with pytest.raises(OutputError) as e:
             run_silhouettes(sources, out)
         assert message(e).startswith(f"{blocker}: is a file, not a folder; give an output folder")
+
+
+def test_an_infinite_or_nan_number_in_a_config_is_refused_naming_the_key(tmp_path):
+    """YAML's .inf and .nan passed every bound of the schemas (beta: .inf tracked on, verdict doubtful)."""
+    import yaml
+
+    from gaitcap.config import default_config_path
+    from gaitcap.errors import ConfigError
+    from gaitcap.tracking.config import load_tracking_config
+
+    data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
+    for key, value in (("beta", ".inf"), ("beta", ".nan")):
+        text = yaml.safe_dump({**data, key: 1.0}).replace(f"{key}: 1.0", f"{key}: {value}")
+        path = tmp_path / "t.yaml"
+        path.write_text(text)
+        with pytest.raises(ConfigError, match=rf"t\.yaml: {key}: .*finite"):
+            load_tracking_config(path)

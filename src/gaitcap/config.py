@@ -59,9 +59,10 @@ def parse_yaml(text: str) -> Any:
 
 
 class Strict(BaseModel):
-    """Base of every config schema: unknown keys are errors, values are validated on assignment."""
+    """Base of every config schema: unknown keys are errors, values are validated on assignment, and a
+    number must be finite (YAML's .inf and .nan pass every bound check otherwise)."""
 
-    model_config = ConfigDict(extra="forbid", validate_assignment=True, frozen=False)
+    model_config = ConfigDict(extra="forbid", validate_assignment=True, frozen=False, allow_inf_nan=False)
 
 
 def read_yaml(path: str | Path) -> Any:
