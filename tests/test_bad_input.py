@@ -317,3 +317,34 @@ def test_an_infinite_or_nan_number_in_a_config_is_refused_naming_the_key(tmp_pat
         path.write_text(text)
         with pytest.raises(ConfigError, match=rf"t\.yaml: {key}: .*finite"):
             load_tracking_config(path)
+
+
+def test_a_disk_about_to_be_full_stops_the_stream_before_hdf5_fails(tmp_path, monkeypatch):
+    """On a full disk the HDF5 library cannot close a file cleanly (a 300 kB tmpfs: 'gaitcap silhouettes'
+    crashed with a segmentation fault, exit 139, after screens of h5py tracebacks). The writers stop while
+    32 MB are still free, with one error naming the folder, and leave no file under the final name."""
+    import shutil
+    from collections import namedtuple
+
+    import numpy as np
+
+    from gaitcap.errors import OutputError
+    from gaitcap.io import atomic
+    from gaitcap.io.silhouettes_h5 import _QUALITY, SilhouetteWriter
+
+    usage = namedtuple("usage", "total used free")
+    real = shutil.disk_usage
+    free = {"bytes": 10**9}
+    monkeypatch.setattr(atomic.shutil, "disk_usage", lambda p: usage(*real(p)[:2], free["bytes"]))
+    target = tmp_path / "out" / "silhouettes.h5"
+    target.parent.mkdir()
+    with pytest.raises(OutputError, match=r"out: 20\.0 MB free on its disk, under the 32 MB a run keeps"):
+        with SilhouetteWriter(target) as w:
+            w.add_camera("c", 64, 48, None, {})
+            for t in range(10):
+                if t == 5:
+                    free["bytes"] = 20_000_000  # the disk fills while the run writes
+                w.append("c", np.zeros((48, 64), np.uint8), {k: 0 for k in _QUALITY})
+    assert list(target.parent.iterdir()) == []
+    with pytest.raises(OutputError, match=r"new/deeper: 20\.0 MB free"):  # before the work, of a folder not made yet
+        atomic.check_free_space(tmp_path / "new" / "deeper")

@@ -38,7 +38,8 @@ from gaitcap.body.recorded import recorded_model
 from gaitcap.camera import CameraRig
 from gaitcap.errors import ConfigError, InputError, OutputError, TrackingError
 from gaitcap.gait.passes import directed_passes
-from gaitcap.io.atomic import check_output_folder, remove_replaced, remove_stale_parts, write_text_atomic
+from gaitcap.io.atomic import (check_free_space, check_output_folder, remove_replaced, remove_stale_parts,
+                               write_text_atomic)  # fmt: skip
 from gaitcap.io.silhouettes_h5 import SILHOUETTES_FILE, SilhouetteWriter
 from gaitcap.io.spool import FrameSpool
 from gaitcap.io.track_h5 import (QUALITY_NOT_INITIALISED, QUALITY_OK, QUALITY_OUT_OF_VIEW, QUALITY_POOR_FIT,
@@ -119,6 +120,7 @@ def _check_out(out: Path, force: bool) -> None:
     if is_finished(out) and not force:
         raise OutputError(f"{out}: already holds a finished run (use --force to redo it)")
     check_output_folder(out)
+    check_free_space(out)
 
 
 def _prepare_out(out: Path, save_masks: bool = False) -> None:

@@ -31,6 +31,27 @@ def default_dir_mode() -> int:
     return 0o777 & ~_umask()
 
 
+#: the free space (bytes) a run leaves on the disk it writes to: below it, it stops with an error rather
+#: than fill the disk, since the HDF5 library cannot close a file cleanly once a write has failed
+#: (h5py issue 914: the process crashes)
+MIN_FREE_BYTES = 32_000_000
+
+
+def check_free_space(folder: str | Path, min_bytes: int = MIN_FREE_BYTES) -> None:
+    """Raise :class:`OutputError` when the disk holding ``folder`` (or, before it is made, its nearest
+    existing parent) has less than ``min_bytes`` free: called before a run's work, before a stream's
+    file is opened and as each frame is written (a disk whose space cannot be read is not checked)."""
+    existing = next((p for p in (Path(folder), *Path(folder).parents) if p.exists()), None)
+    try:
+        free = shutil.disk_usage(existing if existing is not None else ".").free
+    except OSError:
+        return
+    if free < min_bytes:
+        raise OutputError(f"{folder}: {free / 1e6:.1f} MB free on its disk, under the {min_bytes / 1e6:.0f} MB a run "
+                          "keeps: stopped before the disk is full (an HDF5 file cannot be closed cleanly on a full "
+                          "disk); free some space and run again")  # fmt: skip
+
+
 def refuse_existing(path: str | Path, force: bool) -> None:
     """Raise :class:`OutputError` when ``path`` exists and ``force`` is not given (called before the work, so
     that nothing is computed and then refused)."""

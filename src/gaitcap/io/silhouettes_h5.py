@@ -28,7 +28,7 @@ import h5py
 import numpy as np
 
 from gaitcap.errors import InputError, OutputError
-from gaitcap.io.atomic import atomic_path
+from gaitcap.io.atomic import atomic_path, check_free_space
 
 #: the file name of the silhouettes in an output folder (``gaitcap silhouettes``, ``gaitcap track --save-masks``)
 SILHOUETTES_FILE = "silhouettes.h5"
@@ -51,6 +51,7 @@ class SilhouetteWriter:
 
     def __init__(self, path: str | Path, attrs: dict[str, Any] | None = None) -> None:
         self.path = Path(path)
+        check_free_space(self.path.parent)
         self._stack = contextlib.ExitStack()
         tmp = self._stack.enter_context(atomic_path(self.path))
         try:
@@ -91,6 +92,7 @@ class SilhouetteWriter:
 
     def append(self, camera: str, mask: np.ndarray, quality: dict[str, Any]) -> None:
         """Add one frame: ``mask`` (H, W) uint8 0/1 and its quality values (keys of the layout)."""
+        check_free_space(self.path.parent)
         t = self._count[camera]
         ds = self._h5[f"masks/{camera}"]
         ds.resize(t + 1, axis=0)

@@ -33,7 +33,7 @@ import numpy as np
 
 from gaitcap import __version__
 from gaitcap.errors import InputError, OutputError
-from gaitcap.io.atomic import atomic_path
+from gaitcap.io.atomic import atomic_path, check_free_space
 from gaitcap.io.trajectories_h5 import label_units
 
 if TYPE_CHECKING:
@@ -58,6 +58,7 @@ class TrackWriter:
     def __init__(self, path: str | Path, names: tuple[str, ...], dof_names: tuple[str, ...], rate_hz: float,
                  attrs: dict[str, Any], dof_units: tuple[str, ...] | None = None) -> None:  # fmt: skip
         self.path = Path(path)
+        check_free_space(self.path.parent)
         self._stack = contextlib.ExitStack()
         tmp = self._stack.enter_context(atomic_path(self.path, suffix=".part.h5"))
         try:
@@ -89,6 +90,7 @@ class TrackWriter:
     def append(self, points: np.ndarray, uncertainty: np.ndarray, pose: np.ndarray, likelihood: float, fit: float,
                quality: int) -> None:  # fmt: skip
         """One frame: points (P, 3), uncertainty (P,) (the particles' spread), pose (D,)."""
+        check_free_space(self.path.parent)
         i = self.n
         for key in self._ds:
             self._ds[key].resize(i + 1, axis=0)

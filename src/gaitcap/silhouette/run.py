@@ -24,8 +24,8 @@ import yaml
 
 from gaitcap import __version__
 from gaitcap.errors import InputError, OutputError
-from gaitcap.io.atomic import (atomic_path, check_output_folder, refuse_existing, remove_replaced,
-                               remove_stale_parts)  # fmt: skip
+from gaitcap.io.atomic import (atomic_path, check_free_space, check_output_folder, refuse_existing,
+                               remove_replaced, remove_stale_parts)  # fmt: skip
 from gaitcap.io.silhouettes_h5 import SILHOUETTES_FILE, SilhouetteWriter
 from gaitcap.io.video_write import AtomicVideoWriter as VideoWriter
 from gaitcap.camera import Camera
@@ -148,6 +148,7 @@ def _check_outputs(out: Path, force: bool) -> None:
     """Refuse an earlier run's outputs (unless ``force``); with ``force``, remove its PNG masks and
     overlay videos, which would otherwise be left beside (or mixed into) this run's, whatever it writes."""
     check_output_folder(out)
+    check_free_space(out)
     earlier = [*sorted(out.glob(f"{PNG_DIR}/*/[0-9][0-9][0-9][0-9][0-9][0-9].png")),
                *sorted(p for p in out.glob(f"{OVERLAY_DIR}/*.mp4") if not p.name.startswith("."))]  # fmt: skip
     for target in (out / H5_NAME, out / CSV_NAME, *earlier[:1]):
