@@ -248,3 +248,30 @@ def test_an_edge_event_never_displaces_a_full_one() -> None:
     edge = _Extremum(52.0, 0.9, "right", "foot_off", edge="end")
     assert _alternate([full, edge]) == [full]
     assert _alternate([_Extremum(40.0, 0.3, "right", "foot_off", edge="start"), edge])[0].prominence == 0.9
+
+
+def test_a_slow_walk_is_refined_over_windows_as_long_as_its_strides() -> None:
+    # the embedded Plug-in-Gait walk slowed three times (the same motion, strides of 3.3 s, still
+    # sampled at 100 Hz): its heel lands 110-130 ms after the Zeni anchor, past the 0.12 s window
+    # set for a normal cadence, so every foot strike kept its anchor, over 110 ms early
+    from gaitcap.data import embedded_walk
+    from gaitcap.gait.events import SOURCE_REFINED
+    from gaitcap.markers.motion import read_motion
+
+    walk = read_motion(embedded_walk())
+    k = 3.0
+    t = walk.times()
+    slow_t = np.arange(t[0] * k, t[-1] * k, 1.0 / walk.rate_hz) / k
+    flat = walk.points.reshape(walk.n_frames, -1)
+    points = np.stack([np.interp(slow_t, t, flat[:, j]) for j in range(flat.shape[1])], axis=1)
+    slow = replace(walk, points=points.reshape(len(slow_t), -1, 3), t0_s=walk.t0_s * k,
+                   events=tuple(replace(e, time_s=e.time_s * k) for e in walk.events))  # fmt: skip
+    events, _ = detect_events(slow)
+    strikes = [e for e in events if e.event == "foot_strike"]
+    assert len(strikes) == 4 and all(e.source == SOURCE_REFINED for e in strikes)
+    errors = [e.time_s - min((r for r in slow.events if (r.side, r.event) == (e.side, e.event)),
+                             key=lambda r: abs(r.time_s - e.time_s)).time_s for e in strikes]  # fmt: skip
+    assert all(-0.04 < x < 0.08 for x in errors), errors
+    # at its own pace the walk is refined over the windows as given
+    own, _ = detect_events(walk)
+    assert [e.time_s for e in own] == [e.time_s for e in detect_events(walk, GaitOptions(window_stride_s=100.0))[0]]

@@ -93,6 +93,9 @@ class GaitOptions(Strict):
             fast (at 25 fps it makes events worse, see :mod:`gaitcap.gait.events`).
         strike_window_s: the foot-strike refinement looks this far after the anchor.
         off_window_s: the foot-off refinement looks this far after (and half as far before) it.
+        window_stride_s: the two windows above are for strides up to this long (s); on a walk whose
+            median stride is longer (a slow walker) they widen in proportion (see
+            :mod:`gaitcap.gait.events`).
         plausible: the plausible range of each parameter (:class:`PlausibleRanges`); its highest
             cadence also sets the shortest interval between the strikes of the two feet.
     """
@@ -107,4 +110,5 @@ class GaitOptions(Strict):
     refine_min_rate_hz: float = Field(50.0, ge=0.0)
     strike_window_s: float = Field(0.12, gt=0.0)
     off_window_s: float = Field(0.1, gt=0.0)
+    window_stride_s: float = Field(1.25, gt=0.0)
     plausible: PlausibleRanges = Field(default_factory=PlausibleRanges)
