@@ -223,3 +223,30 @@ def test_the_tracker_s_leg_order_takes_a_turn_walked_round_frame_by_frame():
     up, _, _, _ = _up_and_down()
     spans = pipeline._passes(up.points, up.names, RATE)
     assert len(spans) == 2 and all(lines is None for _, _, lines in spans)
+
+
+@pytest.mark.parametrize("recorded", [False, True])
+def test_the_stride_across_a_stop_in_a_straight_walk_is_left_out(recorded: bool) -> None:
+    # the embedded Plug-in-Gait walk held still for 1 s in double support (its frame at 1.74 s
+    # repeated): the stride across the stop was counted as a gait cycle, double support 41.6 % and
+    # the stride time's symmetry index -62 %, and nothing said
+    from gaitcap.data import embedded_walk
+    from gaitcap.markers.motion import read_motion
+
+    walk = read_motion(embedded_walk())
+    at, hold = 22, 100  # frame 22 (1.74 s, both feet down), 100 frames at 100 Hz
+    points = np.concatenate([walk.points[: at + 1], np.repeat(walk.points[at : at + 1], hold, axis=0), walk.points[at + 1 :]])
+    t_at = walk.t0_s + at / walk.rate_hz
+    events = tuple(replace(e, time_s=e.time_s + (hold / walk.rate_hz if e.time_s > t_at else 0.0)) for e in walk.events)
+    paused = replace(walk, points=points, events=events)
+    own, stopped = analyse(walk, recorded=recorded), analyse(paused, recorded=recorded)
+    assert "stops_s" not in own.parameters.info
+    (a, b), = stopped.parameters.info["stops_s"]
+    assert t_at < a < b < t_at + hold / walk.rate_hz
+    assert "stood still" in stopped.parameters.reason
+    assert len(stopped.events) == len(own.events)  # the events are found as before, on both sides of it
+    # no stride holds the stop: each one left is one of the walk at its own pace, times shifted
+    assert stopped.parameters.overall["n_strides"] == own.parameters.overall["n_strides"] - 1
+    assert all(s.stride_time_s < 1.2 for s in stopped.parameters.strides)
+    ds = stopped.parameters.overall["double_support_pct"]
+    assert abs(ds - own.parameters.overall["double_support_pct"]) < 2.0

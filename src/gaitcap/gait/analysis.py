@@ -8,6 +8,12 @@ whole clip, the heel's lead over the pelvis runs the other way after a turn, and
 events (:mod:`gaitcap.gait.events`) would take every foot off on the way back for a foot strike. The
 events, cycles, strides and steps of the passes are then put together; the frames of a pause or of a
 turn walked round belong to no pass (no event, no angle there). A clip without a turn is one pass: the analysis as before.
+
+A subject who stops in the middle of a pass and walks on (:func:`gaitcap.gait.passes.stops`: the
+pelvis and both feet still for about 0.7 s or more) has the pass cut there after its events are
+detected: the stride and the step across the stop are no gait cycle and no step (the Plug-in-Gait
+walk held still for 1 s in double support read 41.6 % double support, a stride-time symmetry index of
+-62 % and stance 80.6 % on the right with the stride across the stop counted, and no word said).
 """
 
 from __future__ import annotations
@@ -25,7 +31,8 @@ from gaitcap.gait.cycles import GaitCycle, find_cycles, normalise_cycle
 from gaitcap.gait.events import WalkingDirection, detect_events, pelvis_track
 from gaitcap.gait.options import GaitOptions, PlausibleRanges
 from gaitcap.gait.parameters import GaitParameters, compute_parameters
-from gaitcap.gait.passes import walk_passes
+from gaitcap.gait.events import heel_track, toe_track
+from gaitcap.gait.passes import stops, walk_passes
 from gaitcap.trajectory import SIDES, TOE_RELEASES, GaitEvent, Trajectory, side_suffix
 
 log = logging.getLogger("gaitcap.gait.analysis")
@@ -137,6 +144,29 @@ class GaitAnalysis:
         return mean, sd, len(c)
 
 
+def _between_stops(traj: Trajectory, start: int, stop: int) -> tuple[list[tuple[int, int]], list[list[float]]]:
+    """The frames (start, stop) of a pass cut at its stops (:func:`gaitcap.gait.passes.stops` of the
+    pelvis, heels and toes), each stop left out and logged ([(start, stop)] without one), and the
+    stops' first and last times (s)."""
+    part = within(traj, start, stop)
+    tracks = np.stack([pelvis_track(part)] + [f(part, s) for s in SIDES for f in (heel_track, toe_track)], axis=1)
+    still = stops(tracks[..., :2], traj.rate_hz)
+    if not still:
+        return [(start, stop)], []
+    out, a = [], start
+    for s0, s1 in still:
+        log.warning("the subject stood still for %.2f s or more (frames %d-%d, %.2f-%.2f s): the strides and steps "
+                    "across the stop are left out", (s1 - s0) / traj.rate_hz, start + s0, start + s1 - 1,
+                    part.t0_s + s0 / traj.rate_hz, part.t0_s + (s1 - 1) / traj.rate_hz)  # fmt: skip
+        if start + s0 > a:
+            out.append((a, start + s0))
+        a = start + s1
+    if stop > a:
+        out.append((a, stop))
+    times = [[round(part.t0_s + s0 / traj.rate_hz, 4), round(part.t0_s + (s1 - 1) / traj.rate_hz, 4)] for s0, s1 in still]
+    return out, times
+
+
 def analyse(traj: Trajectory, options: GaitOptions | None = None, recorded: bool = False) -> GaitAnalysis:
     """Run the gait analysis of one trajectory (never raises for too few steps: see
     ``result.parameters.status``). ``recorded``: the events the trajectory holds (a marker file's EVENT
@@ -150,7 +180,7 @@ def analyse(traj: Trajectory, options: GaitOptions | None = None, recorded: bool
     opt = options or GaitOptions()
     if recorded and not traj.events:
         raise InputError("no events recorded in the input (its EVENT group, or force plates): they cannot be used")
-    passes, parts = [], []
+    passes, parts, stopped = [], [], []
     spans = walk_passes(pelvis_track(traj)[:, :2], traj.rate_hz)
     for start, stop in spans:
         part = within(traj, start, stop)
@@ -164,8 +194,13 @@ def analyse(traj: Trajectory, options: GaitOptions | None = None, recorded: bool
         if recorded:  # the file's events of this pass's frames
             first, last = part.t0_s - 0.5 / traj.rate_hz, part.t0_s + (part.n_frames - 0.5) / traj.rate_hz
             found = [e for e in traj.events if first <= e.time_s < last]
-        passes.append(WalkPass(start, stop, direction))
-        parts.append((part, found, direction))
+        pieces, stop_times = _between_stops(traj, start, stop)
+        stopped += stop_times
+        for a, b in pieces:
+            piece = within(traj, a, b)
+            lo, hi = piece.t0_s - 0.5 / traj.rate_hz, piece.t0_s + (piece.n_frames - 0.5) / traj.rate_hz
+            passes.append(WalkPass(a, b, direction))
+            parts.append((piece, [e for e in found if lo <= e.time_s < hi], direction))
     if not passes:
         raise InputError("no pass along the walkway could be analysed (too few valid pelvis and heel samples in each)")
     events = sorted((e for _, found, _ in parts for e in found), key=lambda e: e.time_s)
@@ -177,6 +212,11 @@ def analyse(traj: Trajectory, options: GaitOptions | None = None, recorded: bool
         log.info("%d passes along the walkway (frames %s), each analysed along its own direction", len(passes),
                  ", ".join(f"{p.start}-{p.stop - 1}" for p in passes))  # fmt: skip
     params = compute_parameters(traj, events, passes[0].direction, opt.plausible, passes=parts)
+    if stopped:  # the strides and steps across each stop are no gait cycle: left out (see the module docstring)
+        params.info["stops_s"] = stopped
+        said = "; ".join(f"{a:.2f}-{b:.2f} s" for a, b in stopped)
+        params.reason = "; ".join(r for r in (params.reason, f"the subject stood still ({said}): the strides and "
+                                              "steps across a stop are left out") if r)  # fmt: skip
     angles, notes = angles_by_pass(traj, passes)
     cycles = {s: [c for _, found, _ in parts for c in find_cycles(found, s)] for s in SIDES}
     times = traj.times()

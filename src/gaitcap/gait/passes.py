@@ -29,6 +29,14 @@ TURN_M = 0.1
 MIN_SPEED_M_S = 0.2
 #: the pelvis's velocity is its displacement over this span (seconds), centred on the frame
 SPEED_SPAN_S = 0.4
+#: a *stop* in a pass: the pelvis and both feet (heels and toes) each move horizontally at less than this
+#: (m/s, their displacement over :data:`SPEED_SPAN_S`, centred) ... The fastest of them stays above
+#: 0.36 m/s over any 0.5 s of the real walks slowed three times (0.3 m/s, strides of 3.3-3.6 s), and
+#: under 0.05 m/s over the middle of a tracked 1 s stop (the walk's synthetic session held still)
+STOP_SPEED_M_S = 0.1
+#: ... for at least this long (s): a stop and a start, not a slow step (a foot swings in every step);
+#: the span's reach makes it a stop of about 0.7 s or more
+MIN_STOP_S = 0.3
 #: degrees: next to a turn, a pass ends where the pelvis's velocity heads further than this off the
 #: pass's direction (the straight walks of the suite and the held-out draw stay within 17 degrees)
 TURN_HEADING_DEG = 20.0
@@ -196,3 +204,25 @@ def straight_part(xy: np.ndarray, heading: np.ndarray, start: int, stop: int, af
             return None
         start, stop = a, b
     return (start, stop)
+
+
+def stops(tracks: np.ndarray, rate_hz: float) -> list[tuple[int, int]]:
+    """(start, stop) frames of each stop of the horizontal paths ``tracks`` (T, K, 2) (the pelvis and the
+    feet): at least :data:`MIN_STOP_S` during which every path moves at less than
+    :data:`STOP_SPEED_M_S` (its displacement over :data:`SPEED_SPAN_S`, centred on the frame). A subject
+    who stands still in the middle of a walk: the stride across it is no gait cycle. A frame where a
+    path or its span is missing is not still; empty when there is no such stop."""
+    T = len(tracks)
+    half = max(1, round(SPEED_SPAN_S * rate_hz / 2))
+    if T <= 2 * half:
+        return []
+    speed = np.full((T, tracks.shape[1]), np.inf)
+    with np.errstate(invalid="ignore"):
+        speed[half:-half] = np.linalg.norm(tracks[2 * half :] - tracks[: -2 * half], axis=-1) * (rate_hz / (2 * half))
+        still = np.all(speed < STOP_SPEED_M_S, axis=1)
+    out = []
+    edges = np.diff(np.concatenate([[0], still.astype(np.int8), [0]]))
+    for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True):
+        if (b - a) / rate_hz >= MIN_STOP_S:
+            out.append((int(a), int(b)))
+    return out
