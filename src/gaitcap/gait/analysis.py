@@ -28,10 +28,9 @@ import numpy as np
 from gaitcap.errors import InputError
 from gaitcap.gait.angles import ANGLE_NAMES, joint_angles
 from gaitcap.gait.cycles import GaitCycle, find_cycles, normalise_cycle
-from gaitcap.gait.events import WalkingDirection, detect_events, pelvis_track
+from gaitcap.gait.events import WalkingDirection, detect_events, heel_track, pelvis_track, toe_track
 from gaitcap.gait.options import GaitOptions, PlausibleRanges
 from gaitcap.gait.parameters import GaitParameters, compute_parameters
-from gaitcap.gait.events import heel_track, toe_track
 from gaitcap.gait.passes import stops, walk_passes
 from gaitcap.trajectory import SIDES, TOE_RELEASES, GaitEvent, Trajectory, side_suffix
 
