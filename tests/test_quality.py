@@ -292,6 +292,34 @@ def test_a_long_walk_is_judged_in_pieces():
     assert 4 <= exchanged.sum() <= 10 and set(np.flatnonzero(exchanged)) <= set(range(400, 410))
 
 
+def test_a_stop_in_the_middle_of_a_walk_is_not_out_of_rhythm():
+    """A subject who stands still for 1.2 s in double support, then walks on: the feet keep the last
+    step's order while still, and the stride's phase starts afresh after; the stop's frames were judged
+    against a rhythm carried across it (10 frames 'exchanged' on this walk; a tracked walk of the
+    Plug-in-Gait subject held still 1 s was doubtful with no leg swapped). Neither is judged now, and a
+    stretch exchanged after the stop is still found."""
+    from gait_walker import Walker
+
+    from gaitcap.gait.analysis import analyse
+
+    traj = Walker(duration=6.0, rate_hz=RATE).trajectory()
+    strikes = [e for e in analyse(traj).events if e.event == "foot_strike"]
+    k = int(round(strikes[3].time_s * RATE)) + 1
+    held = np.concatenate([traj.points[:k], np.repeat(traj.points[k : k + 1], 30, axis=0), traj.points[k:]])
+    names = tuple(traj.names)
+    still = quality.standing_still(held, names, RATE)
+    assert still[k + 8 : k + 22].all() and not still[: k - 5].any() and not still[k + 36 :].any()
+    tracked = np.ones(len(held), bool)
+    assert not out_of_rhythm(traj.points, names, np.ones(traj.n_frames, bool), RATE, 0.0).any()
+    assert not out_of_rhythm(held, names, tracked, RATE, 0.0).any()
+    swapped = held.copy()
+    for a, b in (("ankle_l", "ankle_r"), ("heel_l", "heel_r"), ("toe_l", "toe_r")):
+        i, j = names.index(a), names.index(b)
+        swapped[130:140, [i, j]] = swapped[130:140, [j, i]]
+    exchanged = out_of_rhythm(swapped, names, tracked, RATE, 0.0)
+    assert exchanged.any() and set(np.flatnonzero(exchanged)) <= set(range(130, 140))
+
+
 @pytest.mark.parametrize("index", [0, 15, 16, 17, 130, 255, 260])
 def test_stride_frequency_is_found_anywhere_in_its_range(index: int):
     """A noisy separation whose stride frequency is the index-th of the search's grid (the first,

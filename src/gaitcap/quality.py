@@ -24,7 +24,9 @@ walking person passes:
   its own walking line and frequency (the cadence drifts, a walk turns), and apart before and after
   each point where the walk turns back (:func:`turns`: a subject walking up and down the room; the
   stride's phase starts afresh there); the frames where the pelvis pauses at such a turn (a pivot
-  on the spot, :func:`turning_on_the_spot`) are not judged, nor fitted;
+  on the spot, :func:`turning_on_the_spot`) are not judged, nor fitted; nor are those where the
+  subject stands still in the middle of a walk (:func:`standing_still`), after which the phase
+  starts afresh too;
 - the lowest foot point's height above the floor, median over the frames: one foot stands on the
   floor in every frame of a walk (z = 0 in the calibration's world frame); a model floating above
   it, or sunk into it, has collapsed onto something else;
@@ -381,12 +383,15 @@ def out_of_rhythm(points: np.ndarray, names: tuple[str, ...], tracked: np.ndarra
     pts = np.where(tracked[:, None, None], points, np.nan)
     at = turns(pts, names)
     pts[turning_on_the_spot(pts, names, rate_hz, at)] = np.nan
+    still = standing_still(pts, names, rate_hz)
+    pts[still] = np.nan
+    restarts = np.flatnonzero(np.diff(still.astype(np.int8)) == -1) + 1  # a walk resumed: a new phase
     measured = _separation(pts, names, rate_hz)
     if measured is None:
         return np.zeros(len(points), bool)
     stride = rate_hz / stride_frequency(measured[0] / rate_hz, measured[1])  # frames
     pieces = []
-    for leg in np.split(np.arange(len(points)), at):
+    for leg in np.split(np.arange(len(points)), np.union1d(at, restarts).astype(int)):
         n_pieces = max(1, int(len(leg) // (RHYTHM_STRIDES * stride)))
         pieces += np.array_split(leg, n_pieces)
     return np.concatenate([_piece_out_of_rhythm(pts[idx], names, rate_hz, margin_m) for idx in pieces])
@@ -400,6 +405,24 @@ def turning_on_the_spot(points: np.ndarray, names: tuple[str, ...], rate_hz: flo
     if not len(at):
         return np.zeros(len(points), bool)
     return passes.paused_at_turns(points[:, names.index("pelvis"), :2], rate_hz, at)
+
+
+#: the points whose horizontal paths say a subject stands still (:func:`standing_still`)
+STILL_POINTS = ("pelvis", "heel_l", "toe_l", "heel_r", "toe_r")
+
+
+def standing_still(points: np.ndarray, names: tuple[str, ...], rate_hz: float) -> np.ndarray:
+    """(T,) bool: the frames of points (T, P, 3) sampled at ``rate_hz`` where the subject stands still
+    (:func:`gaitcap.gait.passes.stops` of the pelvis, heels and toes): a stop in the middle of a walk,
+    whose feet keep the order of the last step rather than the stride's rhythm. None without those
+    points."""
+    out = np.zeros(len(points), bool)
+    if not all(n in names for n in STILL_POINTS):
+        return out
+    tracks = points[:, [names.index(n) for n in STILL_POINTS], :2]
+    for a, b in passes.stops(tracks, rate_hz):
+        out[a:b] = True
+    return out
 
 
 def turns(points: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
