@@ -275,3 +275,17 @@ def test_a_slow_walk_is_refined_over_windows_as_long_as_its_strides() -> None:
     # at its own pace the walk is refined over the windows as given
     own, _ = detect_events(walk)
     assert [e.time_s for e in own] == [e.time_s for e in detect_events(walk, GaitOptions(window_stride_s=100.0))[0]]
+
+
+def test_strikes_dropped_for_a_cadence_above_the_plausible_are_warned_about(caplog) -> None:
+    """Steps of 0.23 s (261 steps/min, above the plausible 250): most strikes are dropped as closer than
+    the shortest plausible step, and the analysis found 'not enough steps' with only an info line saying
+    why; a warning now names the cause. A walk of normal cadence drops none and says nothing."""
+    import logging
+
+    with caplog.at_level(logging.WARNING, logger="gaitcap"):
+        detect_events(Walker(stride_time=1.1, duration=4.0).trajectory())
+        assert "dropped as closer" not in caplog.text
+        detect_events(Walker(stride_time=0.46, speed=1.8, duration=4.0).trajectory())
+    assert "foot strikes dropped as closer than 24.0 frames to the other foot's" in caplog.text
+    assert "a cadence above the plausible maximum" in caplog.text

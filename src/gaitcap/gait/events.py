@@ -313,6 +313,10 @@ def _alternate(extrema: list[_Extremum]) -> list[_Extremum]:
     return out
 
 
+#: :func:`_exclusive_strikes` warns when it drops at least this share of the foot strikes
+MANY_DROPPED = 0.2
+
+
 def _exclusive_strikes(alternating: dict[Side, list[_Extremum]], min_frames: float) -> dict[Side, list[_Extremum]]:
     """Never two foot strikes of different feet closer than ``min_frames``; per side re-alternated.
 
@@ -340,6 +344,10 @@ def _exclusive_strikes(alternating: dict[Side, list[_Extremum]], min_frames: flo
         kept.append(e)
     for e in dropped:
         log.info("dropped a %s foot strike at frame %.1f: within %.1f frames of the other foot's", e.side, e.frame, min_frames)
+    if len(dropped) >= max(2, MANY_DROPPED * len(strikes)):  # not a landing seen twice now and then: a pattern
+        log.warning("%d of %d foot strikes dropped as closer than %.1f frames to the other foot's (a step shorter "
+                    "than the shortest plausible, plausible.min_step_s): a cadence above the plausible maximum "
+                    "(a run?), or legs the tracker collapsed onto each other", len(dropped), len(strikes), min_frames)  # fmt: skip
     return {side: _alternate([e for e in alternating[side] if e not in dropped]) for side in SIDES}
 
 
