@@ -42,7 +42,12 @@ def _png(fig: plt.Figure) -> bytes:
 
 
 def angle_curves(analysis: GaitAnalysis) -> bytes:
-    """Joint angles over 0-100 % of the gait cycle: mean +/- SD per side, foot off marked."""
+    """Joint angles over 0-100 % of the gait cycle: mean +/- SD per side, foot off marked (PNG)."""
+    return _png(angle_curves_figure(analysis))
+
+
+def angle_curves_figure(analysis: GaitAnalysis) -> plt.Figure:
+    """The figure of :func:`angle_curves`; its legend fills the ninth, empty, panel."""
     fig, axes = plt.subplots(3, 3, figsize=(12, 9), layout="constrained")
     x = np.linspace(0, 100, 101)
     for ax, name in zip(axes.flat, ANGLE_NAMES, strict=False):
@@ -67,11 +72,16 @@ def angle_curves(analysis: GaitAnalysis) -> bytes:
         ax.set_ylabel("degrees")
     axes.flat[-1].axis("off")
     fig.suptitle("Joint angles over the gait cycle (mean ± SD; dashed: foot off)")
-    return _png(fig)
+    return fig
 
 
 def foot_trajectories(analysis: GaitAnalysis) -> bytes:
-    """Heel and toe along the walking direction relative to the pelvis, and heel height, over time."""
+    """Heel and toe along the walking direction relative to the pelvis, and heel height, over time (PNG)."""
+    return _png(foot_trajectories_figure(analysis))
+
+
+def foot_trajectories_figure(analysis: GaitAnalysis) -> plt.Figure:
+    """The figure of :func:`foot_trajectories`, legends beside the axes."""
     traj = analysis.trajectory
     t = traj.times()
     pel = pelvis_track(traj)
@@ -95,11 +105,16 @@ def foot_trajectories(analysis: GaitAnalysis) -> bytes:
     a1.grid(alpha=0.3)
     a2.grid(alpha=0.3)
     a1.set_title("Foot trajectories (lines: detected foot strike solid, foot off dashed)")
-    return _png(fig)
+    return fig
 
 
 def event_timeline(analysis: GaitAnalysis) -> bytes:
-    """Stance phases per side as bars, detected events as ticks, reference events as circles."""
+    """Stance phases per side as bars, detected events as ticks, reference events as circles (PNG)."""
+    return _png(event_timeline_figure(analysis))
+
+
+def event_timeline_figure(analysis: GaitAnalysis) -> plt.Figure:
+    """The figure of :func:`event_timeline`."""
     traj = analysis.trajectory
     t = traj.times()
     fig, ax = plt.subplots(figsize=(12, 2.6))
@@ -119,7 +134,7 @@ def event_timeline(analysis: GaitAnalysis) -> bytes:
     ax.set_xlabel("time (s)")
     ax.set_title("Event timeline (bars: stance of complete cycles; | foot strike, x foot off; o recorded events)")
     ax.grid(axis="x", alpha=0.3)
-    return _png(fig)
+    return fig
 
 
 def _shade(ax: plt.Axes, t: np.ndarray, mask: np.ndarray, colour: str, label: str) -> None:
@@ -132,7 +147,12 @@ def _shade(ax: plt.Axes, t: np.ndarray, mask: np.ndarray, colour: str, label: st
 def fit_timeline(fit: FitRecord, times: np.ndarray, sheet: list[int], events: list | None = None) -> bytes:
     """The silhouette fit and the lower-limb uncertainty per frame over ``times`` (T,) seconds, the
     flagged (red) and uncertain (orange) frames shaded, the contact sheet's frames ticked, foot
-    strikes as dotted lines."""
+    strikes as dotted lines (PNG)."""
+    return _png(fit_timeline_figure(fit, times, sheet, events))
+
+
+def fit_timeline_figure(fit: FitRecord, times: np.ndarray, sheet: list[int], events: list | None = None) -> plt.Figure:
+    """The figure of :func:`fit_timeline`, legends beside the axes (the foot strikes' colours in the first)."""
     fig, (a1, a2) = plt.subplots(2, 1, figsize=(12, 4.6), sharex=True, layout="constrained")
     rec = fit.record
     a1.plot(times, rec.fit, color="k", lw=1.4, marker=".", ms=4, label="fit")
@@ -155,12 +175,18 @@ def fit_timeline(fit: FitRecord, times: np.ndarray, sheet: list[int], events: li
     a2.set_ylim(bottom=0)
     a2.set_xlabel("time (s)")
     a1.set_title("Silhouette fit and uncertainty per frame (▼ frames on the contact sheet; dotted: foot strikes)")
-    return _png(fig)
+    return fig
 
 
 def angle_time_curves(analysis: GaitAnalysis, bands: dict[str, np.ndarray] | None, flagged: np.ndarray | None) -> bytes:
     """Hip, knee and ankle flexion per frame and side over time, with a band of ±2 ``bands`` (T,)
-    degrees per angle (when given) and the flagged frames (T,) bool shaded."""
+    degrees per angle (when given) and the flagged frames (T,) bool shaded (PNG)."""
+    return _png(angle_time_figure(analysis, bands, flagged))
+
+
+def angle_time_figure(analysis: GaitAnalysis, bands: dict[str, np.ndarray] | None,
+                      flagged: np.ndarray | None) -> plt.Figure:  # fmt: skip
+    """The figure of :func:`angle_time_curves`, its legend beside the first axes."""
     t = analysis.trajectory.times()
     fig, axes = plt.subplots(3, 1, figsize=(12, 7.5), sharex=True, layout="constrained")
     for ax, name in zip(axes, FLEXION_ANGLES, strict=True):
@@ -179,4 +205,4 @@ def angle_time_curves(analysis: GaitAnalysis, bands: dict[str, np.ndarray] | Non
     axes[-1].set_xlabel("time (s)")
     band = " (bands: ± 2 SD from the per-point uncertainty)" if bands is not None else ""
     fig.suptitle(f"Flexion angles over time{band}")
-    return _png(fig)
+    return fig
