@@ -11,6 +11,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from matplotlib.lines import Line2D  # noqa: E402
 import numpy as np  # noqa: E402
 
 from gaitcap.gait.analysis import GaitAnalysis, forward_by_frame  # noqa: E402
@@ -41,6 +42,19 @@ def _png(fig: plt.Figure) -> bytes:
     return buf.getvalue()
 
 
+def _legend_beside(ax: plt.Axes, **kwargs) -> None:
+    """The axes' legend to the right of it, outside the plotting area: a legend inside it covers the
+    curves where they run high at the end of a walk (and the contact sheet's ticks of the fit plot)."""
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, **kwargs)
+
+
+def _event_handles(sides: list[str], styles: dict[str, str]) -> list[Line2D]:
+    """Legend entries of the event lines: one per side and event kind (``styles``: event -> linestyle)."""
+    return [Line2D([], [], color=COLOURS[side], ls=ls, lw=1, label=f"{side} {event.replace('_', ' ')}")
+            for side in SIDES if side in sides for event, ls in styles.items()]  # fmt: skip
+
+
 def angle_curves(analysis: GaitAnalysis) -> bytes:
     """Joint angles over 0-100 % of the gait cycle: mean +/- SD per side, foot off marked (PNG)."""
     return _png(angle_curves_figure(analysis))
@@ -65,12 +79,20 @@ def angle_curves_figure(analysis: GaitAnalysis) -> plt.Figure:
         ax.set_xlim(0, 100)
         ax.axhline(0, color="0.6", lw=0.6)
         ax.grid(alpha=0.3)
-    axes.flat[0].legend(fontsize=8)
-    for ax in axes[-1]:
-        ax.set_xlabel("% gait cycle")
+    spare = axes.flat[-1]
+    spare.axis("off")
+    handles, labels = axes.flat[0].get_legend_handles_labels()
+    sides = [side for side in SIDES if analysis.cycles[side]]
+    handles += [Line2D([], [], color=COLOURS[side], ls="--", lw=1) for side in sides]
+    labels += [f"{side} foot off (mean)" for side in sides]
+    if handles:
+        spare.legend(handles, labels, loc="center", fontsize=10)
+    for col in range(axes.shape[1]):  # the lowest panel drawn in each column carries the x label
+        shown = [ax for ax in axes[:, col] if ax.axison]
+        if shown:
+            shown[-1].set_xlabel("% gait cycle")
     for ax in axes[:, 0]:
         ax.set_ylabel("degrees")
-    axes.flat[-1].axis("off")
     fig.suptitle("Joint angles over the gait cycle (mean ± SD; dashed: foot off)")
     return fig
 
@@ -101,7 +123,11 @@ def foot_trajectories_figure(analysis: GaitAnalysis) -> plt.Figure:
     a1.set_ylabel("forward, relative to pelvis (m)")
     a2.set_ylabel("height (m)")
     a2.set_xlabel("time (s)")
-    a1.legend(fontsize=8, ncol=4)
+    handles, _ = a1.get_legend_handles_labels()
+    events = _event_handles(sorted({e.side for e in analysis.events}), {"foot_strike": "-", "foot_off": "--"})
+    if handles or events:
+        a1.legend(handles=handles + events, fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0),
+                  borderaxespad=0.0)  # fmt: skip
     a1.grid(alpha=0.3)
     a2.grid(alpha=0.3)
     a1.set_title("Foot trajectories (lines: detected foot strike solid, foot off dashed)")
@@ -167,7 +193,10 @@ def fit_timeline_figure(fit: FitRecord, times: np.ndarray, sheet: list[int], eve
             if e.event == "foot_strike":
                 ax.axvline(e.time_s, color=COLOURS[e.side], ls=":", lw=1)
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=8, loc="upper right", ncol=4)
+    strikes = _event_handles(sorted({e.side for e in events or [] if e.event == "foot_strike"}), {"foot_strike": ":"})
+    a1.legend(handles=a1.get_legend_handles_labels()[0] + strikes, fontsize=8, loc="upper left",
+              bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)  # fmt: skip
+    _legend_beside(a2)
     a1.plot(times[sheet], np.full(len(sheet), 1.02), "v", color="0.3", ms=5, clip_on=False)
     a1.set_ylim(min(0.0, float(np.nanmin(rec.fit, initial=0.0)) - 0.05), 1.05)  # a fit below 0: more XOR than |S|
     a1.set_ylabel("fit (1 − XOR/|S|)")
@@ -201,7 +230,7 @@ def angle_time_figure(analysis: GaitAnalysis, bands: dict[str, np.ndarray] | Non
         ax.set_title(ANGLE_TITLES[name], fontsize=10)
         ax.set_ylabel("degrees")
         ax.grid(alpha=0.3)
-    axes[0].legend(fontsize=8, loc="upper right", ncol=3)
+    _legend_beside(axes[0])
     axes[-1].set_xlabel("time (s)")
     band = " (bands: ± 2 SD from the per-point uncertainty)" if bands is not None else ""
     fig.suptitle(f"Flexion angles over time{band}")

@@ -1,0 +1,80 @@
+"""What a reader of report.html sees: the figures' legends, labels and colours (matplotlib objects,
+no browser), and the HTML's structure."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib.pyplot as plt
+import numpy as np
+import pytest
+from gait_walker import Walker
+
+from gaitcap.gait.analysis import analyse
+from gaitcap.io.track_h5 import TrackRecord
+from gaitcap.report import plots
+from gaitcap.report.fit import UNCERTAIN_MM, FitRecord
+
+
+@pytest.fixture(scope="module")
+def analysis():
+    return analyse(Walker(duration=4.0, rate_hz=25.0).trajectory())
+
+
+def _fit(T: int) -> FitRecord:
+    """A run whose uncertainty rises above the threshold at the end (where a legend in the corner sat)."""
+    names = tuple(f"p{k}" for k in range(14)) + ("hip_l", "hip_r", "knee_l", "knee_r", "ankle_l", "ankle_r")
+    sigma = np.full((T, len(names)), 0.05)
+    sigma[-T // 3 :] = (UNCERTAIN_MM + 20) / 1000
+    rec = TrackRecord(names, 25.0, np.zeros((T, len(names), 3)), sigma, np.zeros((T, 31)), tuple("q" * 31),
+                      np.full(T, 0.97), np.zeros(T, np.uint8))  # fmt: skip
+    return FitRecord(Path("."), rec)
+
+
+def _figures(analysis) -> dict[str, plt.Figure]:
+    traj = analysis.trajectory
+    T = traj.n_frames
+    bands = {f"{n}_{s}": np.full(T, 5.0) for n in plots.FLEXION_ANGLES for s in "lr"}
+    return {
+        "fit": plots.fit_timeline_figure(_fit(T), traj.times(), [0, T // 2, T - 1], analysis.events),
+        "angles": plots.angle_curves_figure(analysis),
+        "angles over time": plots.angle_time_figure(analysis, bands, None),
+        "feet": plots.foot_trajectories_figure(analysis),
+        "events": plots.event_timeline_figure(analysis),
+    }
+
+
+def test_no_legend_covers_a_plotting_area(analysis) -> None:
+    for name, fig in _figures(analysis).items():
+        fig.canvas.draw()
+        areas = [ax.get_window_extent() for ax in fig.axes if ax.axison]
+        legends = [ax.get_legend() for ax in fig.axes if ax.get_legend() is not None] + list(fig.legends)
+        for legend in legends:
+            box = legend.get_window_extent()
+            assert not any(box.overlaps(a) for a in areas), f"{name}: the legend covers the curves"
+        plt.close(fig)
+
+
+def test_the_event_lines_colours_are_named(analysis) -> None:
+    figs = _figures(analysis)
+    fit_labels = [t.get_text() for t in figs["fit"].axes[0].get_legend().get_texts()]
+    assert "left foot strike" in fit_labels and "right foot strike" in fit_labels
+    feet_labels = [t.get_text() for t in figs["feet"].axes[0].get_legend().get_texts()]
+    assert {"left foot strike", "left foot off", "right foot strike", "right foot off"} <= set(feet_labels)
+    angle_labels = [t.get_text() for ax in figs["angles"].axes if ax.get_legend() for t in ax.get_legend().get_texts()]
+    assert "left foot off (mean)" in angle_labels and "right foot off (mean)" in angle_labels
+    for fig in figs.values():
+        plt.close(fig)
+
+
+def test_every_column_of_the_angle_panels_has_its_x_label(analysis) -> None:
+    fig = plots.angle_curves_figure(analysis)
+    shown = [ax for ax in fig.axes if ax.axison]
+    columns: dict[float, list] = {}
+    for ax in shown:
+        columns.setdefault(round(ax.get_position().x0, 3), []).append(ax)
+    assert len(columns) == 3
+    for col in columns.values():
+        lowest = min(col, key=lambda ax: ax.get_position().y0)
+        assert lowest.get_xlabel() == "% gait cycle"
+    plt.close(fig)
