@@ -248,7 +248,7 @@ def test_a_run_that_lost_the_subject_still_gets_its_fit_report(tracked_copy):
     doc = json.loads((lost / "track.json").read_text())
     (lost / "track.json").write_text(json.dumps({**doc, "verdict": "failed", "verdict_reasons": ["none fits"]}))
     CliRunner().invoke(cli, ["report", str(lost), "--session", str(root / "session")])
-    assert "<b>No gait analysis.</b> the tracking failed (its verdict, above): " in (lost / "gait" / "report.html").read_text()
+    assert "<b>No gait analysis.</b> The tracking failed (its verdict, above): " in (lost / "gait" / "report.html").read_text()
 
 
 def test_every_flagged_run_gets_its_worst_frame_before_a_long_run_fills_the_sheet():

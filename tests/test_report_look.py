@@ -3,6 +3,7 @@ no browser), and the HTML's structure."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import matplotlib.pyplot as plt
@@ -78,3 +79,13 @@ def test_every_column_of_the_angle_panels_has_its_x_label(analysis) -> None:
         lowest = min(col, key=lambda ax: ax.get_position().y0)
         assert lowest.get_xlabel() == "% gait cycle"
     plt.close(fig)
+
+
+def test_the_warning_box_does_not_repeat_its_heading() -> None:
+    from gaitcap.report.html import render_report
+
+    a = analyse(Walker(duration=0.9).trajectory())
+    assert a.parameters.status == "not_enough_steps" and a.parameters.reason.startswith("not enough steps: ")
+    box = re.search(r"<div class='warn'>(.*?)</div>", render_report(a)).group(1)
+    assert box.lower().count("not enough steps") == 1
+    assert box.startswith("<b>Not enough steps.</b> No complete gait cycle (found ")

@@ -61,6 +61,14 @@ def _fmt(values: dict[str, Any], key: str) -> str:
     return f"{s} <span class='note'>(n={n})</span>"
 
 
+def _sentence(text: str, heading: str = "") -> str:
+    """``text`` (HTML-escaped) as a sentence after a bold heading that already says ``heading``: without
+    that repeated prefix ("Not enough steps. not enough steps: no complete...") and capitalised."""
+    if heading and text.lower().startswith(heading):
+        text = text[len(heading):]
+    return html.escape(text[:1].upper() + text[1:])
+
+
 def _img(data: bytes, alt: str, mime: str = "image/png") -> str:
     return f"<img alt='{html.escape(alt)}' src='data:{mime};base64,{base64.b64encode(data).decode()}'>"
 
@@ -198,7 +206,7 @@ def render_fit_report(traj: Trajectory, view: FitView, problem: str, title: str 
     parts = _head(title, view)
     if view.verdict is not None and view.verdict.verdict == "failed":  # the cause, before its consequence
         problem = f"the tracking failed (its verdict, above): {problem}"
-    parts.append(f"<div class='warn'><b>No gait analysis.</b> {html.escape(problem)}</div>")
+    parts.append(f"<div class='warn'><b>No gait analysis.</b> {_sentence(problem)}</div>")
     parts.append(fit_section(view, traj, [], sheet_frames or []))
     parts.append("</body></html>")
     return "\n".join(parts)
@@ -231,9 +239,10 @@ def render_report(analysis: GaitAnalysis, title: str = "Gait report", view: FitV
         f"{len(analysis.reference_events)} recorded in the file. gaitcap {__version__}.</p>"
     )
     if p.status == STATUS_NOT_ENOUGH_STEPS:
-        parts.append(f"<div class='warn'><b>Not enough steps.</b> {html.escape(p.reason)}</div>")
+        parts.append(f"<div class='warn'><b>Not enough steps.</b> {_sentence(p.reason, 'not enough steps: ')}</div>")
     elif p.status == STATUS_IMPLAUSIBLE:
-        parts.append(f"<div class='warn'><b>Implausible values withheld.</b> {html.escape(p.reason)}</div>")
+        parts.append(f"<div class='warn'><b>Implausible values withheld.</b> "
+                     f"{_sentence(p.reason, 'implausible values withheld: ')}</div>")  # fmt: skip
     elif p.reason:
         parts.append(f"<div class='warn'>{html.escape(p.reason)}</div>")
     parts.append(fit_section(view, traj, analysis.events, sheet_frames or []))
