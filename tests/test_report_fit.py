@@ -197,7 +197,8 @@ def test_report_of_a_tracked_run_embeds_the_contact_sheet_and_the_banner(tracked
     assert len(html) < 3_000_000 and "http" not in html.replace("http-equiv", "")
     assert "tracked body model (capsules)" in html
     session = Path(json.loads((root / "run" / "track.json").read_text())["session"]).name
-    assert f"<title>Gait report — {session} (run)</title>" in html  # the session, not trajectories.h5
+    # the session, not trajectories.h5, and the verdict (printed in every page's header)
+    assert f"<title>Gait report — {session} (run) — verdict: doubtful</title>" in html
 
 
 def test_report_without_the_videos_omits_the_sheet_and_says_why(tracked_copy):

@@ -89,3 +89,20 @@ def test_the_warning_box_does_not_repeat_its_heading() -> None:
     box = re.search(r"<div class='warn'>(.*?)</div>", render_report(a)).group(1)
     assert box.lower().count("not enough steps") == 1
     assert box.startswith("<b>Not enough steps.</b> No complete gait cycle (found ")
+
+
+def test_a_printed_report_keeps_headings_with_their_figures_and_the_verdict_on_every_page() -> None:
+    from gaitcap.report.html import FitView, render_report
+    from gaitcap.track_summary import read_verdict
+
+    a = analyse(Walker(duration=4.0, rate_hz=25.0).trajectory())
+    page = render_report(a, "Gait report — walk", FitView(read_verdict({"verdict": "doubtful", "verdict_reasons": ["x"]})))
+    css = re.search(r"<style>(.*?)</style>", page, re.S).group(1)
+    assert re.search(r"h2\{[^}]*break-after:avoid", css)  # a heading is not left alone at a page's foot
+    assert re.search(r"img[^{]*\{[^}]*break-inside:avoid", css)  # nor a figure or a table row cut in two
+    assert re.search(r"@media print\{.*\.cell img\{height:\d+px\}", css, re.S)  # two thumbnails per printed row
+    # the table's header row repeats on each printed page
+    assert re.search(r"<table><thead><tr><th>Parameter</th>.*?</thead><tbody><tr><td>", page)
+    # the browser prints the title in every page's header: the verdict is in it
+    assert "<title>Gait report — walk — verdict: doubtful</title>" in page
+    assert "<title>Gait report — walk</title>" in render_report(a, "Gait report — walk")

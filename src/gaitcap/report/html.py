@@ -33,6 +33,9 @@ th{background:#f3f3f3} td:first-child,th:first-child{text-align:left}
 .sheet{display:flex;flex-wrap:wrap;gap:8px} .cell{border:2px solid #ddd;padding:3px;background:#fafafa}
 .cell.att{border-color:#d62728;background:#fdecea} .cell img{height:240px;width:auto;margin-right:2px}
 .cap{font-size:12px;color:#333;max-width:420px}
+h2{break-after:avoid} img,tr,.cell,.verdict,.warn{break-inside:avoid}
+@media print{body{margin:0;max-width:none} .cell img{height:170px}
+ .verdict,.warn,.cell.att,th{-webkit-print-color-adjust:exact;print-color-adjust:exact}}
 """
 
 _LABELS = {
@@ -172,7 +175,8 @@ _NO_PELVIS_MARKERS = (
 
 def parameter_table(analysis: GaitAnalysis) -> str:
     p = analysis.parameters
-    rows = ["<tr><th>Parameter</th><th>Overall</th><th>Left</th><th>Right</th><th>Symmetry index (%)</th></tr>"]
+    rows = ["<thead><tr><th>Parameter</th><th>Overall</th><th>Left</th><th>Right</th><th>Symmetry index (%)</th></tr>"
+            "</thead>"]  # fmt: skip
     for key in SIDE_KEYS:
         si = p.symmetry.get(key)
         si_s = f"{si:.1f}" if si is not None and math.isfinite(si) else ""
@@ -188,11 +192,14 @@ def parameter_table(analysis: GaitAnalysis) -> str:
     note = ("<p class='note'>A dash (–): not measured (no complete cycle or step of that side). A blank cell: not "
             "defined (no overall value of a parameter taken side by side, or no symmetry index: it needs both "
             "sides).</p>")  # fmt: skip
-    return "<table>" + "".join(rows) + "</table>" + note
+    return "<table>" + rows[0] + "<tbody>" + "".join(rows[1:]) + "</tbody></table>" + note
 
 
 def _head(title: str, view: FitView) -> list[str]:
-    parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>",
+    """The page's head, its heading and the verdict's banner. The verdict is in the page's title too, so
+    that a browser prints it in the header of every page, not on the first only."""
+    page_title = f"{title} — verdict: {view.verdict.verdict}" if view.verdict is not None else title
+    parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(page_title)}</title>",
              f"<style>{_CSS}</style></head><body><h1>{html.escape(title)}</h1>"]  # fmt: skip
     if view.verdict is not None:
         parts.append(verdict_banner(view.verdict))
