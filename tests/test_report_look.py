@@ -106,3 +106,16 @@ def test_a_printed_report_keeps_headings_with_their_figures_and_the_verdict_on_e
     # the browser prints the title in every page's header: the verdict is in it
     assert "<title>Gait report — walk — verdict: doubtful</title>" in page
     assert "<title>Gait report — walk</title>" in render_report(a, "Gait report — walk")
+
+
+def test_the_walking_direction_is_named_in_the_frame_of_its_source() -> None:
+    from dataclasses import replace
+
+    from gaitcap.report.html import render_report
+
+    traj = Walker(duration=4.0, rate_hz=25.0).trajectory()
+    for source, frame in (("lab/walk.c3d", "the marker file's x axis, z up"), ("lab/walk.TRC", "the marker file's x axis, z up"),
+                          ("run/trajectories.h5", "the calibration's x axis")):  # fmt: skip
+        page = render_report(analyse(replace(traj, meta={"source": source})))
+        assert re.search(rf"Walking direction -?\d+° from {re.escape(frame)} \(nearest to [+-][xy]\)", page), source
+    assert "calibration" not in render_report(analyse(replace(traj, meta={"source": "walk.c3d"}))).split("Events:")[0]

@@ -151,16 +151,22 @@ def angle_time_section(analysis: GaitAnalysis, view: FitView) -> str:
     return f"<h2>Flexion angles over time</h2>{img}<p class='note'>{note}</p>"
 
 
-def _direction_text(direction: object) -> str:
-    """A walking direction (x, y, z) in the calibration's frame as a heading a person reads, in degrees
-    from the x axis towards y ("90° from x, along +y"), or as given when it is not a vector."""
+#: the frame of a marker file's points as the report names it (read z up: gaitcap.markers.axes)
+_LAB_FRAME = "the marker file's x axis, z up"
+
+
+def _direction_text(direction: object, frame: str = "the calibration's x axis") -> str:
+    """A walking direction (x, y, z) in the trajectory's frame (``frame`` names its x axis: the
+    calibration's for a tracking run, :data:`_LAB_FRAME` for a marker file) as a heading a person
+    reads, in degrees from the x axis towards y ("90° from x, along +y"), or as given when it is not
+    a vector."""
     try:
         x, y = float(direction[0]), float(direction[1])  # type: ignore[index]
     except (TypeError, ValueError, IndexError):
         return html.escape(str(direction))
     heading = math.degrees(math.atan2(y, x))
     along = max((abs(x), "+x" if x > 0 else "-x"), (abs(y), "+y" if y > 0 else "-y"))[1]
-    return f"{heading:.0f}° from the calibration's x axis (nearest to {along})"
+    return f"{heading:.0f}° from {frame} (nearest to {along})"
 
 
 #: the angle note of a pelvis frame without ASIS/PSIS markers (a tracking run's): what it does to the angles
@@ -236,10 +242,12 @@ def render_report(analysis: GaitAnalysis, title: str = "Gait report", view: FitV
     info = p.info
     view = view or FitView()
     parts = _head(title, view)
+    source = str(traj.meta.get("source", ""))
+    frame = _LAB_FRAME if source.lower().endswith((".c3d", ".trc")) else "the calibration's x axis"
     parts.append(
-        f"<p class='note'>Source: {html.escape(str(traj.meta.get('source', '')))} — {traj.n_frames} frames at "
+        f"<p class='note'>Source: {html.escape(source)} — {traj.n_frames} frames at "
         f"{traj.rate_hz:g} Hz ({traj.n_frames / traj.rate_hz:.2f} s). Walking direction "
-        f"{_direction_text(info.get('walking_direction'))} ({html.escape(str(info.get('direction_method')))}"
+        f"{_direction_text(info.get('walking_direction'), frame)} ({html.escape(str(info.get('direction_method')))}"
         f"{', walking in place, belt speed %.2f m/s' % -info['belt_velocity_m_s'] if info.get('in_place') else ''}"
         f"{_passes_note(analysis)}). "
         f"Events: {len(analysis.events)} detected ({html.escape(str(info.get('event_method')))}), "
