@@ -96,7 +96,8 @@ def test_a_printed_report_keeps_headings_with_their_figures_and_the_verdict_on_e
     from gaitcap.track_summary import read_verdict
 
     a = analyse(Walker(duration=4.0, rate_hz=25.0).trajectory())
-    page = render_report(a, "Gait report — walk", FitView(read_verdict({"verdict": "doubtful", "verdict_reasons": ["x"]})))
+    doubtful = FitView(read_verdict({"verdict": "doubtful", "verdict_reasons": ["x"]}))
+    page = render_report(a, "Gait report — walk", doubtful)
     css = re.search(r"<style>(.*?)</style>", page, re.S).group(1)
     assert re.search(r"h2\{[^}]*break-after:avoid", css)  # a heading is not left alone at a page's foot
     assert re.search(r"img[^{]*\{[^}]*break-inside:avoid", css)  # nor a figure or a table row cut in two
@@ -114,8 +115,25 @@ def test_the_walking_direction_is_named_in_the_frame_of_its_source() -> None:
     from gaitcap.report.html import render_report
 
     traj = Walker(duration=4.0, rate_hz=25.0).trajectory()
-    for source, frame in (("lab/walk.c3d", "the marker file's x axis, z up"), ("lab/walk.TRC", "the marker file's x axis, z up"),
-                          ("run/trajectories.h5", "the calibration's x axis")):  # fmt: skip
+    lab = "the marker file's x axis, z up"
+    for source, frame in (("lab/walk.c3d", lab), ("lab/walk.TRC", lab), ("run/trajectories.h5", "the calibration's x axis")):
         page = render_report(analyse(replace(traj, meta={"source": source})))
         assert re.search(rf"Walking direction -?\d+° from {re.escape(frame)} \(nearest to [+-][xy]\)", page), source
     assert "calibration" not in render_report(analyse(replace(traj, meta={"source": "walk.c3d"}))).split("Events:")[0]
+
+
+def test_a_wide_uncertainty_band_does_not_squash_its_curve(analysis) -> None:
+    T = analysis.trajectory.n_frames
+    for sd, cut in ((150.0, True), (1.0, False)):
+        bands = {f"{n}_{s}": np.full(T, sd) for n in plots.FLEXION_ANGLES for s in "lr"}
+        fig = plots.angle_time_figure(analysis, bands, None)
+        for ax, name in zip(fig.axes, plots.FLEXION_ANGLES, strict=True):
+            curves = np.concatenate([analysis.angles[f"{name}_{s}"] for s in "lr"])
+            lo, hi = np.nanmin(curves), np.nanmax(curves)
+            bottom, top = ax.get_ylim()
+            assert bottom <= lo and top >= hi, name  # the curves are whole
+            if cut:  # the curves fill at least half the panel; the band is cut at its edges
+                assert (hi - lo) / (top - bottom) >= 0.5 - 1e-9, (name, bottom, top, lo, hi)
+            else:  # a narrow band is shown whole
+                assert bottom <= lo - 2 * sd and top >= hi + 2 * sd, name
+        plt.close(fig)

@@ -145,7 +145,9 @@ def angle_time_section(analysis: GaitAnalysis, view: FitView) -> str:
     """Hip, knee and ankle flexion over time with their uncertainty bands, and what the band is."""
     note = ("Band: ± 2 SD of the angle when every point is displaced at random, independently, by its reported "
             "uncertainty (an RMS 3D distance; 32 seeded draws through the same angle computation). Errors shared by "
-            "several points or frames, such as a leg swap, are not in it." if view.bands is not None else
+            "several points or frames, such as a leg swap, are not in it. A band reaching far past its curves is cut "
+            "at the panel's edge: there the angle is not known to better than the panel's height."
+            if view.bands is not None else
             "No band: this trajectory carries no per-point uncertainty.")  # fmt: skip
     img = _img(plots.angle_time_curves(analysis, view.bands, view.flagged), "flexion angles over time")
     return f"<h2>Flexion angles over time</h2>{img}<p class='note'>{note}</p>"

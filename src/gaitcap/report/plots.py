@@ -213,6 +213,26 @@ def angle_time_curves(analysis: GaitAnalysis, bands: dict[str, np.ndarray] | Non
     return _png(angle_time_figure(analysis, bands, flagged))
 
 
+#: a flexion panel shows its curves' range and at most this much of it (and BAND_MARGIN_MIN_DEG) beyond each end
+BAND_MARGIN_FRACTION = 0.5
+BAND_MARGIN_MIN_DEG = 15.0
+
+
+def _fit_to_curves(ax: plt.Axes, curves: list[np.ndarray]) -> None:
+    """Limit ``ax``'s y range to the ``curves`` (degrees) and a margin (:data:`BAND_MARGIN_FRACTION`
+    of their span, at least :data:`BAND_MARGIN_MIN_DEG`), when their bands reach further: a band of
+    ±150° (a foot whose points are very uncertain) would otherwise squash its curve into a few pixels.
+    A band past the margin is cut at the panel's edge."""
+    values = np.concatenate([np.asarray(c, float).ravel() for c in curves])
+    values = values[np.isfinite(values)]
+    if not len(values):
+        return
+    lo, hi = float(values.min()), float(values.max())
+    margin = max(BAND_MARGIN_MIN_DEG, BAND_MARGIN_FRACTION * (hi - lo))
+    bottom, top = ax.get_ylim()
+    ax.set_ylim(max(bottom, lo - margin), min(top, hi + margin))
+
+
 def angle_time_figure(analysis: GaitAnalysis, bands: dict[str, np.ndarray] | None,
                       flagged: np.ndarray | None) -> plt.Figure:  # fmt: skip
     """The figure of :func:`angle_time_curves`, its legend beside the first axes."""
@@ -227,6 +247,7 @@ def angle_time_figure(analysis: GaitAnalysis, bands: dict[str, np.ndarray] | Non
                 ax.fill_between(t, y - 2 * bands[key], y + 2 * bands[key], color=c, alpha=0.2, lw=0)
         if flagged is not None and flagged.any():
             _shade(ax, t, flagged, "0.5", "flagged (no angle)")
+        _fit_to_curves(ax, [analysis.angles[f"{name}{side_suffix(side)}"] for side in SIDES])
         ax.set_title(ANGLE_TITLES[name], fontsize=10)
         ax.set_ylabel("degrees")
         ax.grid(alpha=0.3)
