@@ -137,3 +137,13 @@ def test_a_wide_uncertainty_band_does_not_squash_its_curve(analysis) -> None:
             else:  # a narrow band is shown whole
                 assert bottom <= lo - 2 * sd and top >= hi + 2 * sd, name
         plt.close(fig)
+
+
+def test_the_uncertainty_threshold_is_drawn_clear_of_the_panels_edge(analysis) -> None:
+    T = analysis.trajectory.n_frames
+    fit = _fit(T)
+    fit.record.uncertainty[:] = 0.04  # every frame well under the threshold: the line would sit on the top edge
+    fig = plots.fit_timeline_figure(fit, analysis.trajectory.times(), [], analysis.events)
+    bottom, top = fig.axes[1].get_ylim()
+    assert bottom == 0 and top >= 1.1 * fit.uncertain_mm
+    plt.close(fig)

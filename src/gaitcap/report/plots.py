@@ -201,7 +201,7 @@ def fit_timeline_figure(fit: FitRecord, times: np.ndarray, sheet: list[int], eve
     a1.set_ylim(min(0.0, float(np.nanmin(rec.fit, initial=0.0)) - 0.05), 1.05)  # a fit below 0: more XOR than |S|
     a1.set_ylabel("fit (1 − XOR/|S|)")
     a2.set_ylabel("mm")
-    a2.set_ylim(bottom=0)
+    a2.set_ylim(0, max(a2.get_ylim()[1], 1.15 * fit.uncertain_mm))  # the threshold's line clear of the top edge
     a2.set_xlabel("time (s)")
     a1.set_title("Silhouette fit and uncertainty per frame (▼ frames on the contact sheet; dotted: foot strikes)")
     return fig
