@@ -282,6 +282,20 @@ def test_sacral_marker_gives_the_anatomical_pelvis_frame():
     assert np.sqrt(np.mean((ang["hip_flexion_l"][ok] - hip[ok]) ** 2)) < 1.0  # 5.0 deg with the hip centres only
 
 
+def test_opensim_pelvis_markers_give_the_anatomical_pelvis_frame():
+    """The OpenSim walk spells its pelvis markers L.ASIS, R.ASIS, V.Sacral: they were not looked for, so its
+    report took the pelvis from the hip centres and the thorax and said it had no ASIS/PSIS markers."""
+    from gaitcap.gait.angles import pelvis_frame
+    from gaitcap.report.pipeline import with_pelvis_markers
+
+    markers = read_markers(OPENSIM)
+    joints = with_pelvis_markers(read_motion(OPENSIM), markers)
+    assert joints.names[-3:] == ("L.ASIS", "R.ASIS", "V.Sacral")  # the file's own names, the sacrum once
+    np.testing.assert_allclose(joints.point("V.Sacral"), markers.point("V.Sacral"))
+    assert pelvis_frame(joints)[1] == "ASIS/PSIS markers"
+    assert pelvis_frame(read_motion(OPENSIM))[1] != "ASIS/PSIS markers"
+
+
 def test_report_with_the_files_recorded_events(tmp_path):
     """--recorded-events: the parameters, cycles and events.csv come from the file's EVENT group; a file that
     records none is refused by name."""

@@ -8,7 +8,8 @@ X anterior, Y to the subject's left, Z proximal (up), for both sides.
   that the pelvis angles stay about the way the subject faces (rotation near 0, not near 180
   degrees; tilt and obliquity with their usual signs).
 - pelvis: Y = hip_r -> hip_l. When ASIS and PSIS markers are in the trajectory (``LASI/RASI/LPSI/
-  RPSI``, ``LASI/RASI/SACR`` or ``asis_l/asis_r/psis_l/psis_r``), the Plug-in-Gait pelvis:
+  RPSI``, ``LASI/RASI/SACR``, the CAST and OpenSim spellings of :data:`PELVIS_MARKER_SETS`, or
+  ``asis_l/asis_r/psis_l/psis_r``), the Plug-in-Gait pelvis:
   Y = RASI -> LASI, X = mid-PSIS (or SACR) -> mid-ASIS made orthogonal to Y. From joint centres
   only, the pelvis tilt is not determined by the two hip centres: Z is taken along pelvis -> thorax when a thorax point exists
   (so "tilt" is then the forward inclination of the pelvis-thorax line, i.e. of the trunk, and
@@ -57,9 +58,12 @@ ANGLE_NAMES: tuple[str, ...] = (
     "knee_flexion", "ankle_dorsiflexion",
 )  # fmt: skip
 
-#: ASIS left, ASIS right, PSIS left, PSIS right; a sacral marker stands for both PSIS (their mid-point)
-_PELVIS_MARKERS = (("LASI", "RASI", "LPSI", "RPSI"), ("LASI", "RASI", "SACR", "SACR"),
-                   ("asis_l", "asis_r", "psis_l", "psis_r"))  # fmt: skip
+#: ASIS left, ASIS right, PSIS left, PSIS right, as the marker sets of the shipped mappings spell them
+#: (Plug-in-Gait, CAST, OpenSim gait2354); a sacral marker stands for both PSIS (their mid-point)
+PELVIS_MARKER_SETS = (("LASI", "RASI", "LPSI", "RPSI"), ("LASI", "RASI", "SACR", "SACR"),
+                      ("L_IAS", "R_IAS", "L_IPS", "R_IPS"), ("LASIS", "RASIS", "LPSIS", "RPSIS"),
+                      ("L.ASIS", "R.ASIS", "V.Sacral", "V.Sacral"),
+                      ("asis_l", "asis_r", "psis_l", "psis_r"))  # fmt: skip
 _STRAIGHT_KNEE_DEG = 15.0  # below this flexion the femur Y blends towards the pelvis Y
 
 
@@ -115,7 +119,7 @@ def cardan_yxz(prox: np.ndarray, dist: np.ndarray) -> np.ndarray:
 
 
 def _pelvis_markers(traj: Trajectory) -> tuple[np.ndarray, ...] | None:
-    for names in _PELVIS_MARKERS:
+    for names in PELVIS_MARKER_SETS:
         if all(traj.has(n) for n in names):
             pts = tuple(traj.point(n) for n in names)
             if all(np.isfinite(p).any() for p in pts):

@@ -10,6 +10,7 @@ import numpy as np
 
 from gaitcap.errors import InputError
 from gaitcap.gait.analysis import GaitAnalysis, analyse
+from gaitcap.gait.angles import PELVIS_MARKER_SETS
 from gaitcap.gait.events import WalkingDirection
 from gaitcap.gait.options import GaitOptions
 from gaitcap.io import gait_outputs
@@ -27,8 +28,6 @@ from gaitcap.trajectory import SIDES, GaitEvent, Trajectory, side_suffix
 log = logging.getLogger("gaitcap.report")
 
 MOTION_SUFFIXES = (".c3d", ".trc")
-PELVIS_MARKERS = ("LASI", "RASI", "LPSI", "RPSI")
-SACRAL_MARKER = "SACR"
 
 
 @dataclass(frozen=True)
@@ -82,18 +81,19 @@ def load_trajectory(path: Path, mapping: str | Path | None = None, subject: str 
 
 
 def with_pelvis_markers(joints: Trajectory, markers: Trajectory) -> Trajectory:
-    """Add the ASIS/PSIS markers (LASI RASI LPSI RPSI) of a marker file to its joint centres, so
-    the pelvis angles use the anatomical pelvis frame (see gaitcap.gait.angles). A sacral marker
-    (SACR) stands for both PSIS markers when they are missing: it is added under its own name
-    (LASI RASI SACR), and the frame uses it as their mid-point; the exported C3D then names no PSIS
-    marker the file does not have."""
-    names: tuple[str, ...] = PELVIS_MARKERS
-    if not (markers.has("LPSI") and markers.has("RPSI")) and markers.has(SACRAL_MARKER):
-        names = (*PELVIS_MARKERS[:2], SACRAL_MARKER)
-    if not all(markers.has(n) for n in names) or markers.n_frames != joints.n_frames:
+    """Add the ASIS/PSIS markers of a marker file to its joint centres, under the file's own names
+    (the first spelling of :data:`gaitcap.gait.angles.PELVIS_MARKER_SETS` it has: Plug-in-Gait's
+    LASI RASI LPSI RPSI, or LASI RASI SACR, CAST's, OpenSim's L.ASIS R.ASIS V.Sacral), so the pelvis
+    angles use the anatomical pelvis frame (see gaitcap.gait.angles). A sacral marker stands for the
+    two PSIS markers' mid-point; the exported C3D names no marker the file does not have."""
+    if markers.n_frames != joints.n_frames:
         return joints
-    extra = np.stack([markers.point(n) for n in names], axis=1)
-    return replace(joints, names=joints.names + names, points=np.concatenate([joints.points, extra], axis=1))
+    for spelling in PELVIS_MARKER_SETS:
+        names = tuple(dict.fromkeys(spelling))  # a sacral marker once
+        if all(markers.has(n) for n in names):
+            extra = np.stack([markers.point(n) for n in names], axis=1)
+            return replace(joints, names=joints.names + names, points=np.concatenate([joints.points, extra], axis=1))
+    return joints
 
 
 def _fit_record(path: Path, traj: Trajectory) -> FitRecord | None:
