@@ -209,3 +209,20 @@ def test_the_overlay_label_is_white_on_a_black_box():
     assert ys.min() <= wy.min() and wy.max() <= ys.max() and xs.min() <= wx.min() and wx.max() <= xs.max()
     grey = np.all(out == 128, axis=2)
     assert grey[:, xs.max() + 1:].all() and grey[ys.max() + 1:].all()  # nothing else drawn around it
+
+
+def test_the_overlay_mask_is_not_drawn_in_the_reports_left_and_right_colours():
+    """Found viewing the overlay beside the report: the mask was tinted green and outlined red, the report's
+    right and left colours. The tint and outline are now cyan and yellow."""
+    from gaitcap.silhouette.overlay import MASK_BGR, OUTLINE_BGR, draw_overlay
+
+    frame = np.full((120, 160, 3), 128, np.uint8)
+    mask = np.zeros((120, 160), np.uint8)
+    mask[30:90, 60:100] = 1
+    out = draw_overlay(frame, mask).astype(int)
+    inside = out[60, 80]
+    assert inside[0] > inside[2] and inside[1] > inside[2]  # blue and green over red: cyan, not green
+    np.testing.assert_array_equal(out[30, 80], OUTLINE_BGR)
+    for bgr in (MASK_BGR, OUTLINE_BGR):
+        b, g, r = bgr
+        assert not (g > 150 and r < 80 and b < 80) and not (r > 150 and g < 80 and b < 80)  # neither green nor red

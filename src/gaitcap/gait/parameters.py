@@ -359,11 +359,16 @@ def compute_parameters(
     return params
 
 
+def _count(n: int, noun: str) -> str:
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
 def _no_cycle_reason(traj: Trajectory, events: Sequence[GaitEvent], n_steps: int) -> str:
     n_fs = sum(e.event == "foot_strike" for e in events)
     n_fo = len(events) - n_fs
     reason = (
-        f"not enough steps: no complete gait cycle (found {n_fs} foot strikes and {n_fo} foot offs in "
+        f"not enough steps: no complete gait cycle (found {_count(n_fs, 'foot strike')} and "
+        f"{_count(n_fo, 'foot off')} in "
         f"{traj.n_frames / traj.rate_hz:.2f} s; a cycle needs two foot strikes of one foot with its foot off and "
         "one strike of the other foot between)"
     )

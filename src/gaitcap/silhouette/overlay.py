@@ -7,19 +7,23 @@ import numpy as np
 
 from gaitcap.silhouette.extract import FrameQuality
 
+#: the mask's tint and outline (BGR): cyan and yellow, apart from the report's red (left) and green (right)
+MASK_BGR, OUTLINE_BGR = (230, 200, 0), (0, 230, 255)
+
 
 def draw_overlay(frame: np.ndarray, mask: np.ndarray, quality: FrameQuality | None = None) -> np.ndarray:
-    """Return a copy of ``frame`` (H, W, 3) uint8 with ``mask`` (H, W) 0/1 tinted green and outlined.
+    """Return a copy of ``frame`` (H, W, 3) uint8 with ``mask`` (H, W) 0/1 tinted cyan and outlined in
+    yellow: not the report's left (red) and right (green) colours, which the mask has nothing to do with.
 
     The top-left corner shows the frame index, foreground fraction and flags.
     """
     out = frame.copy()
     on = mask.astype(bool)
-    tint = np.array([0, 200, 0], np.float32)
+    tint = np.array(MASK_BGR, np.float32)
     out[on] = (0.55 * out[on] + 0.45 * tint).astype(np.uint8)
     contours, _ = cv2.findContours(mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
     thick = max(1, round(frame.shape[1] / 640))
-    cv2.drawContours(out, contours, -1, (0, 0, 255), thick)
+    cv2.drawContours(out, contours, -1, OUTLINE_BGR, thick)
     if quality is not None:
         text = f"#{quality.index}  fg {100 * quality.fraction:.1f}%  " + (",".join(quality.flag_names) or "ok")
         scale, origin = 0.5 * thick, (8, int(22 * thick))
