@@ -305,3 +305,23 @@ def test_uncertain_frames_use_the_runs_own_threshold(tracked_copy):
     res = CliRunner().invoke(cli, ["report", str(root / "run40"), "--session", str(root / "session"), "-o", str(root / "g40")])
     assert res.exit_code in (0, 3), res.output
     assert "mean lower-limb uncertainty above 40 mm" in (root / "g40" / "report.html").read_text()
+
+
+def test_the_thumbnail_reaches_the_floor_beneath_a_model_drawn_too_small():
+    """A run with a wrong --height drew a model too small, and the crop around it cut off the person's feet
+    (at the thumbnail's edge or past it): the crop now reaches the floor under the pelvis, where they stand."""
+    from gaitcap.camera import Camera
+    from gaitcap.report.sheet import crop_box, floor_below
+
+    R = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])  # looking along +y, z up
+    cam = Camera("c", (640, 480), np.array([[500.0, 0, 320], [0, 500.0, 240], [0, 0, 1]]), np.zeros(5),
+                 cv2.Rodrigues(R)[0].ravel(), -R @ np.array([0.0, -5.0, 1.0]))  # fmt: skip
+    names = ("pelvis", "knee_l", "ankle_l", "head")
+    small = np.array([[0.0, 0.0, 0.9], [0.05, 0.0, 0.7], [0.05, 0.0, 0.5], [0.0, 0.0, 1.3]])  # floats 0.5 m up
+    floor_px = cam.project(floor_below(small, names))[0]
+    np.testing.assert_allclose(floor_below(small, names), [[0.0, 0.0, 0.0]])
+    x0, y0, x1, y1 = crop_box(cam.project(small), (640, 480))
+    assert floor_px[1] > y1  # around the model alone: the floor is cut off
+    x0, y0, x1, y1 = crop_box(np.concatenate([cam.project(small), floor_px[None]]), (640, 480))
+    assert y0 < floor_px[1] < y1 and x0 < floor_px[0] < x1
+    assert np.isnan(floor_below(small[1:], names[1:])).all()  # no pelvis: nothing added

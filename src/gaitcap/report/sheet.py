@@ -178,12 +178,23 @@ def crop(image: np.ndarray, box: tuple[int, int, int, int]) -> np.ndarray:
     return image[y0 + pad : y1 + pad, x0 + pad : x1 + pad]
 
 
+def floor_below(points: np.ndarray, names: tuple[str, ...]) -> np.ndarray:
+    """(1, 3): the floor (z = 0) beneath the pelvis of ``points`` (P, 3); NaN without one. The crop
+    reaches down to it, so a model drawn too small or floating still shows the person's feet, which
+    stand on the floor, and how far off the model is."""
+    if "pelvis" not in names:
+        return np.full((1, 3), np.nan)
+    x, y, _ = points[names.index("pelvis")]
+    return np.array([[x, y, 0.0]])
+
+
 def thumbnail(frame: np.ndarray, camera: Camera, model: BodyModel | None, q: np.ndarray,
               points: np.ndarray, names: tuple[str, ...]) -> bytes:  # fmt: skip
     """One camera's frame (H, W, 3) BGR with the pose drawn (capsules of ``q`` (D,) when ``model``
-    is given, the skeleton of ``points`` (P, 3)), cropped around it, as JPEG bytes."""
+    is given, the skeleton of ``points`` (P, 3)), cropped around it and the floor beneath its pelvis
+    (:func:`floor_below`), as JPEG bytes."""
     pixels = camera.project(points)
-    outline = [pixels]
+    outline = [pixels, camera.project(floor_below(points, names))]
     pc = None
     if model is not None and np.all(np.isfinite(q)):
         pc = project_model(camera, model, q)
