@@ -100,6 +100,25 @@ def test_a_session_finished_with_other_options_is_neither_skipped_nor_redone(tmp
     assert "--max-frames 20 (was 30); --height 1.7 (was not given)" in res[0].message
 
 
+def test_a_tracker_or_seed_the_configuration_refuses_is_a_config_error(tmp_path):
+    """``tracker`` and ``seed`` are set on the configuration after it is read: a value its schema refuses
+    is a ConfigError naming the key (as one in the file is), not pydantic's ValidationError, which escaped
+    run_batch itself when a finished session's options were compared (_changed_options catches
+    GaitcapError only)."""
+    with pytest.raises(ConfigError, match=r"the options given: tracker: Input should be 'condensation', 'ipf' or "
+                                          r"'factored-ipf'"):  # fmt: skip
+        run_options(tracker="factored_ipf")
+    with pytest.raises(ConfigError, match="the options given: seed: Input should be greater than or equal to 0"):
+        run_options(seed=-1)
+    sessions = make_sessions(tmp_path / "in", ["a"])
+    out = tmp_path / "out" / "a"
+    out.mkdir(parents=True)
+    doc = {"status": "ok", "n_frames": 30, "n_flagged": 0, "verdict": "ok", "options": run_options(max_frames=30)}
+    (out / "track.json").write_text(json.dumps(doc))
+    res = run_batch(sessions, tmp_path / "out", tracker="factored_ipf")  # compared, not tracked: no raise
+    assert len(res) == 1
+
+
 def test_unreadable_track_json_means_not_finished(tmp_path, caplog):
     sessions = make_sessions(tmp_path / "in", ["a"])
     out = tmp_path / "out" / "a"

@@ -33,6 +33,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from gaitcap import __version__
+from gaitcap.errors import ConfigError
 from gaitcap.io.atomic import write_text_atomic
 
 if TYPE_CHECKING:
@@ -162,17 +163,23 @@ def run_configs(config: str | Path | None, tracker: str | None, seed: int | None
     own) and the silhouette configuration a run of ``gaitcap track`` reads.
 
     Raises:
-        ConfigError: a configuration that cannot be read.
+        ConfigError: a configuration that cannot be read, or a ``tracker`` or ``seed`` it does not take.
     """
+    from pydantic import ValidationError
+
     from gaitcap.body.model import load_body_model
+    from gaitcap.config import format_validation_error
     from gaitcap.silhouette.config import SilhouetteConfig
-    from gaitcap.tracking.config import load_tracking_config
+    from gaitcap.tracking.config import TrackingConfig, load_tracking_config
 
     cfg = load_tracking_config(config, model=load_body_model())  # names only: the run's height comes later
-    if tracker is not None:
-        cfg.tracker = tracker  # validated by the schema
-    if seed is not None:
-        cfg.seed = seed
+    try:  # validated by the schema (assignment)
+        if tracker is not None:
+            cfg.tracker = tracker  # type: ignore[assignment]
+        if seed is not None:
+            cfg.seed = seed
+    except ValidationError as e:
+        raise ConfigError(format_validation_error(e, "the options given", TrackingConfig)) from e
     return cfg, SilhouetteConfig.load(silhouette_config)
 
 
