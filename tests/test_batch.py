@@ -115,8 +115,30 @@ def test_a_tracker_or_seed_the_configuration_refuses_is_a_config_error(tmp_path)
     out.mkdir(parents=True)
     doc = {"status": "ok", "n_frames": 30, "n_flagged": 0, "verdict": "ok", "options": run_options(max_frames=30)}
     (out / "track.json").write_text(json.dumps(doc))
-    res = run_batch(sessions, tmp_path / "out", tracker="factored_ipf")  # compared, not tracked: no raise
-    assert len(res) == 1
+    with pytest.raises(ConfigError, match="the options given: tracker"):  # refused before any session
+        run_batch(sessions, tmp_path / "out", tracker="factored_ipf")
+
+
+def test_a_configuration_that_cannot_be_read_is_refused_though_every_session_finished(tmp_path):
+    """A batch whose sessions had all finished skipped them all, exit 0, with a -c file the schema refuses
+    ('tracker: nope'): it was only read to compare the options, and its error taken for 'cannot compare'.
+    It is refused before any session now, as it is when a session is still to be tracked."""
+    from click.testing import CliRunner
+
+    from gaitcap.cli.main import cli
+
+    sessions = make_sessions(tmp_path / "in", ["a"])
+    out = tmp_path / "out" / "a"
+    out.mkdir(parents=True)
+    doc = {"status": "ok", "n_frames": 30, "n_flagged": 0, "verdict": "ok", "options": run_options(max_frames=30)}
+    (out / "track.json").write_text(json.dumps(doc))
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("tracker: nope\n")
+    with pytest.raises(ConfigError, match=r"bad\.yaml: tracker: Input should be"):
+        run_batch(sessions, tmp_path / "out", config=bad, max_frames=30)
+    res = CliRunner().invoke(cli, ["track", str(tmp_path / "in"), "-o", str(tmp_path / "out"), "-c", str(bad),
+                                   "--max-frames", "30"])  # fmt: skip
+    assert res.exit_code == 1 and "bad.yaml: tracker" in res.output, res.output
 
 
 def test_unreadable_track_json_means_not_finished(tmp_path, caplog):

@@ -292,7 +292,8 @@ def run_batch(
         One summary per session, in the order of ``sessions``.
 
     Raises:
-        ConfigError: bad ``jobs``, Dask missing or unreachable.
+        ConfigError: bad ``jobs``, a configuration (or ``tracker``, ``seed``) that cannot be read, Dask
+            missing or unreachable.
         InputError: two sessions with the same name.
         OutputError: ``out_root`` cannot be created.
     """
@@ -303,6 +304,7 @@ def run_batch(
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
         raise InputError(f"several sessions are named {', '.join(dup)}: their outputs would collide in {out_root}")
+    options = _batch_options(task, task_kwargs)  # a configuration that cannot be read: refused before any session
     out_root = Path(out_root)
     try:
         out_root.mkdir(parents=True, exist_ok=True)
@@ -318,7 +320,7 @@ def run_batch(
         if not force and is_finished(out):
             before = read_track_json(out) or {}
             frames, flagged = int(before.get("n_frames", 0)), int(before.get("n_flagged", 0))  # the finished run's
-            if changed := _changed_options(before, task, task_kwargs):
+            if options is not None and before.get("options") and (changed := changed_options(before["options"], options)):
                 results[i] = TrackSummary(session, out, STATUS_FAILED, frames, flagged, 0.0,
                                           f"finished before with other options ({changed}): use --force to redo it "
                                           "with these")  # fmt: skip
@@ -345,17 +347,18 @@ def run_batch(
     return [results[i] for i in range(len(paths))]
 
 
-def _changed_options(before: dict[str, Any], task: Task, task_kwargs: dict[str, Any]) -> str:
-    """The options of this batch that differ from those a finished run recorded (its track.json's
-    ``options``; empty for another task, or when they cannot be compared: the run reports that)."""
-    if task is not run_track_lazy or not before.get("options"):
-        return ""
+def _batch_options(task: Task, task_kwargs: dict[str, Any]) -> dict[str, Any] | None:
+    """The options of a batch of ``gaitcap track`` (:func:`gaitcap.track_summary.run_options`), which a
+    finished run's track.json is compared with; None for another task.
+
+    Raises:
+        ConfigError: a configuration that cannot be read (every session's run would fail on it; a batch
+            whose sessions all finished before would otherwise skip them all and say nothing).
+    """
+    if task is not run_track_lazy:
+        return None
     names = ("config", "tracker", "height_m", "max_frames", "body", "silhouette_config", "seed")
-    try:
-        options = run_options(**{k: task_kwargs[k] for k in names if k in task_kwargs})
-    except GaitcapError:  # a configuration that cannot be read: every session's run says so
-        return ""
-    return changed_options(before["options"], options)
+    return run_options(**{k: task_kwargs[k] for k in names if k in task_kwargs})
 
 
 def any_failed(summaries: Sequence[TrackSummary]) -> bool:
