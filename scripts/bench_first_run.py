@@ -47,7 +47,7 @@ def table(install_s: float, walls: list[float]) -> str:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--work", type=Path, default=Path("/tmp/gaitcap-first-run"), help="venv, outputs and logs")
     ap.add_argument("--runs", type=int, default=2, help="demo runs after the install (>= 1)")
     ap.add_argument("--python", default=sys.executable, help="the interpreter the venv is built from")

@@ -27,7 +27,8 @@ the table gives the medians of:
   shape (the calibration's search: every candidate's re-fits), legs settled (the first frames
   tracked from the calibrated start and its mirror), tracking (the per-frame loop), backward (the second
   pass over the clip, tracking/backward.py: the stretches of it not tracked beside the forward pass,
-  on every core, and the merge), writing (read-back,
+  on every core, and the merge), verdict (the legs' support on the spooled silhouettes and the
+  run's verdict, gaitcap.quality), writing (read-back,
   smoothing, CSV/TRC); background (its fitting, in the prefetch thread, overlapping setup, kernels
   and first frames) is shown apart;
 - with ``--reuse-body``, each clip is also tracked ``--runs`` times with the body its first run

@@ -430,7 +430,7 @@ def print_bias(rows: list[dict]) -> None:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sessions", type=int, default=24, help="number of the suite's own sessions")
     ap.add_argument("--first", type=int, default=0,
                     help="draw the own sessions from this index on (seeds FIRST..SESSIONS-1): with --first 24 "

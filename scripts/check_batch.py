@@ -39,7 +39,7 @@ def same_outputs(a: Path, b: Path) -> bool:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__)
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--work", type=Path, default=Path("/tmp/gaitcap-batch"))
     ap.add_argument("--max-frames", default="20")
     args = ap.parse_args()

@@ -1,6 +1,24 @@
 """Measure gaitcap's calibration against the references in ../shared/data (prints a table).
 
     python scripts/check_calibration.py [--data PATH] [--only qualisys] [--overlay DIR]
+
+Four sections (``--only`` runs one):
+
+- ``opencv``: the 13 left chessboard images calibrated by gaitcap (CALIB_FIX_ASPECT_RATIO) against
+  OpenCV's own reference (left_intrinsics.yml): fx, fy, cx, cy and the RMS reprojection error, ours,
+  the reference's and their difference (pixels); then the stereo pairs' RMS, baseline and epipolar error;
+- ``pose2sim``: each Pose2Sim demo camera's intrinsics from its checkerboard images against the
+  Qualisys calibration's: focal lengths, their difference in %, the principal point's in pixels, RMS;
+- ``qualisys``: the imported Qualisys calibration reprojecting the hand-located scene points, then
+  against the 8 floor points clicked for Pose2Sim's two scene calibrations (mean and max pixels per
+  camera; "click noise": the two clickings against each other, the floor under which a difference
+  means nothing); ``--overlay DIR`` draws them on the scene images; then each camera's video size
+  against its calibration's;
+- ``synthetic``: a floor board rendered for 3 known cameras, solved from one position (solvePnP) and
+  from four (bundle adjustment): each camera's position (mm) and rotation (degrees) error, RMS px,
+  and the calibration's own 3D check (mm) and time.
+
+The lines "no board corner in N of 16 image regions" are gaitcap's own coverage warnings.
 """
 
 from __future__ import annotations
@@ -159,7 +177,7 @@ def synthetic_floor(seed: int = 0) -> None:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__)
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--data", type=Path, default=DEFAULT_DATA)
     ap.add_argument("--only", choices=["opencv", "pose2sim", "qualisys", "synthetic"], help="run one section only")
     ap.add_argument("--overlay", type=Path, help="write camNN_floor_points.png overlays of the floor points here")

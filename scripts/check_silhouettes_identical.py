@@ -64,7 +64,7 @@ def run(session: Path, max_frames: int | None) -> tuple[list[list[str]], float, 
 
 
 def main() -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("sessions", type=Path, nargs="+")
     p.add_argument("--frames", type=int, default=None, help="at most this many frames per session")
     g = p.add_mutually_exclusive_group()

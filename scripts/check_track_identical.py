@@ -77,7 +77,7 @@ def compare(ref: Path, new: Path) -> list[str]:
 
 
 def main() -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     g = p.add_mutually_exclusive_group(required=True)
     g.add_argument("--save", type=Path, help="save the reference outputs here")
     g.add_argument("--against", type=Path, help="compare with the reference outputs saved here")

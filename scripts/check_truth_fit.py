@@ -70,7 +70,7 @@ def lower_error_mm(model, q: np.ndarray, truth_lower: np.ndarray) -> float:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("session", type=Path)
     ap.add_argument("run", type=Path)
     ap.add_argument("--config", type=Path, default=None, help="the tracking configuration of the run")

@@ -52,7 +52,7 @@ def support(run: Path, segments: tuple[str, ...] = LEG_SEGMENTS) -> dict[str, np
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("runs", nargs="+", type=Path)
     parser.add_argument("--below", type=float, default=0.5, help="support counted as missing below this (0-1)")
     parser.add_argument("--segments", nargs="+", default=list(LEG_SEGMENTS),

@@ -24,7 +24,7 @@ from gaitcap.markers.motion import read_motion
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("-o", "--out", type=Path, required=True, help="the TRC to write")
     args = ap.parse_args()
     walk = read_motion(embedded_walk())

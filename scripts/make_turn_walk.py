@@ -126,7 +126,7 @@ def _path(s: float, length: float, radius: float) -> tuple[tuple[float, float], 
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("-o", "--out", type=Path, required=True, help="the TRC to write")
     ap.add_argument("--turn-seconds", type=float, default=1.0, help="the pivot's duration (s, > 0)")
     ap.add_argument("--degrees", type=float, default=180.0, help="the pivot's angle (degrees)")

@@ -95,7 +95,7 @@ def why(session: Path, feet: bool, every: int) -> dict[str, dict[str, int]]:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("sessions", type=Path, nargs="+")
     ap.add_argument("--feet", action="store_true", help="only the feet missing from a camera-frame")
     ap.add_argument("--every", type=int, default=1, help="score every K-th frame (all are extracted)")
