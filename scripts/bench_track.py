@@ -38,6 +38,7 @@ default: the shipped config's ``threads``), e.g. ``ipf=6000,6000@all``.
 from __future__ import annotations
 
 import argparse
+import sys
 import logging
 import math
 import tempfile
@@ -48,6 +49,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from gaitcap.errors import GaitcapError
 from gaitcap.config import default_config_path, read_yaml
 from gaitcap.evaluation.compare import align
 from gaitcap.evaluation.metrics import angle_bias_deg, angle_rmse_deg, group_errors, point_distances_mm, runs, swap_mask
@@ -295,6 +297,8 @@ def main() -> None:
     ap.add_argument("--tracker-seeds", type=int, nargs="+", default=None,
                     help="track every row once per seed (default: --seed) and give mean and range")
     args = ap.parse_args()
+    if not args.data.is_dir():
+        ap.error(f"--data {args.data}: no such folder (the shared data; by default ../shared/data beside the checkout)")
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     budgets = parse_budgets(args.budgets)
     sessions = {name: session_for(name, args.data / rel, args.work, args.seed) for name, rel in TRIALS.items()}
@@ -317,4 +321,7 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except GaitcapError as e:  # a file of the data missing or unreadable
+        sys.exit(f"error: {e}")

@@ -35,6 +35,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "src"))
 
+from gaitcap.errors import GaitcapError  # noqa: E402
 from gaitcap.calibration.boards import Board, detect_board  # noqa: E402
 from gaitcap.calibration.extrinsics import (  # noqa: E402
     ScenePoints,
@@ -182,6 +183,8 @@ def main() -> None:
     ap.add_argument("--only", choices=["opencv", "pose2sim", "qualisys", "synthetic"], help="run one section only")
     ap.add_argument("--overlay", type=Path, help="write camNN_floor_points.png overlays of the floor points here")
     args = ap.parse_args()
+    if not args.data.is_dir():
+        ap.error(f"--data {args.data}: no such folder (the shared data; by default ../shared/data beside the checkout)")
     sections = {
         "opencv": lambda: opencv_sample(args.data),
         "pose2sim": lambda: pose2sim_intrinsics(args.data),
@@ -194,4 +197,7 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except GaitcapError as e:  # a file of the data missing or unreadable
+        sys.exit(f"error: {e}")

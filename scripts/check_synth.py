@@ -13,11 +13,13 @@ the markers' own joint centres, whose bones vary by several % in real data:
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
+from gaitcap.errors import GaitcapError
 from gaitcap.synth.checks import bone_length_variation, truth_inside_masks
 from gaitcap.synth.session import SynthOptions, synthesize
 
@@ -34,6 +36,8 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=Path("/tmp/gaitcap-synth"))
     ap.add_argument("--seed", type=int, default=0, help="look seed (person, clothes, room, light, cameras)")
     args = ap.parse_args()
+    if not args.data.is_dir():
+        ap.error(f"--data {args.data}: no such folder (the shared data; by default ../shared/data beside the checkout)")
     print("| trial | frames | s to render | fit residual hips/knees/ankles mm | truth in mask % per camera | max bone variation % |")
     print("|---|---|---|---|---|---|")
     for name, rel in TRIALS.items():
@@ -49,4 +53,7 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except GaitcapError as e:  # a file of the data missing or unreadable
+        sys.exit(f"error: {e}")

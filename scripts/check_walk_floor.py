@@ -29,7 +29,7 @@ sys.path.insert(0, str(REPO / "src"))
 
 from gaitcap.body.measures import segment_lengths  # noqa: E402
 from gaitcap.config import load_yaml_model  # noqa: E402
-from gaitcap.errors import InputError  # noqa: E402
+from gaitcap.errors import GaitcapError, InputError  # noqa: E402
 from gaitcap.evaluation.report import read_truth_trajectory  # noqa: E402
 from gaitcap.markers.motion import read_markers, read_motion  # noqa: E402
 from gaitcap.session import SESSION_FILE, SessionInfo  # noqa: E402
@@ -81,6 +81,8 @@ def main() -> None:
     ap.add_argument("--data", type=Path, default=DEFAULT_DATA)
     ap.add_argument("sessions", nargs="*", type=Path, help="session folders with their truth")
     args = ap.parse_args()
+    if not args.data.is_dir():
+        ap.error(f"--data {args.data}: no such folder (the shared data; by default ../shared/data beside the checkout)")
     print("walk (joint centres as gaitcap reads them; heel and toe at the sole within 2 cm of z = 0)")
     for rel, *toes in WALKS.values():
         path = args.data / rel
@@ -95,4 +97,7 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except GaitcapError as e:  # a file of the data missing or unreadable
+        sys.exit(f"error: {e}")

@@ -30,6 +30,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "src"))
 
+from gaitcap.errors import GaitcapError  # noqa: E402
 from gaitcap.config import model_from_mapping  # noqa: E402
 from gaitcap.evaluation.metrics import mask_iou  # noqa: E402
 from gaitcap.io.silhouettes_h5 import read_masks  # noqa: E402
@@ -175,6 +176,8 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--show", type=int, nargs="+", default=[20, 60, 100, 140, 180, 220])
     args = ap.parse_args()
+    if not args.data.is_dir():
+        ap.error(f"--data {args.data}: no such folder (the shared data; by default ../shared/data beside the checkout)")
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
     args.out.mkdir(parents=True, exist_ok=True)
     parts = args.only or ["synth", "sports2d", "pose2sim"]
@@ -187,4 +190,7 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except GaitcapError as e:  # a file of the data missing or unreadable
+        sys.exit(f"error: {e}")

@@ -20,6 +20,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "src"))
 
+from gaitcap.errors import GaitcapError  # noqa: E402
 from gaitcap.markers.mapping import load_mapping  # noqa: E402
 from gaitcap.markers.motion import read_motion  # noqa: E402
 
@@ -93,8 +94,12 @@ def main() -> None:
     ap.add_argument("--data", type=Path, default=DEFAULT_DATA, help="the shared data folder")
     ap.add_argument("--out", type=Path, default=REPO / "src" / "gaitcap" / "data" / "walk_pig.c3d")
     args = ap.parse_args()
+    if not args.data.is_dir():
+        ap.error(f"--data {args.data}: no such folder (the shared data; by default ../shared/data beside the checkout)")
     folder = args.data / "walking" / "vicon_pig_lowerbody"
     src = folder / "walk.c3d"
+    if not src.is_file():
+        sys.exit(f"error: {src}: file not found (the Vicon walk of the shared data)")
     build(src, args.out)
     shutil.copyfile(folder / "LICENSE.txt", args.out.parent / "LICENSE.txt")
     err = verify(src, args.out)
@@ -102,4 +107,7 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except GaitcapError as e:  # a file of the data missing or unreadable
+        sys.exit(f"error: {e}")

@@ -14,10 +14,12 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 import numpy as np
 
+from gaitcap.errors import GaitcapError
 from gaitcap.gait.angles import joint_angles
 from gaitcap.gait.events import detect_events
 from gaitcap.gait.options import GaitOptions
@@ -75,6 +77,8 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--data", type=Path, default=DEFAULT_DATA, help="the shared data folder")
     args = ap.parse_args(argv)
+    if not args.data.is_dir():
+        ap.error(f"--data {args.data}: no such folder (the shared data; by default ../shared/data beside the checkout)")
     walks = {
         "Vicon PiG walk.c3d": args.data / "walking" / "vicon_pig_lowerbody" / "walk.c3d",
         "OpenSim subject01_walk1.trc": args.data / "walking" / "opensim_gait2354_subject01" / "subject01_walk1.trc",
@@ -93,4 +97,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    try:
+        raise SystemExit(main())
+    except GaitcapError as e:  # a file of the data missing or unreadable
+        sys.exit(f"error: {e}")
