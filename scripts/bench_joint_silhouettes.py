@@ -26,7 +26,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 
 from gaitcap.config import model_from_mapping, parse_yaml
-from gaitcap.errors import ConfigError
+from gaitcap.errors import ConfigError, GaitcapError
+from gaitcap.session import Session
 from gaitcap.silhouette.config import SilhouetteConfig
 from gaitcap.silhouette.joint import JointExtractor
 from gaitcap.silhouette.run import prepare_extractor, sources_from_session
@@ -83,7 +84,9 @@ def main() -> None:
     try:
         for v in args.overrides:  # before any session is decoded
             configured(v)
-    except ConfigError as e:
+        for session in args.sessions:  # a wrong path ends the script before any work
+            Session.open(session)
+    except GaitcapError as e:
         raise SystemExit(f"error: {e}") from None
     print("| session | cameras | configuration | CPU ms per frame, each round | median | per camera-frame | "
           "candidates' box, share of the image |")  # fmt: skip

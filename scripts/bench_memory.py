@@ -146,6 +146,11 @@ def main() -> None:
     ap.add_argument("--fps", type=float, default=25.0)
     ap.add_argument("extra", nargs="*", help="options passed on to gaitcap track (after --)")
     args = ap.parse_args()
+    if args.session is not None:
+        try:
+            Session.open(args.session)
+        except GaitcapError as e:
+            sys.exit(f"error: --session: {e}")
     source = args.session or base_session(args.work, args.fps)
     rows = []
     for seconds in args.seconds:

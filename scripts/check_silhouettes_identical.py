@@ -10,7 +10,8 @@ other in this thread), and prints per session a table row: frames, CPU milliseco
 time, not disturbed much by other jobs on the machine), and, with ``--against``, whether every
 frame's outputs equal the reference's. Each frame of each camera is reduced to a SHA-256 of its
 full-resolution mask, its soft silhouette and its quality record (``--save`` writes them to a
-JSON file); the check exits 1 on the first session that differs.
+JSON file); the check exits 1 when a session differs or has no reference in the file (a session is
+known by its resolved path: compare on the same folders as saved).
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gaitcap.errors import GaitcapError
 from gaitcap.session import Session
 from gaitcap.silhouette.config import SilhouetteConfig
 from gaitcap.silhouette.joint import JointExtractor
@@ -71,7 +73,17 @@ def main() -> int:
     g.add_argument("--save", type=Path, help="write the per-frame digests here (JSON)")
     g.add_argument("--against", type=Path, help="compare with the digests saved here")
     args = p.parse_args()
-    ref = json.loads(args.against.read_text()) if args.against else {}
+    ref: dict[str, list[list[str]]] = {}
+    if args.against:
+        try:
+            ref = json.loads(args.against.read_text())
+        except (OSError, ValueError) as e:
+            sys.exit(f"error: --against {args.against}: cannot read the saved digests ({e})")
+    try:
+        for session in args.sessions:  # a wrong path ends the check before any work
+            Session.open(session)
+    except GaitcapError as e:
+        sys.exit(f"error: {e}")
     saved: dict[str, list[list[str]]] = {}
     print("| session | frames | decode ms/frame (CPU) | extract ms/frame (CPU) | identical |")
     print("|---|---|---|---|---|")
@@ -86,6 +98,7 @@ def main() -> int:
             want = ref.get(key)
             if want is None:
                 same = "no reference"
+                status = 1
             else:
                 diff = next((i for i, (a, b) in enumerate(zip(digests, want)) if a != b), None)
                 if args.frames is not None:

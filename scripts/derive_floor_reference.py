@@ -29,6 +29,7 @@ import yaml
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "src"))
 
+from gaitcap.errors import GaitcapError  # noqa: E402
 from gaitcap.io.calibration_toml import read_calibration  # noqa: E402
 
 # The lab's scene-calibration points (metres, z up), as listed for the Pose2Sim demo.
@@ -70,7 +71,10 @@ def main() -> None:
     ap.add_argument("out", type=Path, help="the ScenePoints YAML to write")
     ap.add_argument("--source", required=True, help="the file's path in the Pose2Sim repository (recorded in notes)")
     args = ap.parse_args()
-    data = derive(args.toml, args.source)
+    try:
+        data = derive(args.toml, args.source)
+    except GaitcapError as e:
+        sys.exit(f"error: {e}")
     header = f"# Floor points of the Pose2Sim demo lab and their pixels per camera, derived from {args.source}\n"
     args.out.write_text(header + yaml.safe_dump(data, sort_keys=False, default_flow_style=None, width=120), encoding="utf-8")
     print(f"wrote {args.out}")

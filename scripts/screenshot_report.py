@@ -6,6 +6,7 @@
 from __future__ import annotations
 
 import argparse
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -25,6 +26,10 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if not args.html.is_file():
         print(f"{args.html}: not found", file=sys.stderr)
+        return 1
+    if shutil.which(args.chromium) is None:
+        print(f"{args.chromium}: Chromium not found (apt-get install chromium, or give its path with --chromium)",
+              file=sys.stderr)
         return 1
     cmd = [args.chromium, *FLAGS, f"--window-size={args.width},{args.height}",
            f"--screenshot={args.out.resolve()}", args.html.resolve().as_uri()]  # fmt: skip

@@ -25,14 +25,17 @@ Prints one row per camera (shares of the missed pixels) and the frames scored ev
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 import h5py
 import numpy as np
 from bench_suite import PART_MISSING  # scripts/ is on the path when run as a script
 
+from gaitcap.errors import GaitcapError, InputError
 from gaitcap.evaluation.report import read_truth_reference
 from gaitcap.evaluation.silhouettes import part_centres, part_pixels, project_part
+from gaitcap.session import Session
 from gaitcap.silhouette.config import SilhouetteConfig
 from gaitcap.silhouette.joint import JointExtractor
 from gaitcap.silhouette.run import prepare_extractor, sources_from_session
@@ -100,6 +103,10 @@ def main() -> None:
     ap.add_argument("--feet", action="store_true", help="only the feet missing from a camera-frame")
     ap.add_argument("--every", type=int, default=1, help="score every K-th frame (all are extracted)")
     args = ap.parse_args()
+    for session in args.sessions:  # a wrong path ends the script before any work
+        Session.open(session)
+        if not (session / "truth.h5").is_file():
+            raise InputError(f"{session}: no truth.h5 (a synthetic session with its true masks is needed)")
     print(f"| session | camera | missed / true | {' | '.join(CAUSES)} | of the shadow: {' | '.join(RULES)} |")
     print("|---|---|---|" + "---|" * (len(CAUSES) + len(RULES)))
     for session in args.sessions:
@@ -112,4 +119,7 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    except GaitcapError as e:
+        sys.exit(f"error: {e}")
