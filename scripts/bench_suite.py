@@ -454,8 +454,17 @@ def main() -> None:
     ap.add_argument("--tables", type=Path, help="print the tables of an earlier run's suite.json and stop")
     args = ap.parse_args()
     if args.tables:
+        if not args.tables.is_file():
+            ap.error(f"--tables {args.tables}: no such file (an earlier run's WORK/suite.json)")
         print_tables(json.loads(args.tables.read_text()))
         return
+    if args.only:  # a name that is not in the suite would leave an empty suite.json behind
+        names = [] if args.only_external else [p["name"] for p in plan(args.sessions, list(WALKS))[args.first :]]
+        if not args.no_external and (SHARED / "external_sessions").is_dir():
+            names += [f"ext_{p.name}" for p in sorted((SHARED / "external_sessions").glob("*")) if (p / "truth").is_dir()]
+        unknown = [n for n in args.only if n not in names]
+        if unknown:
+            ap.error(f"--only: no session named {', '.join(unknown)} in this suite (its sessions: {' '.join(names)})")
     args.work.mkdir(parents=True, exist_ok=True)
     todo = [] if args.only_external else own_sessions(args)
     if not args.no_external and (SHARED / "external_sessions").is_dir():

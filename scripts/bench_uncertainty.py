@@ -327,6 +327,9 @@ def main() -> None:
                     help="fit the uncertainty's coefficients again (pooled, and leaving each walk out)")
     ap.add_argument("--json", type=Path, default=None, help="also write the tables here")
     args = ap.parse_args()
+    if not (args.work / "suite.json").is_file():
+        sys.exit(f"error: {args.work}: not a scripts/bench_suite.py work folder (no suite.json: run bench_suite.py "
+                 f"--work {args.work} first)")  # fmt: skip
     cfg = load_tracking_config(args.config)
     rows = json.loads((args.work / "suite.json").read_text())
     runs = []
@@ -336,6 +339,9 @@ def main() -> None:
             print(f"{row['name']}: no trajectories.h5, left out", file=sys.stderr)
             continue
         runs.append(load_run(row, run, cfg))
+    if not runs:
+        sys.exit(f"error: {args.work}: no finished run under {args.work / 'runs'} (its suite.json lists "
+                 f"{len(rows)} sessions)")  # fmt: skip
     doc = {"verdict": print_verdicts(runs), "verdict_held_out": leave_one_walk_out_verdict(runs, cfg)}
     measured = [r for r in runs if np.isfinite(r.error).any()]
     before, after = coverage_table(measured, "before"), coverage_table(measured, "after")

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from collections import Counter
 from pathlib import Path
 
@@ -104,6 +105,10 @@ def main() -> None:
     ap.add_argument("work", type=Path, nargs="+", help="bench_suite.py work folders")
     ap.add_argument("--sigma", type=float, default=3.0, help="standard deviations of the floor's difference")
     args = ap.parse_args()
+    for work in args.work:
+        if not (work / "suite.json").is_file():
+            sys.exit(f"error: {work}: not a scripts/bench_suite.py work folder (no suite.json: run bench_suite.py "
+                     f"--work {work} first)")  # fmt: skip
     kinds = ("camouflaged", "partly", "visible")
     total: Counter[str] = Counter()
     print("| work | session | feet missed | median share standing out | " + " | ".join(kinds) + " |")
