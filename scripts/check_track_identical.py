@@ -8,8 +8,8 @@ Renders the embedded walk once into --work (``gaitcap synth``, seed 0), then run
 below (default configuration, seed 0) and either saves the outputs under REF or compares every
 dataset of ``trajectories.h5`` (points, points_unfiltered, uncertainty, spread, poses, likelihood, fit,
 quality, times) and the root attributes ``shape`` / ``height_m`` with exact equality
-(``np.array_equal``, NaN equal to NaN). Prints one line per case with its wall seconds and exits 1 at
-the first difference.
+(``np.array_equal``, NaN equal to NaN). Prints one line per case with its wall seconds (IDENTICAL or
+DIFFERENT, and each difference) and exits 1 when a case differs.
 
 Cases (``--cases``): ``full``, the whole session (56 frames: shape calibration on the first 13, then
 tracking); ``max12``, ``--max-frames 12`` (the shape window cut short); ``ipf6`` and
@@ -87,6 +87,11 @@ def main() -> int:
     args = p.parse_args()
     if args.quick:
         args.cases = ["max12"]
+    if args.against:  # before any tracking: a case never saved could not be compared
+        missing = [c for c in args.cases if not (args.against / c / "trajectories.h5").is_file()]
+        if missing:
+            p.error(f"--against {args.against}: no saved reference for {', '.join(missing)} (save it first with the "
+                    f"old code: --save {args.against} --cases {' '.join(args.cases)})")
     os.environ.setdefault("OMP_WAIT_POLICY", "passive")
     # the children run this checkout's gaitcap, not whichever one the environment has installed
     # (an editable install of another tree would be checked instead)
