@@ -54,8 +54,12 @@ def main() -> None:
     args = ap.parse_args()
     if args.runs < 1:
         ap.error("--runs must be at least 1")
-    shutil.rmtree(args.work, ignore_errors=True)
-    args.work.mkdir(parents=True)
+    for old in [args.work / "venv", *args.work.glob("demo-*")]:  # this script's outputs only
+        if old.is_dir():
+            shutil.rmtree(old)
+        else:
+            old.unlink()
+    args.work.mkdir(parents=True, exist_ok=True)
     venv = args.work / "venv"
     subprocess.run([args.python, "-m", "venv", str(venv)], check=True)
     install_s = timed([str(venv / "bin" / "pip"), "install", "-q", str(REPO)], args.work / "install.log", args.work)

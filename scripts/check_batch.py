@@ -38,13 +38,18 @@ def same_outputs(a: Path, b: Path) -> bool:
     return True
 
 
+#: what the checks write under --work, removed at the start of each call (nothing else there is touched)
+OUTPUTS = ("sessions", "out_j1", "out_j2", "out_broken", "out_dask", "broken")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--work", type=Path, default=Path("/tmp/gaitcap-batch"))
     ap.add_argument("--max-frames", default="20")
     args = ap.parse_args()
     work = args.work
-    shutil.rmtree(work, ignore_errors=True)
+    for name in OUTPUTS:
+        shutil.rmtree(work / name, ignore_errors=True)
     sessions = work / "sessions"
     for seed in range(4):
         synthesize(embedded_walk(), sessions / f"walk{seed}", SynthOptions(seed=seed), progress=False)
