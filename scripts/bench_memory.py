@@ -26,6 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's gaitcap, not an installed one
+
 from gaitcap.data import embedded_walk
 from gaitcap.errors import GaitcapError
 from gaitcap.io.trc import write_trc

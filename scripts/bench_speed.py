@@ -63,6 +63,7 @@ import sys
 import time
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's gaitcap, not an installed one
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench_memory import base_session, gaitcap_in_child, long_session, track_in_child, turn_session  # noqa: E402

@@ -49,6 +49,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's gaitcap, not an installed one
+
 from gaitcap.errors import GaitcapError
 from gaitcap.config import default_config_path, read_yaml
 from gaitcap.evaluation.compare import align

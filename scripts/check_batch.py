@@ -13,11 +13,15 @@ from __future__ import annotations
 
 import argparse
 import filecmp
+import os
 import shutil
 import subprocess
 import sys
 import time
 from pathlib import Path
+
+SRC = Path(__file__).resolve().parents[1] / "src"
+sys.path.insert(0, str(SRC))  # this checkout's gaitcap, not an installed one
 
 from gaitcap.data import embedded_walk
 from gaitcap.synth.session import SynthOptions, synthesize
@@ -25,8 +29,9 @@ from gaitcap.synth.session import SynthOptions, synthesize
 
 def track(folder: Path, out: Path, *extra: str) -> tuple[float, subprocess.CompletedProcess]:
     t = time.perf_counter()
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(SRC), os.environ.get("PYTHONPATH")])))
     proc = subprocess.run([sys.executable, "-m", "gaitcap", "-q", "track", str(folder), "-o", str(out), *extra],
-                          capture_output=True, text=True)  # fmt: skip
+                          capture_output=True, text=True, env=env)  # fmt: skip
     return time.perf_counter() - t, proc
 
 

@@ -22,7 +22,10 @@ import time
 from dataclasses import replace
 
 import cv2
+from pathlib import Path
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's gaitcap, not an installed one
 
 from gaitcap.body.model import load_body_model
 from gaitcap.camera import CameraRig

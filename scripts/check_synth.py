@@ -19,6 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's gaitcap, not an installed one
+
 from gaitcap.errors import GaitcapError
 from gaitcap.synth.checks import bone_length_variation, truth_inside_masks
 from gaitcap.synth.session import SynthOptions, synthesize

@@ -46,6 +46,8 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's gaitcap, not an installed one
+
 from gaitcap.body.model import BodyModel
 from gaitcap.errors import GaitcapError, InputError
 from gaitcap.evaluation.report import read_tracked, read_truth_trajectory

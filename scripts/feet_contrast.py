@@ -32,6 +32,8 @@ import cv2
 import h5py
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's gaitcap, not an installed one
+
 from gaitcap.evaluation.report import read_truth_reference
 from gaitcap.evaluation.silhouettes import part_centres, part_pixels, project_part
 from gaitcap.io.calibration_toml import read_calibration

@@ -24,6 +24,8 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's gaitcap, not an installed one
+
 from gaitcap.io.calibration_toml import read_calibration
 from gaitcap.io.silhouettes_h5 import read_masks
 from gaitcap.pipeline import read_body

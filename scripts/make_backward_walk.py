@@ -15,7 +15,10 @@ behind the subject.
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's gaitcap, not an installed one
 
 from make_turn_walk import write_walk  # scripts/ is on the path when run as a script
 

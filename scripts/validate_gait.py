@@ -19,6 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's gaitcap, not an installed one
+
 from gaitcap.errors import GaitcapError
 from gaitcap.gait.angles import joint_angles
 from gaitcap.gait.events import detect_events

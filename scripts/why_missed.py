@@ -30,6 +30,9 @@ from pathlib import Path
 
 import h5py
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))  # this checkout's gaitcap, not an installed one
+
 from bench_suite import PART_MISSING  # scripts/ is on the path when run as a script
 
 from gaitcap.errors import GaitcapError, InputError
