@@ -1,8 +1,11 @@
 """Build gaitcap's embedded default trial src/gaitcap/data/walk_pig.c3d from the Vicon walk.
 
-Keeps only the marker points the Plug-in-Gait mapping needs, the Plug-in-Gait angle channels
-the gait report validates against, the events and PROCESSING:Height; no analogs. Then checks
-that the trimmed file gives the same joint centres, events and time axis as the original.
+Keeps only the marker points the Plug-in-Gait mapping read when the file was built (``MARKERS``), the
+Plug-in-Gait angle channels the gait report validates against, the events and PROCESSING:Height; no
+analogs: the file it writes is byte for byte the shipped one. Then checks that the trimmed file has the
+original's events, time axis and height, and prints each joint centre's largest distance between the two
+as gaitcap reads them: 0 but for the hips (and so the pelvis), which the mapping now takes from the
+original's own LFEP/RFEP when present, and from the pelvis markers (Harrington) in the trimmed file.
 
 Usage:
     python scripts/make_embedded_walk.py [--data ../shared/data] [--out src/gaitcap/data/walk_pig.c3d]
@@ -21,10 +24,13 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO / "src"))
 
 from gaitcap.errors import GaitcapError  # noqa: E402
-from gaitcap.markers.mapping import load_mapping  # noqa: E402
 from gaitcap.markers.motion import read_motion  # noqa: E402
 
 DEFAULT_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+#: the markers kept: those the Plug-in-Gait mapping read when the file was built (its hips from the pelvis
+#: markers, Harrington). The mapping now prefers a file's own hip centres (LFEP/RFEP), which are not kept:
+#: the embedded walk's hips are Harrington's, about 35 mm from the original's LFEP/RFEP.
+MARKERS = ("LASI", "RASI", "LPSI", "RPSI", "LKJC", "RKJC", "LAJC", "RAJC", "LHEE", "LTOE", "RHEE", "RTOE")
 ANGLES = ("LHipAngles", "RHipAngles", "LKneeAngles", "RKneeAngles", "LAnkleAngles", "RAnkleAngles",
           "LPelvisAngles", "RPelvisAngles")  # fmt: skip
 #: copied as they are when present
@@ -46,19 +52,12 @@ def _value(v: object) -> object:
     return [str(x) for x in v]  # type: ignore[union-attr]
 
 
-def needed_markers(labels: list[str]) -> list[str]:
-    out = []
-    for alts in load_mapping("plugin_gait").marker_requirements():
-        out.append(next(a for a in alts if a in labels))
-    return out
-
-
 def build(src: Path, out: Path) -> None:
     import ezc3d
 
     c = ezc3d.c3d(str(src))
     labels = [s.strip() for s in c["parameters"]["POINT"]["LABELS"]["value"]]
-    keep = needed_markers(labels) + list(ANGLES)
+    keep = list(MARKERS) + list(ANGLES)
     idx = [labels.index(n) for n in keep]
     points = np.asarray(c["data"]["points"])[:, idx, :]
     residuals = np.asarray(c["data"]["meta_points"]["residuals"])[0, idx, :]
@@ -80,13 +79,16 @@ def build(src: Path, out: Path) -> None:
     new.write(str(out))
 
 
-def verify(src: Path, out: Path) -> float:
+def verify(src: Path, out: Path) -> dict[str, float]:
+    """Each joint centre's largest distance (m) between the original and the trimmed file, as gaitcap
+    reads them; exits when their names, time axis, events or height differ."""
     a, b = read_motion(src), read_motion(out)
     if a.names != b.names or a.t0_s != b.t0_s or a.rate_hz != b.rate_hz or a.events != b.events:
         raise SystemExit(f"mismatch: names/t0/rate/events differ\n{a.events}\n{b.events}")
     if a.meta.get("height_m") != b.meta.get("height_m"):
         raise SystemExit("mismatch: height")
-    return float(np.nanmax(np.abs(a.points - b.points)))
+    dist = np.linalg.norm(a.points - b.points, axis=2)
+    return {name: float(np.nanmax(dist[:, k])) for k, name in enumerate(a.names)}
 
 
 def main() -> None:
@@ -103,7 +105,8 @@ def main() -> None:
     build(src, args.out)
     shutil.copyfile(folder / "LICENSE.txt", args.out.parent / "LICENSE.txt")
     err = verify(src, args.out)
-    print(f"{args.out}: {args.out.stat().st_size} bytes; max joint-centre difference vs original {err:.3g} m")
+    print(f"{args.out}: {args.out.stat().st_size} bytes; largest joint-centre difference vs the original, mm: "
+          + ", ".join(f"{k} {1000 * v:.1f}" for k, v in err.items()))
 
 
 if __name__ == "__main__":
