@@ -36,7 +36,9 @@ black with black plates (built once under ``WORK/true_sessions``): what the trac
 silhouettes. Beside a run on the sessions themselves, it splits each session's error into what its
 masks cost and what the tracker does with the right ones.
 
-Per-session rows are written to ``WORK/suite.csv`` and ``WORK/suite.json``.
+Per-session rows are written to ``WORK/suite.csv`` and ``WORK/suite.json`` (read by bench_uncertainty.py,
+bench_smoothing.py and feet_contrast.py); with ``--silhouettes-only`` to ``WORK/suite_silhouettes.csv`` and
+``.json`` instead, so that the tracked runs' rows in the same WORK stay.
 """
 
 from __future__ import annotations
@@ -482,9 +484,10 @@ def main() -> None:
         rows.append(r)
         print(f"[{i + 1}/{len(todo)}] {s['name']}: lower {fmt(r.get('lower_mm'))} mm, knee {fmt(r.get('knee_deg'))} deg, "
               f"IoU {fmt(r.get('iou'))}, {r.get('seconds', 0):.0f} s", file=sys.stderr, flush=True)  # fmt: skip
-    (args.work / "suite.json").write_text(json.dumps(rows, indent=1, default=str))
+    stem = "suite_silhouettes" if args.silhouettes_only else "suite"  # a tracked suite's rows stay
+    (args.work / f"{stem}.json").write_text(json.dumps(rows, indent=1, default=str))
     keys = ["name", "source", "walk", "seed", "height", "cameras", "status"] + [k for k, _ in METRICS]
-    with open(args.work / "suite.csv", "w", newline="") as fh:
+    with open(args.work / f"{stem}.csv", "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(keys + ["legs", "contrast"])
         for r in rows:
