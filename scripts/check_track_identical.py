@@ -107,6 +107,7 @@ def main() -> int:
             print(f"{name}: saved {out} ({seconds:.1f} s)")
             continue
         out = args.work / "new" / name
+        shutil.rmtree(out, ignore_errors=True)  # a run that fails must not leave an earlier one to compare
         seconds = track(ses, out, extra)
         errors = compare(args.against / name, out)
         print(f"{name}: {'IDENTICAL' if not errors else 'DIFFERENT'} ({seconds:.1f} s)")
