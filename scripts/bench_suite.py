@@ -68,7 +68,7 @@ from gaitcap.evaluation.silhouettes import camera_iou, part_coverage  # noqa: E4
 from gaitcap.io.calibration_toml import read_calibration  # noqa: E402
 from gaitcap.io.silhouettes_h5 import read_cameras, read_mask_shape, read_masks  # noqa: E402
 from gaitcap.io.track_h5 import read_track_record
-from gaitcap.track_summary import is_finished  # noqa: E402
+from gaitcap.track_summary import TRACK_JSON, is_finished  # noqa: E402
 from gaitcap.io.video_write import AtomicVideoWriter  # noqa: E402
 from gaitcap.session import BACKGROUND_DIR, CALIBRATION_FILE, SESSION_FILE, VIDEOS_DIR, Session  # noqa: E402
 from gaitcap.synth.variety import draw_look  # noqa: E402
@@ -201,12 +201,15 @@ def _measure(session: Path, truth: Path, truth_masks: Path, run: Path,
     if silhouettes_only:
         gaitcap("silhouettes", str(session), "-o", str(run), "--force", check=False)
         return {"status": "silhouettes only", **silhouette_row(run / "silhouettes.h5", truth_masks, session, truth)}
-    t0 = time.perf_counter()
+    t0, started = time.perf_counter(), time.time()
     extra = (["-c", str(config)] if config else []) + (["--body", str(body)] if body else [])
     tr = gaitcap("track", str(session), "-o", str(run), "--force", "--save-masks", *extra, check=False)
     row: dict = {"seconds": time.perf_counter() - t0, "status": "ok"}
-    row.update(silhouette_row(run / "silhouettes.h5", truth_masks, session, truth))
-    if tr.returncode != 0 and not is_finished(run):  # a run judged failed exits 1 too, but is written: scored
+    # a run judged failed exits 1 too, but is written: scored; one that wrote nothing leaves the earlier run's
+    # outputs in the folder, not scored
+    written = is_finished(run) and (run / TRACK_JSON).stat().st_mtime >= started - 1
+    row.update(silhouette_row(run / "silhouettes.h5", truth_masks, session, truth) if written else {})
+    if tr.returncode != 0 and not written:
         row["status"] = f"track failed (exit {tr.returncode}): " + ((tr.stderr or tr.stdout).strip().splitlines() or [""])[-1]
         return row
     row.update(evaluate_run(run, truth))
