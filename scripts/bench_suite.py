@@ -463,6 +463,10 @@ def main() -> None:
             ap.error(f"--tables {args.tables}: no such file (an earlier run's WORK/suite.json)")
         print_tables(json.loads(args.tables.read_text()))
         return
+    if args.body is not None and not (args.body.is_file() or (args.body / "trajectories.h5").is_file()):
+        ap.error(f"--body {args.body}: not a finished gaitcap track output (no trajectories.h5)")
+    if args.body_from is not None and not (args.body_from / "runs").is_dir():
+        ap.error(f"--body-from {args.body_from}: not a scripts/bench_suite.py work folder (no runs/)")
     if args.only:  # a name that is not in the suite would leave an empty suite.json behind
         names = [] if args.only_external else [p["name"] for p in plan(args.sessions, list(WALKS))[args.first :]]
         if not args.no_external and (SHARED / "external_sessions").is_dir():
