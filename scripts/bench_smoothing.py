@@ -109,7 +109,7 @@ def main() -> None:
     ap.add_argument("work", type=Path, nargs="+", help="bench_suite.py --work folders with finished runs")
     ap.add_argument("--cutoffs", nargs="+", default=["6", "5", "4.5", "4"], help="Hz, or 'none'")
     ap.add_argument("--order", type=int, default=4, help="the Butterworth's order (smoothing.order)")
-    ap.add_argument("--out", type=Path, default=Path("smoothing_runs"), help="the filtered copies and their scores")
+    ap.add_argument("--out", type=Path, default=Path("/tmp/gaitcap-smoothing"), help="the filtered copies and their scores")
     args = ap.parse_args()
     runs = [(w, p.name) for w in args.work for p in sorted((w / "runs").glob("*")) if (p / "eval.json").exists()]
     if not runs:
