@@ -463,6 +463,8 @@ def main() -> None:
             ap.error(f"--tables {args.tables}: no such file (an earlier run's WORK/suite.json)")
         print_tables(json.loads(args.tables.read_text()))
         return
+    if args.config is not None and not args.config.is_file():
+        ap.error(f"--config {args.config}: no such file (a tracking configuration YAML)")
     if args.body is not None and not (args.body.is_file() or (args.body / "trajectories.h5").is_file()):
         ap.error(f"--body {args.body}: not a finished gaitcap track output (no trajectories.h5)")
     if args.body_from is not None and not (args.body_from / "runs").is_dir():

@@ -39,6 +39,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
 
+from gaitcap.errors import GaitcapError  # noqa: E402
 from gaitcap.evaluation.compare import align  # noqa: E402
 from gaitcap.evaluation.report import read_truth_reference  # noqa: E402
 from gaitcap.io.calibration_toml import read_calibration  # noqa: E402
@@ -330,7 +331,10 @@ def main() -> None:
     if not (args.work / "suite.json").is_file():
         sys.exit(f"error: {args.work}: not a scripts/bench_suite.py work folder (no suite.json: run bench_suite.py "
                  f"--work {args.work} first)")  # fmt: skip
-    cfg = load_tracking_config(args.config)
+    try:
+        cfg = load_tracking_config(args.config)
+    except GaitcapError as e:
+        sys.exit(f"error: --config: {e}")
     rows = json.loads((args.work / "suite.json").read_text())
     runs = []
     for row in rows:
