@@ -1,8 +1,10 @@
 """Silhouette quality: IoU on synthetic sessions, and the checks on real videos.
 
-1. Synthetic (``gaitcap synth``, ground-truth masks in truth.h5): mean IoU per camera, with
-   shadow suppression on and off, background from the plate and from the video alone, for
-   sessions of two look seeds (person, clothes, room and light drawn by ``gaitcap synth --seed``).
+1. Synthetic (``gaitcap synth``, ground-truth masks in truth.h5): mean IoU per camera of the masks
+   extracted as ``gaitcap track`` extracts them (the cameras together, shadows checked on the floor),
+   with shadow suppression on and off, background from the plate and from the video alone, for
+   sessions of two look seeds (person, clothes, room and light drawn by ``gaitcap synth --seed``);
+   "no usable bg": the camera's background could not be estimated from its video alone.
    The varied suite, ``scripts/bench_suite.py``, measures IoU over many more.
 2. Real, ``video/sports2d_walk/walk.mp4`` (no plate): foreground fraction over time
    (CSV + PNG plot) and a few overlay frames to look at.
@@ -37,8 +39,9 @@ from gaitcap.io.silhouettes_h5 import read_masks  # noqa: E402
 from gaitcap.session import Session  # noqa: E402
 from gaitcap.silhouette import SilhouetteConfig, SilhouetteExtractor  # noqa: E402
 from gaitcap.silhouette.overlay import draw_overlay  # noqa: E402
-from gaitcap.silhouette.run import read_plate  # noqa: E402
-from gaitcap.video import VideoReader, sample_frames  # noqa: E402
+from gaitcap.silhouette.joint import JointExtractor  # noqa: E402
+from gaitcap.silhouette.run import Source, prepare_extractor  # noqa: E402
+from gaitcap.video import VideoReader, iter_synchronised, sample_frames  # noqa: E402
 
 DEFAULT_DATA = REPO.parent / "shared" / "data"
 log = logging.getLogger("eval_silhouettes")
@@ -53,24 +56,24 @@ def synth(session: Path, args: argparse.Namespace, seed: int) -> None:
 
 
 def session_ious(session: Path, config: SilhouetteConfig, use_plate: bool) -> dict[str, float]:
-    """Mean IoU per camera over the frames where the true mask is not empty."""
+    """Mean IoU per camera over the frames where the true mask is not empty, of the masks extracted as
+    ``gaitcap silhouettes`` and ``gaitcap track`` extract a calibrated session's: every camera's frame
+    together, with the shadows checked on the floor across the cameras (:class:`JointExtractor`)."""
     s = Session.open(session)
-    out = {}
-    for cam in s.camera_names:
-        truth = read_masks(session / "truth.h5", cam)
-        ex = SilhouetteExtractor(config, name=cam)
-        samples = sample_frames(s.videos[cam], config.background.samples)
-        plate = read_plate(s.backgrounds[cam]) if use_plate else None
-        report = ex.fit_background(plate=plate, samples=samples)
-        scores = []
-        with VideoReader(s.videos[cam]) as video:
-            for k, frame in video:
-                mask, _ = ex.process(frame)
-                if k < len(truth) and truth[k].any():
-                    scores.append(float(mask_iou(mask[None], truth[k][None])[0]))
-        out[cam] = float(np.mean(scores))
-        if not report.usable:
-            out[cam + " (no usable bg)"] = out[cam]
+    cams = s.camera_names
+    extractors = [prepare_extractor(Source(c, s.videos[c], s.backgrounds.get(c) if use_plate else None), config)[0]
+                  for c in cams]  # fmt: skip
+    joint = JointExtractor(extractors, [s.rig[c] for c in cams])
+    truth = {c: read_masks(session / "truth.h5", c) for c in cams}
+    scores: dict[str, list[float]] = {c: [] for c in cams}
+    for k, images in iter_synchronised({c: s.videos[c] for c in cams}, 0, None):
+        for c, (mask, _) in zip(cams, joint.process([images[c] for c in cams])):
+            if k < len(truth[c]) and truth[c][k].any():
+                scores[c].append(float(mask_iou(mask[None], truth[c][k][None])[0]))
+    out = {c: float(np.mean(scores[c])) for c in cams}
+    for c, ex in zip(cams, extractors):
+        if ex.report is not None and not ex.report.usable:
+            out[c + " (no usable bg)"] = out[c]
     return out
 
 
