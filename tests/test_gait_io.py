@@ -49,6 +49,23 @@ def test_trajectories_h5_errors_name_the_file(tmp_path) -> None:
         read_trajectory(tmp_path / "bad.h5")
 
 
+def test_trajectories_h5_with_incomplete_events_is_an_input_error(tmp_path) -> None:
+    """A hand-made trajectories.h5 whose /events lacks a dataset (or a compound one a field) raised h5py's
+    KeyError (or numpy's ValueError) from read_trajectory: an InputError naming the file and what is missing."""
+    path = tmp_path / "t.h5"
+    with h5py.File(path, "w") as f:
+        d = f.create_dataset("points", data=np.zeros((5, 1, 3)))
+        d.attrs["names"], d.attrs["rate_hz"] = ["pelvis"], 25.0
+        f.create_dataset("events/time_s", data=[0.1])
+    with pytest.raises(InputError, match=r"t\.h5: /events has no side, event dataset"):
+        read_trajectory(path)
+    with h5py.File(path, "a") as f:
+        del f["events"]
+        f.create_dataset("events", data=np.array([(0.1,)], dtype=[("time_s", "f8")]))
+    with pytest.raises(InputError, match=r"t\.h5: /events has no field side, event"):
+        read_trajectory(path)
+
+
 def test_c3d_export_is_read_back_by_ezc3d_and_c3d(tmp_path) -> None:
     tr = _traj()
     path = tmp_path / "out.c3d"

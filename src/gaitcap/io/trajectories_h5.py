@@ -78,10 +78,19 @@ def _text(values: Any) -> list[str]:
 
 
 def _read_events(node: Any, path: Path) -> list[GaitEvent]:
+    fields = ("time_s", "side", "event")
     if isinstance(node, h5py.Group):
+        missing = [k for k in fields if not isinstance(node.get(k), h5py.Dataset)]
+        if missing:
+            raise InputError(f"{path}: /events has no {', '.join(missing)} dataset (it needs {', '.join(fields)})")
         times, sides, kinds = node["time_s"][()], _text(node["side"][()]), _text(node["event"][()])
     else:  # compound dataset
         data = node[()]
+        names = data.dtype.names or ()
+        missing = [k for k in fields if k not in names]
+        if missing:
+            raise InputError(f"{path}: /events has no field {', '.join(missing)} (a group or a compound dataset of "
+                             f"{', '.join(fields)})")  # fmt: skip
         times, sides, kinds = data["time_s"], _text(data["side"]), _text(data["event"])
     try:
         return [GaitEvent(float(t), s, k, "trajectories.h5") for t, s, k in zip(times, sides, kinds, strict=True)]  # type: ignore[arg-type]
