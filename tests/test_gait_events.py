@@ -154,6 +154,20 @@ def test_walking_direction_is_estimated_not_assumed() -> None:
         assert np.cross(d.forward, d.left)[2] == pytest.approx(1.0)
 
 
+def test_a_trajectory_of_no_frame_is_an_input_error() -> None:
+    """A trajectory with no frame (a slice past its end) made the walking direction raise numpy's ValueError
+    "cannot reshape array of size 0" from analyse and estimate_walking_direction: the InputError of too few
+    samples, as for a trajectory of NaN."""
+    from gaitcap.errors import InputError
+    from gaitcap.gait.analysis import analyse
+
+    traj = Walker().trajectory()
+    empty = replace(traj, points=traj.points[:0])
+    for f in (estimate_walking_direction, analyse):
+        with pytest.raises(InputError, match="too few valid pelvis and heel samples"):
+            f(empty)
+
+
 def test_cycles_and_normalisation() -> None:
     ev = [
         GaitEvent(0.1, "right", "foot_strike"), GaitEvent(0.25, "left", "foot_off"),

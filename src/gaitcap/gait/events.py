@@ -171,6 +171,8 @@ def estimate_walking_direction(traj: Trajectory, options: GaitOptions | None = N
     rate = traj.rate_hz
     pel = pelvis_track(traj)[:, :2]
     ok = np.all(np.isfinite(pel), axis=1)
+    if ok.sum() < 2:  # before the feet's signals, which cannot be filtered without a sample (a trajectory of no frame)
+        raise InputError("cannot estimate the walking direction: too few valid pelvis and heel samples")
     feet = [fill_short_gaps(heel_track(traj, s)[:, :2], int(opt.max_gap_s * rate)) for s in SIDES]
     vel = np.concatenate([velocity(lowpass(f, rate, opt.lowpass_hz), rate) for f in feet])
     vel = vel[np.all(np.isfinite(vel), axis=1)]
