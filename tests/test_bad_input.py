@@ -348,3 +348,16 @@ def test_a_disk_about_to_be_full_stops_the_stream_before_hdf5_fails(tmp_path, mo
     assert list(target.parent.iterdir()) == []
     with pytest.raises(OutputError, match=r"new/deeper: 20\.0 MB free"):  # before the work, of a folder not made yet
         atomic.check_free_space(tmp_path / "new" / "deeper")
+
+
+def test_calibration_metadata_of_a_missing_or_malformed_file_is_a_calibration_error(tmp_path):
+    """read_calibration_metadata (public, beside read_calibration) raised FileNotFoundError and tomllib's
+    TOMLDecodeError where read_calibration names the file in a CalibrationError."""
+    from gaitcap.io.calibration_toml import read_calibration_metadata
+
+    with pytest.raises(CalibrationError, match=r"none\.toml: calibration file not found"):
+        read_calibration_metadata(tmp_path / "none.toml")
+    (tmp_path / "bad.toml").write_text("[cam1\n")
+    with pytest.raises(CalibrationError, match=r"bad\.toml: not valid TOML"):
+        read_calibration_metadata(tmp_path / "bad.toml")
+

@@ -32,17 +32,26 @@ from gaitcap.io.atomic import write_text_atomic
 METADATA_TABLE = "metadata"
 
 
-def read_calibration(path: str | Path) -> CameraRig:
-    """Read ``calibration.toml`` into a :class:`CameraRig` (cameras in file order)."""
-    path = Path(path)
+def _read_toml(path: Path) -> dict[str, Any]:
+    """The TOML document of ``path``; :class:`CalibrationError` naming the file when it cannot be read."""
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        return tomllib.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError as e:
         raise CalibrationError(f"{path}: calibration file not found") from e
     except (OSError, UnicodeDecodeError) as e:
         raise CalibrationError(f"{path}: cannot read ({e})") from e
     except tomllib.TOMLDecodeError as e:
         raise CalibrationError(f"{path}: not valid TOML: {e}") from e
+
+
+def read_calibration(path: str | Path) -> CameraRig:
+    """Read ``calibration.toml`` into a :class:`CameraRig` (cameras in file order).
+
+    Raises:
+        CalibrationError: a missing or unreadable file, or a malformed camera table (named).
+    """
+    path = Path(path)
+    data = _read_toml(path)
     cams = []
     for key, table in data.items():
         if key == METADATA_TABLE:
@@ -64,8 +73,12 @@ def read_calibration(path: str | Path) -> CameraRig:
 
 
 def read_calibration_metadata(path: str | Path) -> dict[str, Any]:
-    """The optional ``[metadata]`` table (empty when absent)."""
-    data = tomllib.loads(Path(path).read_text(encoding="utf-8"))
+    """The optional ``[metadata]`` table (empty when absent).
+
+    Raises:
+        CalibrationError: a missing or unreadable file (named), as :func:`read_calibration`.
+    """
+    data = _read_toml(Path(path))
     meta = data.get(METADATA_TABLE, {})
     return dict(meta) if isinstance(meta, dict) else {}
 
