@@ -361,3 +361,15 @@ def test_calibration_metadata_of_a_missing_or_malformed_file_is_a_calibration_er
     with pytest.raises(CalibrationError, match=r"bad\.toml: not valid TOML"):
         read_calibration_metadata(tmp_path / "bad.toml")
 
+
+def test_mask_attributes_of_a_camera_not_in_the_file_name_the_cameras_it_has(tmp_path):
+    """read_mask_attrs raised h5py's KeyError for a camera the file does not hold, where read_masks and
+    read_quality name the file and the camera."""
+    from gaitcap.io.silhouettes_h5 import SilhouetteWriter, read_mask_attrs
+
+    path = tmp_path / "silhouettes.h5"
+    with SilhouetteWriter(path) as w:
+        w.add_camera("cam1", 8, 6, None, {"fps": 25.0})
+    assert read_mask_attrs(path, "cam1") == {"fps": 25.0}
+    with pytest.raises(InputError, match=r"silhouettes\.h5: no masks for camera 'cam2' \(have: cam1\)"):
+        read_mask_attrs(path, "cam2")

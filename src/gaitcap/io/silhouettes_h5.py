@@ -164,6 +164,10 @@ def read_quality(path: str | Path, camera: str) -> dict[str, np.ndarray]:
 
 
 def read_mask_attrs(path: str | Path, camera: str) -> dict[str, Any]:
-    """The attributes stored with a camera's masks (background provenance, fps, video)."""
+    """The attributes stored with a camera's masks (background provenance, fps, video).
+
+    Raises:
+        InputError: the file cannot be opened or holds no masks of ``camera`` (named).
+    """
     with _open(path) as f:
-        return dict(f[f"masks/{camera}"].attrs)
+        return dict(_mask_dataset(path, f, camera).attrs)
