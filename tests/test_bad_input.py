@@ -373,3 +373,19 @@ def test_mask_attributes_of_a_camera_not_in_the_file_name_the_cameras_it_has(tmp
     assert read_mask_attrs(path, "cam1") == {"fps": 25.0}
     with pytest.raises(InputError, match=r"silhouettes\.h5: no masks for camera 'cam2' \(have: cam1\)"):
         read_mask_attrs(path, "cam2")
+
+
+def test_a_config_value_refused_on_assignment_is_a_config_error_naming_the_key():
+    """A configuration loaded and edited from Python (``cfg.smoothing.cutoff_hz = -1``) raised pydantic's
+    ValidationError, not a GaitcapError; the value is still refused and the old one kept, and the
+    message names the schema and the key, with a suggestion for a misspelt one."""
+    cfg = load_tracking_config()
+    with pytest.raises(ConfigError, match=r"^SmoothingConfig: cutoff_hz: Input should be greater than 0$"):
+        cfg.smoothing.cutoff_hz = -1
+    assert cfg.smoothing.cutoff_hz == 4.5
+    with pytest.raises(ConfigError, match=r"SmoothingConfig: cutof_hz: unknown key \(did you mean 'cutoff_hz'\?\)"):
+        cfg.smoothing.cutof_hz = 3
+    with pytest.raises(ConfigError, match="GaitOptions: lowpass_hz: Input should be greater than or equal to 0"):
+        GaitOptions().lowpass_hz = -1.0
+    cfg.smoothing.cutoff_hz = 6.0  # a value it takes is set as before
+    assert cfg.smoothing.cutoff_hz == 6.0

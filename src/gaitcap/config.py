@@ -60,9 +60,20 @@ def parse_yaml(text: str) -> Any:
 
 class Strict(BaseModel):
     """Base of every config schema: unknown keys are errors, values are validated on assignment, and a
-    number must be finite (YAML's .inf and .nan pass every bound check otherwise)."""
+    number must be finite (YAML's .inf and .nan pass every bound check otherwise).
+
+    A value the schema refuses on assignment (``cfg.smoothing.cutoff_hz = -1``, or a key it does not
+    have) raises :class:`ConfigError` naming the schema and the key, as a file's value does; the
+    pydantic error is its ``__cause__``.
+    """
 
     model_config = ConfigDict(extra="forbid", validate_assignment=True, frozen=False, allow_inf_nan=False)
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        try:
+            super().__setattr__(name, value)
+        except ValidationError as e:
+            raise ConfigError(format_validation_error(e, type(self).__name__, type(self))) from e
 
 
 def read_yaml(path: str | Path) -> Any:
@@ -129,7 +140,7 @@ def format_validation_error(err: ValidationError, source: str, model: type[BaseM
         loc = tuple(item.get("loc", ()))
         key = ".".join(str(p) for p in loc) or "(top level)"
         msg = item.get("msg", "invalid value")
-        if item.get("type") == "extra_forbidden" and loc:
+        if item.get("type") in ("extra_forbidden", "no_such_attribute") and loc:
             allowed = _allowed_keys(model, loc)
             close = difflib.get_close_matches(str(loc[-1]), allowed, n=1)
             msg = "unknown key" + (f" (did you mean '{close[0]}'?)" if close else "")

@@ -178,8 +178,10 @@ def run_configs(config: str | Path | None, tracker: str | None, seed: int | None
             cfg.tracker = tracker  # type: ignore[assignment]
         if seed is not None:
             cfg.seed = seed
-    except ValidationError as e:
-        raise ConfigError(format_validation_error(e, "the options given", TrackingConfig)) from e
+    except ConfigError as e:  # the schema's (gaitcap.config.Strict), said of the options
+        if not isinstance(e.__cause__, ValidationError):
+            raise
+        raise ConfigError(format_validation_error(e.__cause__, "the options given", TrackingConfig)) from e.__cause__
     return cfg, SilhouetteConfig.load(silhouette_config)
 
 
