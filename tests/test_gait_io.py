@@ -66,6 +66,19 @@ def test_trajectories_h5_with_incomplete_events_is_an_input_error(tmp_path) -> N
         read_trajectory(path)
 
 
+@pytest.mark.parametrize("rate", [0.0, -5.0, float("nan"), "fast"])
+def test_resampling_at_a_rate_that_is_not_positive_is_an_input_error(rate) -> None:
+    """Trajectory.resample(-5) raised numpy's "negative dimensions are not allowed", NaN "cannot convert
+    float NaN to integer", 0 a RuntimeWarning before the InputError of the new trajectory's rate; a
+    trajectory of no frame an IndexError."""
+    traj = Trajectory(("pelvis",), np.zeros((4, 1, 3)), 25.0)
+    with pytest.raises(InputError, match="cannot resample at .* Hz: the rate must be a positive number"):
+        traj.resample(rate)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="cannot resample a trajectory of no frame"):
+        Trajectory(("pelvis",), np.zeros((0, 1, 3)), 25.0).resample(50.0)
+    assert traj.resample(np.int64(50)).n_frames == 7
+
+
 def test_c3d_export_is_read_back_by_ezc3d_and_c3d(tmp_path) -> None:
     tr = _traj()
     path = tmp_path / "out.c3d"

@@ -6,6 +6,7 @@ Units: metres, seconds; world frame z up, floor z = 0.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any, Literal
@@ -136,7 +137,19 @@ class Trajectory:
         return int(round((time_s - self.t0_s) * self.rate_hz))
 
     def resample(self, rate_hz: float) -> Trajectory:
-        """Linear resampling in time onto ``rate_hz`` over the same time span (NaN-aware)."""
+        """Linear resampling in time onto ``rate_hz`` over the same time span (NaN-aware).
+
+        Raises:
+            InputError: ``rate_hz`` not a positive number, or a trajectory of no frame.
+        """
+        try:
+            rate = float(rate_hz)
+        except (TypeError, ValueError):
+            rate = math.nan
+        if not (math.isfinite(rate) and rate > 0):
+            raise InputError(f"trajectory: cannot resample at {rate_hz!r} Hz: the rate must be a positive number")
+        if not self.n_frames:
+            raise InputError("trajectory: cannot resample a trajectory of no frame")
         t = self.times()
         n_new = int(np.floor((t[-1] - t[0]) * rate_hz + 1e-9)) + 1
         t_new = t[0] + np.arange(n_new) / rate_hz
