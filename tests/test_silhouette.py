@@ -137,6 +137,25 @@ def test_usable_background_on_a_walk_across(scene, caplog):
     assert "no usable background" not in caplog.text
 
 
+def test_frames_and_backgrounds_of_the_wrong_shape_are_named_by_their_shape():
+    """A grey (H, W) frame of the background's size was refused with "frame 0 is 64x48, the background is
+    64x48", and one (H, W, 3) image given as ``samples`` with the shape its rows took after working on them,
+    (48, 64, 8): each is named by the shape given now."""
+    ex = SilhouetteExtractor(SilhouetteConfig.load(), name="cam0")
+    plate = np.full((48, 64, 3), 120, np.uint8)
+    with pytest.raises(InputError, match=r"cam0: expected sampled frames of shape \(N, H, W, 3\) \(BGR\), got \(48, 64, 3\)"):
+        ex.fit_background(samples=plate)
+    with pytest.raises(InputError, match=r"cam0: expected a background plate of shape \(H, W, 3\) \(BGR\), got \(48, 64\)"):
+        ex.fit_background(plate=plate[..., 0])
+    ex.fit_background(plate=plate)
+    with pytest.raises(InputError, match=r"cam0: frame 0 has shape \(48, 64\), expected \(H, W, 3\) \(BGR\)"):
+        ex.process(plate[..., 0])
+    with pytest.raises(InputError, match="cam0: frame 0 is 64x40, the background is 64x48"):
+        ex.process(plate[:40])
+    mask, _ = ex.process(plate)
+    assert mask.shape == (48, 64) and not mask.any()
+
+
 def test_small_holes_filled_large_gaps_kept():
     plate = np.full((120, 160, 3), 128, np.uint8)
     frame = plate.copy()

@@ -386,6 +386,10 @@ class SilhouetteExtractor:
         """
         if plate is None and samples is None:
             raise InputError(f"{self.name}: no background plate and no video frames to estimate one from")
+        if plate is not None and (np.ndim(plate) != 3 or np.shape(plate)[2] != 3):
+            raise InputError(f"{self.name}: expected a background plate of shape (H, W, 3) (BGR), got {np.shape(plate)}")
+        if samples is not None and (np.ndim(samples) != 4 or np.shape(samples)[3] != 3 or not len(samples)):
+            raise InputError(f"{self.name}: expected sampled frames of shape (N, H, W, 3) (BGR), got {np.shape(samples)}")
         ref = plate if plate is not None else samples[0]  # type: ignore[index]
         h, w = ref.shape[:2]
         if plate is not None and samples is not None and samples.shape[1:3] != (h, w):
@@ -458,7 +462,9 @@ class SilhouetteExtractor:
         """
         if self._bg is None or self._full_size is None:
             raise InputError(f"{self.name}: fit_background() must be called before extracting silhouettes")
-        if frame.ndim != 3 or (frame.shape[1], frame.shape[0]) != self._full_size:
+        if frame.ndim != 3 or frame.shape[2] != 3:
+            raise InputError(f"{self.name}: frame {self._count} has shape {frame.shape}, expected (H, W, 3) (BGR)")
+        if (frame.shape[1], frame.shape[0]) != self._full_size:
             raise InputError(
                 f"{self.name}: frame {self._count} is {frame.shape[1]}x{frame.shape[0]}, "
                 f"the background is {self._full_size[0]}x{self._full_size[1]}"
