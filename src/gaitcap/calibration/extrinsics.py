@@ -393,6 +393,7 @@ def scene_point_errors(rig: CameraRig, scene: ScenePoints, inlier_px: float = 8.
         obj = np.array([scene.points[n] for n in names], float)
         img = np.array([table[n] for n in names], float)
         try:
+            cv2.setRNGSeed(0)  # its random subsets: the same points named on every run
             ok, _, _, inliers = cv2.solvePnPRansac(obj.reshape(-1, 1, 3), img.reshape(-1, 1, 2), cam.matrix, cam.dist,
                                                    reprojectionError=inlier_px, iterationsCount=200)  # fmt: skip
             if not ok or inliers is None or len(inliers) < max(MIN_PNP_POINTS, len(names) // 2 + 1):
