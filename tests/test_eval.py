@@ -382,3 +382,21 @@ def test_the_gait_analyses_messages_say_which_trajectory(truth, caplog):
     assert all(m.startswith(("OUT: ", "the reference: ")) for m in gait)
     assert not any(logging.getLogger(name).filters for name in logging.Logger.manager.loggerDict
                    if name.startswith("gaitcap.gait"))  # fmt: skip
+
+
+def test_points_in_millimetres_are_named_as_the_likely_cause(truth, caplog):
+    """A run (or a lab's export) in millimetres gave a lower-limb MPJPE of hundreds of metres and implausible
+    gait values, with no word on units: the evaluation notes it, and the gait analysis says it."""
+    import logging
+
+    from gaitcap.gait.analysis import analyse
+
+    ev = evaluate(tracked(truth, truth.points * 1000.0), truth)
+    assert any("1000 times as far apart as the reference's" in n and "millimetres" in n for n in ev.notes), ev.notes
+    ev = evaluate(tracked(truth, truth.points), replace(truth, points=truth.points * 1000.0))
+    assert any("1000 times closer together than the reference's" in n for n in ev.notes), ev.notes
+    assert not any("millimetres" in n for n in evaluate(tracked(truth, truth.points + 0.01), truth).notes)
+    with caplog.at_level(logging.WARNING, logger="gaitcap"):
+        params = analyse(replace(truth, points=truth.points * 1000.0)).parameters
+    assert "the points are likely in millimetres, and gaitcap reads metres" in params.reason
+    assert "millimetres" in caplog.text and "millimetres" not in analyse(truth).parameters.reason

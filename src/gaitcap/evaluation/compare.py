@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import logging
 import math
+import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field, replace
@@ -279,6 +280,25 @@ def walking_frame(points: np.ndarray, names: tuple[str, ...]) -> np.ndarray | No
     return None
 
 
+def _units_note(a: Aligned) -> str:
+    """A note when OUT's body is a hundred times the reference's size or more (or less): the points of
+    one of them are likely in millimetres (a gait lab's export), where gaitcap reads metres; empty else.
+    The size is the median distance of the points from each frame's centroid."""
+    def size(points: np.ndarray) -> float:
+        pts = points[a.valid]
+        with np.errstate(invalid="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            d = np.linalg.norm(pts - np.nanmean(pts, axis=1, keepdims=True), axis=2)
+            return float(np.nanmedian(d)) if np.isfinite(d).any() else math.nan
+
+    est, ref = size(a.est), size(a.ref)
+    if not (math.isfinite(est) and math.isfinite(ref)) or est <= 0 or ref <= 0 or 0.01 < est / ref < 100:
+        return ""
+    ratio = f"{est / ref:.0f} times as far apart as" if est > ref else f"{ref / est:.0f} times closer together than"
+    return (f"OUT's points are {ratio} the reference's: one of them is likely in millimetres, and gaitcap reads "
+            "metres (divide its points by 1000)")
+
+
 def _positions(a: Aligned) -> tuple[dict[str, dict[str, float] | None], dict[str, float], dict[str, Any],
                                     dict[str, dict[str, float]]]:  # fmt: skip
     est, ref = a.est[a.valid], a.ref[a.valid]
@@ -431,6 +451,8 @@ def evaluate(
     if len(a.times) < out.n_frames:  # a shorter reference, or one that starts later: said, not hidden
         notes.append(f"{out.n_frames - len(a.times)} of OUT's {out.n_frames} frames have no reference frame: not "
                      "compared")  # fmt: skip
+    if note := _units_note(a):
+        notes.append(note)
     positions, per_point, swaps, bias = _positions(a)
 
     t_lo, t_hi = float(a.times[0]), float(a.times[-1])

@@ -271,6 +271,20 @@ def _withhold(items: Sequence[Stride] | Sequence[Step], ranges: dict[str, tuple[
     return out, reasons
 
 
+#: a median stride (or step) longer than this (m) is no walk in metres: points given in millimetres
+MILLIMETRES_M = 50.0
+
+
+def _millimetres_hint(lengths: Sequence[float]) -> str:
+    """A reason naming the likely cause when the strides' (or steps') median length, ``lengths`` in the
+    trajectory's unit, is beyond any walk in metres; empty otherwise."""
+    ok = [v for v in lengths if math.isfinite(v)]
+    if not ok or float(np.median(np.abs(ok))) <= MILLIMETRES_M:
+        return ""
+    return (f"the strides measure {float(np.median(np.abs(ok))):.4g} m: the points are likely in millimetres, and "
+            "gaitcap reads metres (divide them by 1000)")
+
+
 def _item_time(it: Stride | Step) -> float:
     return it.time_s if isinstance(it, Step) else it.cycle.start_s
 
@@ -323,6 +337,7 @@ def compute_parameters(
     median_stride = float(np.median([s.stride_time_s for s in strides])) if strides else math.nan
     max_step_s = 0.75 * median_stride if math.isfinite(median_stride) else bounds["step_time_s"][1]
     steps = [st for part, ev, d in parts for st in _steps(part, d, ev, max_step_s=max_step_s)]
+    units_hint = _millimetres_hint([s.stride_length_m for s in strides] or [s.step_length_m for s in steps])
     strides, implausible = _withhold(strides, bounds, [k for k in SIDE_KEYS if k not in STEP_KEYS], "strides")
     steps, bad_steps = _withhold(steps, bounds, STEP_KEYS, "steps")
     implausible.update(bad_steps)
@@ -355,6 +370,9 @@ def compute_parameters(
     if implausible:
         status = STATUS_IMPLAUSIBLE if status == STATUS_OK else status
         reasons.append("implausible values withheld: " + "; ".join(f"{k}: {r}" for k, r in implausible.items()))
+    if units_hint:
+        reasons.append(units_hint)
+        log.warning("%s", units_hint)
     params = GaitParameters(status, "; ".join(reasons), overall, sides, symmetry, strides, steps, info, implausible)
     return params
 
