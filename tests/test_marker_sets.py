@@ -328,3 +328,24 @@ def test_exported_c3d_names_only_the_pelvis_markers_the_file_has(tmp_path):
     sacr = c3d["data"]["points"][:3, labels.index("SACR")].T / 1000.0
     np.testing.assert_allclose(sacr, read_markers(PIG).point("SACR"), atol=1e-5, equal_nan=True)
     assert "ASIS/PSIS" in (tmp_path / "gait" / "report.html").read_text()  # still the anatomical pelvis frame
+
+
+def test_mapping_marker_typo_named_with_file_definition_and_closest_name(tmp_path):
+    """A lab mapping with a typo in a marker name ('LKNEE' for LKNE) or in a helper point's name
+    ('kjc_1' for kjc_l): report/synth said only "mapping 'my_lab' needs markers missing from the
+    file: LKNEE", and `gaitcap markers` only "missing LKNEE" (found writing a lab's own mapping)."""
+    mine = tmp_path / "my_lab.yaml"
+    mine.write_text(
+        "name: my_lab\nvirtual:\n"
+        "  hjc_l: {harrington: {side: left, lasi: LASI, rasi: RASI, sacral: SACR}}\n"
+        "  kjc_l: {chord: {proximal: hjc_l, wand: LTHI, marker: LKNEE, distance_m: 0.057}}\n"
+        "points:\n  hip_l: {marker: hjc_l}\n  knee_l: {marker: kjc_l}\n  ankle_l: {marker: kjc_1}\n"
+    )
+    with pytest.raises(InputError) as err:
+        read_motion(RAW, mapping=mine)
+    text = str(err.value)
+    assert "my_lab.yaml" in text
+    assert "LKNEE (named by kjc_l; needed for knee_l; did you mean 'LKNE'?)" in text
+    assert "kjc_1 (named by ankle_l; did you mean 'kjc_l'?)" in text
+    res = CliRunner().invoke(cli, ["markers", str(RAW), "--mapping", str(mine)])
+    assert res.exit_code == 1 and "did you mean 'LKNE'?" in res.output

@@ -55,7 +55,7 @@ def describe_file(path: str | Path, mapping: Mapping | str | Path | None = None,
     shipped = resolve_shipped(raw.names)
     main = load_mapping(mapping).resolve(raw.names) if isinstance(mapping, (str, Path)) else (
         mapping.resolve(raw.names) if mapping is not None else shipped[0])  # fmt: skip
-    state = "fits" if main.fits else f"does NOT fit: missing {', '.join(main.missing_required())}"
+    state = "fits" if main.fits else f"does NOT fit: missing {main.explain_missing(raw.names)}"
     static_line = None
     if main.fits and main.mapping.needs_static():
         try:

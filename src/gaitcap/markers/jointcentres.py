@@ -472,7 +472,8 @@ def apply_mapping(
     resolution = mapping.resolve(markers.names)
     missing = resolution.missing_required()
     if missing:
-        raise InputError(f"{source}: mapping {mapping.name!r} needs markers missing from the file: {', '.join(missing)}")
+        raise InputError(f"{source}: {mapping.label} needs markers missing from the file: "
+                         f"{resolution.explain_missing(markers.names)}")  # fmt: skip
     markers = hold_floor_contacts(fill_segment_gaps(markers, mapping.segments), mapping.floor_contacts)
     ev = _Evaluator(markers, static, source)
     for name, rule in mapping.definitions():

@@ -37,12 +37,13 @@ full-body set in a lower-body file); every other output point is required for th
 
 from __future__ import annotations
 
+import difflib
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field, PrivateAttr, model_validator
 
 from gaitcap.config import CONFIG_DIR, Strict, load_yaml_model
 from gaitcap.errors import ConfigError
@@ -324,6 +325,12 @@ class Mapping(Strict):
     floor_contacts: dict[Literal["left", "right"], FloorContact] = Field(
         default_factory=dict, description="per foot, a marker lost while on the floor and held there while in reach"
     )
+    _path: str | None = PrivateAttr(default=None)
+
+    @property
+    def label(self) -> str:
+        """``mapping 'name'``, with the YAML file it was read from (``mapping 'my_lab' (my_lab.yaml)``)."""
+        return f"mapping {self.name!r}" + (f" ({self._path})" if self._path else "")
 
     @model_validator(mode="after")
     def _segments(self) -> Mapping:
@@ -387,6 +394,18 @@ class Mapping(Strict):
         return self.resolve(available).missing_required()
 
 
+def _closest(name: str, names: list[str]) -> list[str]:
+    """The names most like ``name`` (a typo's likely intent; several when equally close), or []."""
+    scores = {n: difflib.SequenceMatcher(None, name.lower(), n.lower()).ratio() for n in names if n != name}
+    best = max(scores.values(), default=0.0)
+    return [n for n, v in scores.items() if v == best][:3] if best >= 0.7 else []
+
+
+def _all_references(rule: Rule) -> list[str]:
+    """Every name a rule refers to, alternatives joined by ``|`` (all alternatives of ``first``)."""
+    return ["|".join(alts) for alts in rule.alternatives()] + [a for alts in rule.alternatives() for a in alts]
+
+
 def _expand(gaps: list[str], unresolved: dict[str, list[str]]) -> list[str]:
     """Gaps with each unresolved helper point replaced by the markers it misses."""
     out: list[str] = []
@@ -416,6 +435,24 @@ class Resolution:
         names = [n for n in self.mapping.points if n in self.unresolved and n not in self.mapping.optional]
         return _expand(names, self.unresolved)
 
+    def explain_missing(self, available: Iterable[str]) -> str:
+        """The markers missing for required output points, each with the definitions whose rules
+        name it, the output points it leaves out and, for a likely typo, the closest name among
+        ``available`` markers and the mapping's own points: ``L_KNE_LAT (named by kjc_l; needed
+        for knee_l, ankle_l; did you mean 'L_KNEE_LAT'?)``."""
+        names = sorted(set(available) | self.mapping.defined_names())
+        required = [n for n in self.mapping.points if n in self.unresolved and n not in self.mapping.optional]
+        parts = []
+        for gap in self.missing_required():
+            naming = [d for d, rule in self.mapping.definitions() if gap in _all_references(rule)]
+            needed = [p for p in required if gap in self.unresolved[p]]
+            close = [m for alt in gap.split("|") for m in _closest(alt, names)]
+            notes = [f"named by {', '.join(naming)}"] if naming else []
+            notes += [f"needed for {', '.join(needed)}"] if needed and needed != naming else []
+            notes += [f"did you mean {' or '.join(repr(c) for c in dict.fromkeys(close))}?"] if close else []
+            parts.append(gap + (f" ({'; '.join(notes)})" if notes else ""))
+        return ", ".join(parts)
+
     @property
     def fits(self) -> bool:
         return not self.missing_required()
@@ -441,7 +478,9 @@ def load_mapping(name_or_path: str | Path) -> Mapping:
         if not path.is_file():
             known = ", ".join(shipped_mapping_names())
             raise ConfigError(f"unknown mapping {name_or_path!r} (shipped mappings: {known})")
-    return load_yaml_model(Mapping, path)
+    mapping = load_yaml_model(Mapping, path)
+    mapping._path = str(name_or_path) if Path(name_or_path).suffix.lower() in (".yaml", ".yml") else None
+    return mapping
 
 
 def shipped_mapping_names() -> list[str]:
