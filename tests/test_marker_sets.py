@@ -349,3 +349,22 @@ def test_mapping_marker_typo_named_with_file_definition_and_closest_name(tmp_pat
     assert "kjc_1 (named by ankle_l; did you mean 'kjc_l'?)" in text
     res = CliRunner().invoke(cli, ["markers", str(RAW), "--mapping", str(mine)])
     assert res.exit_code == 1 and "did you mean 'LKNE'?" in res.output
+
+
+@pytest.mark.parametrize(("rule", "key", "said"), [
+    ("{shift: {point: LKNE, direction: [LKNE, RKNE], distance_m: 40}}", "shift.distance_m", "40 mm is 0.04 m"),
+    ("{shift: {point: LKNE, direction: [LKNE, RKNE], fraction: 17, fraction_of: [LKNE, RKNE]}}", "shift.fraction",
+     "17 % is 0.17"),
+    ("{lerp: {start: LKNE, end: RKNE, fraction: 50}}", "lerp.fraction", "50 % is 0.5"),
+    ("{chord: {proximal: LASI, wand: LTHI, marker: LKNE, distance_m: 57}}", "chord.distance_m", "57 mm is 0.057 m"),
+    ("{sole: {point: LTOE, heel: LANK, toe: LTOE, height_m: 20}}", "sole.height_m", "20 mm is 0.02 m"),
+])  # fmt: skip
+def test_mapping_offsets_in_millimetres_or_percent_refused_naming_the_unit(tmp_path, rule, key, said):
+    """A shift of 40 (mm meant) or a fraction of 17 (% meant) put a lab's elbow or heel tens of
+    metres away with no word (found writing a lab's own mapping); a chord distance of 57 was
+    refused only as 'less than or equal to 0.2'."""
+    mine = tmp_path / "my_lab.yaml"
+    mine.write_text(f"name: my_lab\npoints:\n  knee_l: {rule}\n")
+    with pytest.raises(ConfigError) as err:
+        load_mapping(mine)
+    assert "my_lab.yaml" in str(err.value) and f"points.knee_l.{key}" in str(err.value) and said in str(err.value)

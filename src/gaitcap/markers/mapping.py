@@ -43,13 +43,35 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
-from pydantic import Field, PrivateAttr, model_validator
+from pydantic import Field, PrivateAttr, field_validator, model_validator
 
 from gaitcap.config import CONFIG_DIR, Strict, load_yaml_model
 from gaitcap.errors import ConfigError
 from gaitcap.trajectory import POINT_NAMES
 
 MAPPINGS_DIR = CONFIG_DIR / "mappings"
+
+
+MAX_OFFSET_M = 0.3  # no offset between markers and joint centres of one body segment is longer
+MAX_FRACTION = 2.0  # a fraction of a distance on the body: 0.33, not 33 (%)
+
+
+def _metres(value: float | None, limit: float = MAX_OFFSET_M) -> float | None:
+    """An offset of a rule, in metres: one over ``limit`` (longer than any such offset on a body
+    segment) is refused, naming millimetres when it is one (57 for 0.057)."""
+    if value is not None and abs(value) > limit:
+        hint = f": millimetres? {value:g} mm is {value / 1000:g} m" if abs(value) / 1000 <= limit else ""
+        raise ValueError(f"{value:g} m is longer than this offset can be (at most {limit:g} m); "
+                         f"distances are in metres{hint}")  # fmt: skip
+    return value
+
+
+def _fraction(value: float | None) -> float | None:
+    """A fraction of a distance (0.33): a percentage (33) is refused, naming it."""
+    if value is not None and abs(value) > MAX_FRACTION:
+        raise ValueError(f"fraction {value:g} is not a fraction of a distance (at most {MAX_FRACTION:g}); "
+                         f"a percentage? {value:g} % is {value / 100:g}")  # fmt: skip
+    return value
 
 
 class HarringtonRule(Strict):
@@ -104,7 +126,12 @@ class SoleRule(Strict):
     heel: str
     toe: str
     percentile: float = Field(default=5.0, ge=0.0, le=50.0)
-    height_m: float | None = Field(default=None, ge=0.0, le=0.2)
+    height_m: float | None = Field(default=None, ge=0.0)
+
+    @field_validator("height_m")
+    @classmethod
+    def _in_metres(cls, value: float | None) -> float | None:
+        return _metres(value, 0.2)
 
     def references(self) -> list[str]:
         return [self.point, self.heel, self.toe]
@@ -124,6 +151,9 @@ class ShiftRule(Strict):
     distance_m: float | None = None
     fraction: float | None = None
     fraction_of: tuple[str, str] | None = None
+
+    _in_metres = field_validator("distance_m")(_metres)
+    _a_fraction = field_validator("fraction")(_fraction)
 
     @model_validator(mode="after")
     def _one_distance(self) -> ShiftRule:
@@ -146,6 +176,8 @@ class LerpRule(Strict):
     start: str
     end: str
     fraction: float
+
+    _a_fraction = field_validator("fraction")(_fraction)
 
     def references(self) -> list[str]:
         return [self.start, self.end]
@@ -170,9 +202,14 @@ class ChordRule(Strict):
     proximal: str
     wand: str
     marker: str
-    distance_m: float = Field(gt=0.0, le=0.2)
+    distance_m: float = Field(gt=0.0)
     width: str | None = None
     marker_radius_m: float = Field(default=0.007, ge=0.0, le=0.03)
+
+    @field_validator("distance_m")
+    @classmethod
+    def _in_metres(cls, value: float) -> float:
+        return _metres(value, 0.2)  # type: ignore[return-value]
 
     def references(self) -> list[str]:
         return [self.proximal, self.wand, self.marker]
