@@ -17,7 +17,7 @@ from gaitcap.gait.events import detect_events
 from gaitcap.io.c3d import _unprefixed, read_c3d_angles
 from gaitcap.io.trc import read_trc, write_trc
 from gaitcap.markers.jointcentres import apply_mapping, chord_point
-from gaitcap.markers.mapping import load_mapping
+from gaitcap.markers.mapping import MAPPINGS_DIR, load_mapping
 from gaitcap.markers.motion import (
     choose_mapping,
     guess_up_axis,
@@ -202,7 +202,7 @@ def test_user_mapping_yaml_validated_and_used(tmp_path):
     with pytest.raises(ConfigError, match="bad.yaml"):
         read_motion(PIG, mapping=bad)
     res = CliRunner().invoke(cli, ["markers", str(PIG), "--mapping", str(good)])
-    assert res.exit_code == 0 and "mapping my_lab: fits" in res.output
+    assert res.exit_code == 1 and "mapping my_lab: does NOT fit: defines no hip_l, hip_r, knee_r, ankle_r" in res.output
 
 
 def test_markers_command_shows_sources_and_missing():
@@ -368,3 +368,21 @@ def test_mapping_offsets_in_millimetres_or_percent_refused_naming_the_unit(tmp_p
     with pytest.raises(ConfigError) as err:
         load_mapping(mine)
     assert "my_lab.yaml" in str(err.value) and f"points.knee_l.{key}" in str(err.value) and said in str(err.value)
+
+
+def test_mapping_leaving_out_a_joint_refused_by_markers_report_and_synth_naming_it(tmp_path):
+    """A lab mapping that leaves out knee_r: `gaitcap markers` said 'fits' (exit 0), then report
+    stopped on "trajectory has no point 'knee_r'" and synth, after fitting the body model, on
+    'joint centres missing for the fit: knee_r', neither naming the mapping (found writing a lab's
+    own mapping for a renamed walk.c3d)."""
+    shipped = (MAPPINGS_DIR / "plugin_gait.yaml").read_text()
+    mine = tmp_path / "my_lab.yaml"
+    mine.write_text(shipped.replace("  knee_r: {marker: kjc_r}\n", ""))
+    res = CliRunner().invoke(cli, ["markers", str(RAW), "--mapping", str(mine)])
+    assert res.exit_code == 1 and "does NOT fit: defines no knee_r under points" in res.output
+    for command in (["report", str(RAW), "-o", str(tmp_path / "r")], ["synth", str(RAW), "-o", str(tmp_path / "s")]):
+        res = CliRunner().invoke(cli, [*command, "--mapping", str(mine)])
+        assert res.exit_code == 1, res.output
+        assert "mapping 'plugin_gait' (" in res.output and "my_lab.yaml) defines no knee_r under points" in res.output
+        assert not (tmp_path / command[-1][-1]).exists()
+    assert read_motion(RAW, mapping=mine).names.count("knee_r") == 0  # the library reads what it defines

@@ -7,7 +7,7 @@ from pathlib import Path
 from gaitcap.errors import InputError
 from gaitcap.markers.mapping import Mapping, Resolution, load_mapping
 from gaitcap.markers.motion import find_static_trial, read_raw_markers, resolve_shipped
-from gaitcap.trajectory import POINT_NAMES, Trajectory
+from gaitcap.trajectory import LOWER_LIMB, POINT_NAMES, Trajectory
 
 
 def explain_point(resolution: Resolution, name: str) -> str:
@@ -56,6 +56,10 @@ def describe_file(path: str | Path, mapping: Mapping | str | Path | None = None,
     main = load_mapping(mapping).resolve(raw.names) if isinstance(mapping, (str, Path)) else (
         mapping.resolve(raw.names) if mapping is not None else shipped[0])  # fmt: skip
     state = "fits" if main.fits else f"does NOT fit: missing {main.explain_missing(raw.names)}"
+    undefined = [n for n in LOWER_LIMB if n not in main.mapping.points]
+    if undefined:
+        state = (f"does NOT fit: defines no {', '.join(undefined)} under points (gaitcap report and synth need "
+                 f"{', '.join(LOWER_LIMB)})" + ("" if main.fits else f"; missing {main.explain_missing(raw.names)}"))
     static_line = None
     if main.fits and main.mapping.needs_static():
         try:

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import logging
 import warnings
+from collections.abc import Iterable
 from dataclasses import replace
 from pathlib import Path
 
@@ -32,7 +33,12 @@ from gaitcap.io.trc import read_trc
 from gaitcap.markers.axes import UP_AXES, to_z_up
 from gaitcap.markers.events import events_from_grf, events_from_plates
 from gaitcap.markers.jointcentres import apply_mapping
-from gaitcap.markers.mapping import Mapping, Resolution, load_mapping, shipped_mapping_names
+from gaitcap.markers.mapping import (
+    Mapping,
+    Resolution,
+    load_mapping,
+    shipped_mapping_names,
+)
 from gaitcap.trajectory import POINT_NAMES, Trajectory
 
 log = logging.getLogger("gaitcap.markers.motion")
@@ -252,6 +258,7 @@ def read_motion(
     static: str | Path | None = None,
     up_axis: str | None = None,
     subject: str | None = None,
+    require: Iterable[str] = (),
 ) -> Trajectory:
     """Joint centres of a marker-based motion file (.c3d or .trc).
 
@@ -263,6 +270,8 @@ def read_motion(
             ``static_trial`` pattern beside ``path``.
         up_axis: overrides the file's up axis (applied to the static trial too).
         subject: the subject prefix to read in a file holding several (default: most markers).
+        require: output points the caller needs (``LOWER_LIMB`` for a report or a synthetic
+            session): a mapping that does not define one of them is refused, naming it.
     Returns:
         :class:`Trajectory` of the points the mapping defines (:data:`POINT_NAMES` order),
         shape (T, P, 3), metres, z up; events from the C3D EVENT group, else from the force-plate
@@ -270,7 +279,8 @@ def read_motion(
         ``meta``: ``source``, ``mapping``,
         ``height_m`` (C3D), ``static`` (path, when used).
     Raises:
-        InputError: unreadable file, no fitting mapping (missing markers listed), no static trial.
+        InputError: unreadable file, no fitting mapping (missing markers listed), no static trial,
+            a ``require``-d point the mapping does not define.
     """
     path = Path(path)
     raw = read_raw_markers(path, subject)
@@ -278,6 +288,11 @@ def read_motion(
         markers = _rotated(raw, _resolve_up_axis(raw, None, up_axis))
         return markers.subset(n for n in POINT_NAMES if markers.has(n))
     chosen = _mapping_of(mapping, raw)
+    require = tuple(require)
+    undefined = [n for n in require if n not in chosen.points]
+    if undefined:
+        raise InputError(f"{path}: {chosen.label} defines no {', '.join(undefined)} under points: each of "
+                         f"{', '.join(require)} is needed here")  # fmt: skip
     up = _resolve_up_axis(raw, chosen, up_axis)
     markers = _rotated(raw, up)
     static_traj = None

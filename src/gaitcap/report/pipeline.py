@@ -21,9 +21,16 @@ from gaitcap.report.fit import FitRecord, angle_bands, load_fit_record, select_f
 from gaitcap.report.html import FitView, render_fit_report, render_report
 from gaitcap.report.plots import FLEXION_ANGLES
 from gaitcap.report.sheet import contact_sheet
-from gaitcap.track_summary import (GAIT_DIR, TRAJECTORIES_H5, Verdict, read_track_json, read_verdict, run_record,
-                                   unfinished)  # fmt: skip
-from gaitcap.trajectory import SIDES, GaitEvent, Trajectory, side_suffix
+from gaitcap.track_summary import (
+    GAIT_DIR,
+    TRAJECTORIES_H5,
+    Verdict,
+    read_track_json,
+    read_verdict,
+    run_record,
+    unfinished,  # fmt: skip
+)
+from gaitcap.trajectory import LOWER_LIMB, SIDES, GaitEvent, Trajectory, side_suffix
 
 log = logging.getLogger("gaitcap.report")
 
@@ -75,7 +82,7 @@ def load_trajectory(path: Path, mapping: str | Path | None = None, subject: str 
     if suffix in MOTION_SUFFIXES:
         from gaitcap.markers.motion import read_markers, read_motion
 
-        joints = read_motion(path, mapping=mapping, static=static, subject=subject)
+        joints = read_motion(path, mapping=mapping, static=static, subject=subject, require=LOWER_LIMB)
         return with_pelvis_markers(joints, read_markers(path, mapping=mapping, subject=subject))
     raise InputError(f"{path}: unknown trajectory file type (expected trajectories.h5, .c3d or .trc)")
 

@@ -39,7 +39,7 @@ from gaitcap.io.trajectories_h5 import label_units
 from gaitcap.io.video_write import CODECS, AtomicVideoWriter
 from gaitcap.markers.motion import read_motion
 from gaitcap.session import BACKGROUND_DIR, CALIBRATION_FILE, SESSION_FILE, VIDEOS_DIR
-from gaitcap.synth.fit import FitResult, estimate_height, fit_body
+from gaitcap.synth.fit import REQUIRED, FitResult, estimate_height, fit_body
 from gaitcap.synth.mannequin import Mannequin
 from gaitcap.synth.placement import place_cameras_at, walking_direction
 from gaitcap.synth.render import Renderer
@@ -162,7 +162,7 @@ def synthesize(
     shipped mapping that fits, the subject with the most markers, the static trial the mapping names)."""
     out = Path(out)
     _check_output(out, force)
-    traj = read_motion(motion, mapping=mapping, static=static, subject=subject)
+    traj = read_motion(motion, mapping=mapping, static=static, subject=subject, require=REQUIRED)
     source_t0 = traj.t0_s
     if options.height_m and not traj.meta.get("height_m"):
         traj = replace(traj, meta={**traj.meta, "height_m": options.height_m})
