@@ -386,3 +386,23 @@ def test_mapping_leaving_out_a_joint_refused_by_markers_report_and_synth_naming_
         assert "mapping 'plugin_gait' (" in res.output and "my_lab.yaml) defines no knee_r under points" in res.output
         assert not (tmp_path / command[-1][-1]).exists()
     assert read_motion(RAW, mapping=mine).names.count("knee_r") == 0  # the library reads what it defines
+
+
+@pytest.mark.parametrize(("old", "new", "pair"), [
+    ("harrington: {side: left, lasi: LASI, rasi: RASI, sacral: SACR}",
+     "harrington: {side: right, lasi: LASI, rasi: RASI, sacral: SACR}", "hip_l and hip_r"),
+    ("  knee_l: {marker: kjc_l}", "  knee_l: {marker: kjc_r}", "knee_l and knee_r"),
+])  # fmt: skip
+def test_mapping_giving_one_point_for_left_and_right_refused(tmp_path, old, new, pair):
+    """A lab mapping with the wrong side ('side: right' in the left hip's Harrington rule, or
+    knee_l reading kjc_r) gave a report and a synthetic session with both hips (knees) at one
+    point and exit 0 (found writing a lab's own mapping for a renamed walk.c3d)."""
+    shipped = (MAPPINGS_DIR / "plugin_gait.yaml").read_text()
+    assert old in shipped
+    mine = tmp_path / "my_lab.yaml"
+    mine.write_text(shipped.replace(old, new))
+    with pytest.raises(InputError) as err:
+        read_motion(RAW, mapping=mine)
+    assert "my_lab.yaml" in str(err.value) and f"{pair} are the same point (0.0 mm apart" in str(err.value)
+    res = CliRunner().invoke(cli, ["report", str(RAW), "--mapping", str(mine), "-o", str(tmp_path / "r")])
+    assert res.exit_code == 1 and "the same point" in res.output and not (tmp_path / "r").exists()

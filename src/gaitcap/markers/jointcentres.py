@@ -20,6 +20,7 @@ from gaitcap.markers.mapping import (
     HarringtonRule,
     LerpRule,
     Mapping,
+    Resolution,
     Rule,
     ShiftRule,
     SoleRule,
@@ -450,6 +451,28 @@ def _evaluate_alternatives(ev: _Evaluator, name: str, rules: list[Rule], n_frame
     return value
 
 
+SAME_POINT_M = 0.01  # a left and a right joint centre closer than this (median over frames) are one point
+
+
+def _refuse_same_left_and_right(resolution: Resolution, names: tuple[str, ...], points: np.ndarray, source: str) -> None:
+    """A left point and its right twin that are one point (median distance under 1 cm): a rule names
+    the other side's marker, helper point or ``side`` (``harrington: {side: right}`` for hjc_l).
+
+    Raises:
+        InputError: naming the mapping (its file), the two points and how each is computed.
+    """
+    for i, name in enumerate(names):
+        twin = name[:-2] + "_r" if name.endswith("_l") else None
+        if twin not in names:
+            continue
+        d = np.linalg.norm(points[:, i] - points[:, names.index(twin)], axis=-1)
+        if np.isfinite(d).any() and np.nanmedian(d) < SAME_POINT_M:
+            how = f"{name} = {resolution.describe(name)}, {twin} = {resolution.describe(twin)}"
+            raise InputError(f"{source}: {resolution.mapping.label}: {name} and {twin} are the same point "
+                             f"({np.nanmedian(d) * 1000:.1f} mm apart; {how}): a rule of one of them names the other "
+                             "side's markers, point or side")  # fmt: skip
+
+
 def apply_mapping(
     mapping: Mapping,
     markers: Trajectory,
@@ -482,6 +505,7 @@ def apply_mapping(
         ev.values[name] = _evaluate_alternatives(ev, name, rule.usable(resolution.have), markers.n_frames)
     names = tuple(resolution.output_points())
     points = np.stack([ev.values[n] for n in names], axis=1)
+    _refuse_same_left_and_right(resolution, names, points, source)
     meta = {**markers.meta, "mapping": mapping.name}
     return Trajectory(names, points, markers.rate_hz, markers.t0_s, markers.events, meta)
 
