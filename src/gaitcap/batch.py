@@ -320,7 +320,7 @@ def run_batch(
         if not force and is_finished(out):
             before = read_track_json(out) or {}
             frames, flagged = int(before.get("n_frames", 0)), int(before.get("n_flagged", 0))  # the finished run's
-            if options is not None and before.get("options") and (changed := changed_options(before["options"], options)):
+            if options is not None and (changed := changed_options(before.get("options"), options)):
                 results[i] = TrackSummary(session, out, STATUS_FAILED, frames, flagged, 0.0,
                                           f"finished before with other options ({changed}): use --force to redo it "
                                           "with these")  # fmt: skip

@@ -204,11 +204,8 @@ def defaults_unlike_shipped(model: type[BaseModel], data: Any, shipped: Any, pre
         if name not in shipped:
             continue
         sub = field.annotation
-        if isinstance(sub, type) and issubclass(sub, BaseModel):
-            if name in data or field.is_required():
-                out.update(defaults_unlike_shipped(sub, data.get(name), shipped[name], f"{prefix}{name}."))
-            else:
-                out.update(defaults_unlike_shipped(sub, {}, shipped[name], f"{prefix}{name}."))
+        if isinstance(sub, type) and issubclass(sub, BaseModel):  # a section left out is compared as an empty one
+            out.update(defaults_unlike_shipped(sub, data.get(name), shipped[name], f"{prefix}{name}."))
             continue
         if name in data or field.is_required():
             continue

@@ -278,10 +278,11 @@ MILLIMETRES_M = 50.0
 def _millimetres_hint(lengths: Sequence[float]) -> str:
     """A reason naming the likely cause when the strides' (or steps') median length, ``lengths`` in the
     trajectory's unit, is beyond any walk in metres; empty otherwise."""
-    ok = [v for v in lengths if math.isfinite(v)]
-    if not ok or float(np.median(np.abs(ok))) <= MILLIMETRES_M:
+    ok = [abs(v) for v in lengths if math.isfinite(v)]
+    median = float(np.median(ok)) if ok else math.nan
+    if not median > MILLIMETRES_M:
         return ""
-    return (f"the strides measure {float(np.median(np.abs(ok))):.4g} m: the points are likely in millimetres, and "
+    return (f"the strides measure {median:.4g} m: the points are likely in millimetres, and "
             "gaitcap reads metres (divide them by 1000)")
 
 

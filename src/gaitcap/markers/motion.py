@@ -33,12 +33,7 @@ from gaitcap.io.trc import read_trc
 from gaitcap.markers.axes import UP_AXES, to_z_up
 from gaitcap.markers.events import events_from_grf, events_from_plates
 from gaitcap.markers.jointcentres import apply_mapping
-from gaitcap.markers.mapping import (
-    Mapping,
-    Resolution,
-    load_mapping,
-    shipped_mapping_names,
-)
+from gaitcap.markers.mapping import Mapping, Resolution, load_mapping, shipped_mapping_names
 from gaitcap.trajectory import POINT_NAMES, Trajectory
 
 log = logging.getLogger("gaitcap.markers.motion")

@@ -21,15 +21,8 @@ from gaitcap.report.fit import FitRecord, angle_bands, load_fit_record, select_f
 from gaitcap.report.html import FitView, render_fit_report, render_report
 from gaitcap.report.plots import FLEXION_ANGLES
 from gaitcap.report.sheet import contact_sheet
-from gaitcap.track_summary import (
-    GAIT_DIR,
-    TRAJECTORIES_H5,
-    Verdict,
-    read_track_json,
-    read_verdict,
-    run_record,
-    unfinished,  # fmt: skip
-)
+from gaitcap.track_summary import (GAIT_DIR, TRAJECTORIES_H5, Verdict, read_track_json, read_verdict, run_record,
+                                   unfinished)  # fmt: skip
 from gaitcap.trajectory import LOWER_LIMB, SIDES, GaitEvent, Trajectory, side_suffix
 
 log = logging.getLogger("gaitcap.report")

@@ -118,11 +118,12 @@ def prepare_extractor(source: Source, config: SilhouetteConfig) -> tuple[Silhoue
                 f"{source.video.name} is {info.width}x{info.height}"
             )
     samples = sample_frames(source.video, bcfg.samples)
-    if plate is not None and ((_colour(plate) == 0 and _colour(samples) >= 2) or
-                              (_colour(plate) >= 2 and _colour(samples) == 0)):  # fmt: skip
-        plate_kind, video_kind = ("greyscale", "in colour") if _colour(plate) == 0 else ("in colour", "greyscale")
-        raise InputError(f"{source.plate}: background plate is {plate_kind} but the video {source.video.name} is "
-                         f"{video_kind}: save the plate from this camera as the video records it")
+    if plate is not None:  # each measured once
+        plate_colour, video_colour = _colour(plate), _colour(samples)
+        if (plate_colour == 0 and video_colour >= 2) or (plate_colour >= 2 and video_colour == 0):
+            plate_kind, video_kind = ("greyscale", "in colour") if plate_colour == 0 else ("in colour", "greyscale")
+            raise InputError(f"{source.plate}: background plate is {plate_kind} but the video {source.video.name} "
+                             f"is {video_kind}: save the plate from this camera as the video records it")
     extractor = SilhouetteExtractor(config, name=source.camera)
     extractor.fit_background(plate=plate, samples=samples)
     return extractor, info.fps
