@@ -66,6 +66,15 @@ def file_in_the_way(folder: str | Path) -> Path | None:
     return next((p for p in (folder, *folder.parents) if p.exists() and not p.is_dir()), None)
 
 
+def unwritable(target: str | Path, error: OSError) -> OutputError:
+    """The error to raise when nothing can be created beside ``target`` (``error``): naming the file that
+    stands where one of its folders must be, else the reason."""
+    blocker = file_in_the_way(Path(target).parent)
+    if blocker is not None:
+        return OutputError(f"{blocker}: is a file, not a folder: cannot write {target} under it")
+    return OutputError(f"{target}: cannot write here ({error.strerror})")
+
+
 def check_output_folder(folder: str | Path) -> None:
     """Raise :class:`OutputError` when a file stands where the output folder ``folder`` (or one of its
     parents) must be (called before the work, so that nothing is computed and then refused)."""
@@ -114,10 +123,7 @@ def atomic_path(target: str | Path, suffix: str | None = None) -> Iterator[Path]
             prefix=f".{target.name}.", suffix=suffix or (target.suffix + ".part"), dir=target.parent
         )
     except OSError as e:
-        blocker = file_in_the_way(target.parent)
-        if blocker is not None:
-            raise OutputError(f"{blocker}: is a file, not a folder: cannot write {target} under it") from e
-        raise OutputError(f"{target}: cannot write here ({e.strerror})") from e
+        raise unwritable(target, e) from e
     os.close(fd)
     tmp_path = Path(tmp)
     try:

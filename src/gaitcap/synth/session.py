@@ -33,7 +33,7 @@ from gaitcap import __version__
 from gaitcap.body.model import load_body_spec
 from gaitcap.camera import CameraRig
 from gaitcap.errors import OutputError
-from gaitcap.io.atomic import default_dir_mode, file_in_the_way
+from gaitcap.io.atomic import default_dir_mode, unwritable
 from gaitcap.io.calibration_toml import write_calibration
 from gaitcap.io.trajectories_h5 import label_units
 from gaitcap.io.video_write import CODECS, AtomicVideoWriter
@@ -236,10 +236,7 @@ def _temporary_folder(out: Path) -> Path:
         out.parent.mkdir(parents=True, exist_ok=True)
         return Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".partial", dir=out.parent))
     except OSError as e:
-        blocker = file_in_the_way(out.parent)
-        if blocker is not None:
-            raise OutputError(f"{blocker}: is a file, not a folder: cannot write {out} under it") from e
-        raise OutputError(f"{out}: cannot write here ({e.strerror})") from e
+        raise unwritable(out, e) from e
 
 
 def _write_session(
