@@ -136,6 +136,35 @@ def test_thresholds(truth):
     assert check_thresholds(ev, Thresholds(max_lower_limb_mpjpe_mm=9.5)) == ["lower-limb MPJPE 10.0 mm > 9.5 mm"]
 
 
+def test_event_threshold_in_milliseconds_is_the_same_at_every_frame_rate(truth):
+    """--max-event-error-frames counts frames of OUT's rate: a lab's 1-frame limit is 40 ms at 25 fps
+    but 20 ms at 50 fps, so the same 30 ms error passes at 25 fps and fails at 50 fps. The limit in
+    milliseconds (--max-event-error-ms) judges both alike (found tracking the same walk at 25 and 50 fps)."""
+    ev = evaluate(tracked(truth, truth.points + [0.01, 0, 0]), truth)
+    assert ev.events["n_matched"] and not ev.events["n_missed"]
+    for rate in (25.0, 50.0):
+        ev.events.update(max_abs_ms=30.0, max_abs_frames=0.030 * rate)
+        assert check_thresholds(ev, Thresholds(max_event_error_ms=40)) == []
+        assert ev.thresholds == {"max_event_error_ms": 40}  # recorded in eval.json
+        assert check_thresholds(ev, Thresholds(max_event_error_ms=25)) == ["event timing error 30 ms > 25 ms"]
+    assert check_thresholds(ev, Thresholds(max_event_error_frames=1)) == ["event timing error 1.50 frames > 1 frames"]
+    both = check_thresholds(ev, Thresholds(max_event_error_frames=1, max_event_error_ms=25))
+    assert both == ["event timing error 1.50 frames > 1 frames", "event timing error 30 ms > 25 ms"]
+    ev.events.update(n_matched=0)
+    assert check_thresholds(ev, Thresholds(max_event_error_ms=40)) == [
+        "event timing not available (no detected event matched a reference event)"]
+
+
+def test_cli_event_threshold_in_milliseconds(tmp_path, truth):
+    a = write_out(tmp_path / "A", tracked(truth, truth.points))
+    b = write_out(tmp_path / "B", tracked(truth, truth.points))
+    res = CliRunner().invoke(cli, ["eval", str(b), "--reference", str(a), "--max-event-error-ms", "0"])
+    assert res.exit_code == 0, res.output
+    doc = json.loads((b / "eval.json").read_text())
+    assert doc["thresholds"] == {"max_event_error_ms": 0.0} and doc["passed"]
+    assert "--max-event-error-ms" in CliRunner().invoke(cli, ["eval", "--help"]).output
+
+
 def test_thresholds_on_what_was_not_compared_and_the_runs_verdict(truth):
     """CI thresholds fail a run that passes its error limits on what little was compared: frames flagged or
     not covered by the reference (--min-compared-fraction), reference events not detected

@@ -30,7 +30,10 @@ EXIT_THRESHOLD = 3
               help="Fail when the RMSE of hip/knee flexion or ankle dorsiflexion (either side) is above this.")
 @click.option("--max-event-error-frames", type=FiniteFloatRange(min=0), default=None,
               help="Fail when a gait event of OUT is further than this from the reference's (frames), or a "
-                   "reference event is not detected.")
+                   "reference event is not detected. Frames of OUT's rate: 1 frame is 40 ms at 25 fps, 20 ms at "
+                   "50 fps; --max-event-error-ms is the same limit at every frame rate.")
+@click.option("--max-event-error-ms", type=FiniteFloatRange(min=0), default=None,
+              help="As --max-event-error-frames, in milliseconds.")
 @click.option("--min-compared-fraction", type=FiniteFloatRange(min=0, max=1), default=None,
               help="Fail when fewer than this fraction (0-1) of OUT's frames are compared (flagged frames, or "
                    "frames the reference does not cover, are not).")
@@ -41,8 +44,8 @@ EXIT_THRESHOLD = 3
 def command(
     out: Path, truth: Path | None, reference: Path | None, output: Path | None,
     max_mpjpe_mm: float | None, max_lower_limb_mpjpe_mm: float | None, max_angle_rmse_deg: float | None,
-    max_event_error_frames: float | None, min_compared_fraction: float | None, require_verdict: str | None,
-    force: bool,
+    max_event_error_frames: float | None, max_event_error_ms: float | None, min_compared_fraction: float | None,
+    require_verdict: str | None, force: bool,
 ) -> None:  # fmt: skip
     """Compare the trajectories of OUT with a ground truth (--truth) or another run (--reference).
 
@@ -96,7 +99,8 @@ def command(
         ref = TruthReference(tracked_path(reference), read_tracked(reference))  # type: ignore[arg-type]
     ev = evaluate_output(out, ref, truth)
     ev.failures = check_thresholds(ev, Thresholds(max_mpjpe_mm, max_angle_rmse_deg, max_event_error_frames,
-                                                  max_lower_limb_mpjpe_mm, min_compared_fraction, require_verdict))
+                                                  max_lower_limb_mpjpe_mm, min_compared_fraction, require_verdict,
+                                                  max_event_error_ms))
     write_evaluation(target, ev, force=force)
     click.echo(format_evaluation(ev))
     click.echo(f"\nwrote {target}")

@@ -75,7 +75,8 @@ MAX_MATCH_S = 0.25
 @dataclass(frozen=True)
 class Thresholds:
     """Limits that make ``gaitcap eval`` fail (exit code 3; None: not checked). ``max_event_error_frames``
-    also fails on a reference event not detected; ``min_compared_fraction``: of OUT's frames, those compared
+    (frames of OUT's rate) and ``max_event_error_ms`` (milliseconds: the same limit at every frame rate)
+    also fail on a reference event not detected; ``min_compared_fraction``: of OUT's frames, those compared
     (not flagged, with a reference frame); ``require_verdict``: OUT's verdict at least this good."""
 
     max_mpjpe_mm: float | None = None
@@ -84,6 +85,7 @@ class Thresholds:
     max_lower_limb_mpjpe_mm: float | None = None
     min_compared_fraction: float | None = None
     require_verdict: str | None = None
+    max_event_error_ms: float | None = None
 
 
 @dataclass(frozen=True)
@@ -509,12 +511,16 @@ def check_thresholds(ev: Evaluation, limits: Thresholds) -> list[str]:
             failures.append("joint-angle RMSE not available")
         elif v > limits.max_angle_rmse_deg:
             failures.append(f"{name} RMSE {v:.1f} deg > {limits.max_angle_rmse_deg:g} deg")
-    if limits.max_event_error_frames is not None:
-        v = ev.events.get("max_abs_frames", math.nan) if ev.events else math.nan
+    timing = [(limit, key, unit, digits) for limit, key, unit, digits in
+              ((limits.max_event_error_frames, "max_abs_frames", "frames", 2),
+               (limits.max_event_error_ms, "max_abs_ms", "ms", 0)) if limit is not None]  # fmt: skip
+    if timing:
         if not ev.events or not ev.events.get("n_matched"):
             failures.append("event timing not available (no detected event matched a reference event)")
-        elif v > limits.max_event_error_frames:
-            failures.append(f"event timing error {v:.2f} frames > {limits.max_event_error_frames:g} frames")
+        else:
+            for limit, key, unit, digits in timing:
+                if (v := ev.events.get(key, math.nan)) > limit:
+                    failures.append(f"event timing error {v:.{digits}f} {unit} > {limit:g} {unit}")
         if ev.events and ev.events.get("n_missed"):
             failures.append(f"{ev.events['n_missed']} of the reference's {ev.events['n_reference']} events not "
                             "detected in OUT")  # fmt: skip
