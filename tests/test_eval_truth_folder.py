@@ -189,6 +189,43 @@ def test_track_save_masks_streams_the_silhouettes(embedded_session, tmp_path):
     assert (out / "notes.txt").read_text() == "of the run before\n"
 
 
+def test_track_stopped_half_way_over_an_earlier_run_leaves_none_of_its_outputs(embedded_session, tmp_path,
+                                                                              monkeypatch):
+    """``track -o OUT --force`` over a finished run, stopped while tracking (Ctrl-C, SIGTERM): none of the
+    earlier run's outputs stay beside the new run's partial ones (``gaitcap report OUT`` read the earlier
+    run's trajectories.h5, joints.csv/.trc stayed as if finished)."""
+    import yaml
+
+    import gaitcap.pipeline as pipeline_module
+    from gaitcap.config import default_config_path
+    from gaitcap.pipeline import run_track
+
+    data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
+    data["shape"]["enabled"] = False
+    data["factored_ipf"].update(particles=40, root_particles=80)
+    config = tmp_path / "tracking.yaml"
+    config.write_text(yaml.safe_dump(data))
+    out = tmp_path / "out"
+    run_track(embedded_session.session, out, config=config, progress=False, max_frames=3, save_masks=True)
+    (out / "eval.json").write_text("{}")
+    (out / "notes.txt").write_text("the lab's own\n")
+    outputs = ("track.json", "trajectories.h5", "joints.csv", "joints.trc", "silhouettes.h5", "eval.json")
+    assert all((out / name).is_file() for name in outputs)
+
+    def stopped(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(pipeline_module, "_track_session", stopped)
+    for save_masks in (True, False):
+        with pytest.raises(KeyboardInterrupt):
+            run_track(embedded_session.session, out, config=config, progress=False, max_frames=3, force=True,
+                      save_masks=save_masks)  # fmt: skip
+        assert [name for name in outputs if (out / name).exists()] == []
+        assert (out / "notes.txt").read_text() == "the lab's own\n"  # not an output of gaitcap's
+    res = CliRunner().invoke(cli, ["report", str(out)])
+    assert res.exit_code == 1 and "no trajectories.h5 in this folder" in res.output
+
+
 def test_track_takes_a_silhouette_configuration(embedded_session, tmp_path):
     """``gaitcap track --silhouette-config``: the silhouettes a lab tuned with ``gaitcap silhouettes -c`` are the
     ones tracked (the run's silhouettes.h5 records the configuration it used)."""

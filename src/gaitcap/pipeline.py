@@ -54,7 +54,7 @@ from gaitcap.silhouette.config import SilhouetteConfig
 from gaitcap.silhouette.joint import JointExtractor, floor_check
 from gaitcap.silhouette.run import Source, camera_attrs, file_attrs, prepare_extractor, quality_row
 from gaitcap.timeseries import finite_runs
-from gaitcap.track_summary import (EVAL_FILE, GAIT_DIR, TRACK_JSON, TRAJECTORIES_H5, TrackSummary, format_verdict,
+from gaitcap.track_summary import (EVAL_FILE, GAIT_DIR, JOINTS_CSV, JOINTS_TRC, TRACK_JSON, TRAJECTORIES_H5, TrackSummary, format_verdict,
                                    is_finished, options_record, run_configs, write_track_json)  # fmt: skip
 from gaitcap.tracking.backward import (choose_backward, exchanged_legs, leg_points, legs_apart, mean_pose,
                                        merge_passes, order_legs)
@@ -123,21 +123,24 @@ def _check_out(out: Path, force: bool) -> None:
     check_free_space(out)
 
 
-def _prepare_out(out: Path, save_masks: bool = False) -> None:
-    """Create the output folder; a previous run in it is no longer finished, and its silhouettes,
-    unless this run saves its own, are removed (``gaitcap eval`` would score them as this run's),
-    as are its evaluation and gait report (they would be read as this run's)."""
+#: what a tracking run writes into its output folder, and what is derived from it (track.json first:
+#: without it, the folder is not a finished run's)
+RUN_OUTPUTS = (TRACK_JSON, TRAJECTORIES_H5, JOINTS_CSV, JOINTS_TRC, SILHOUETTES_FILE, EVAL_FILE, GAIT_DIR)
+
+
+def _prepare_out(out: Path) -> None:
+    """Create the output folder; a previous run's outputs in it (:data:`RUN_OUTPUTS`: its track.json,
+    trajectories, joints, silhouettes, evaluation and gait report) are removed first, so that a run
+    stopped half-way (Ctrl-C, SIGTERM, an error) leaves only its own files, never the earlier run's
+    beside them to be read as this run's (by ``gaitcap report``, ``gaitcap eval``)."""
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as e:
         raise OutputError(f"{out}: cannot create the output folder ({e.strerror})") from e
-    (out / TRACK_JSON).unlink(missing_ok=True)  # the old run is no longer finished
-    if not save_masks:
-        (out / SILHOUETTES_FILE).unlink(missing_ok=True)
-    derived = [p for p in (out / EVAL_FILE, out / GAIT_DIR) if p.exists()]
-    remove_replaced(derived)
-    if derived:
-        log.info("%s: removed the replaced run's %s", out, " and ".join(p.name for p in derived))
+    replaced = [out / name for name in RUN_OUTPUTS if (out / name).exists()]
+    remove_replaced(replaced)
+    if replaced:
+        log.info("%s: removed the replaced run's %s", out, ", ".join(p.name for p in replaced))
     remove_stale_parts(out)  # temporary files of a run that was killed
 
 
@@ -258,7 +261,7 @@ def _attempt(session: Path, out: Path, ses: Session, videos, views, likelihood, 
                 _first_observations(session, head, cfg)
         check_silhouettes_meet(views, head, ses.root / CALIBRATION_FILE)
         if not prepared:
-            _prepare_out(out, save_masks)  # only once the inputs are known good: bad input creates nothing
+            _prepare_out(out)  # only once the inputs are known good: bad input creates nothing
         if saver is not None:
             saver.open()
         return _track_session(session, out, ses, videos, cfg, views, likelihood, head, stream, height_m, n_frames,
@@ -610,8 +613,8 @@ def _finish_run(run: TrackedRun, notes: tuple[str, ...]) -> TrackSummary:
     for line in judged.verdict.notes:
         log.info("note: %s", line)
     traj = Trajectory(names, points, videos.fps)
-    write_joints_csv(run.out / "joints.csv", traj)
-    write_trc(run.out / "joints.trc", traj, units="mm")
+    write_joints_csv(run.out / JOINTS_CSV, traj)
+    write_trc(run.out / JOINTS_TRC, traj, units="mm")
     n_flagged = int(np.sum(quality != QUALITY_OK))
     stages["writing"] = time.perf_counter() - t_writing - (stages.get("verdict", 0.0) - verdict_before)
     seconds = time.perf_counter() - run.t_start

@@ -44,6 +44,8 @@ log = logging.getLogger(__name__)
 
 TRACK_JSON = "track.json"
 TRAJECTORIES_H5 = "trajectories.h5"
+JOINTS_CSV = "joints.csv"
+JOINTS_TRC = "joints.trc"
 #: what other commands derive from a tracking run, in its output folder: ``gaitcap eval``'s results and
 #: ``gaitcap report``'s folder. A run tracked again there removes them: they describe the run it replaces
 EVAL_FILE = "eval.json"
@@ -268,15 +270,14 @@ def run_record(trajectories: str | Path) -> dict[str, Any] | None:
 
 def unfinished(trajectories: str | Path, record: dict[str, Any] | None) -> str | None:
     """A warning for a ``trajectories.h5`` whose folder holds no finished ``track.json`` (``record``, as
-    :func:`run_record` read it): a run there did not finish (a re-run killed before its end leaves the
-    earlier run's files, its track.json removed), or the file is not a ``gaitcap track`` output; None for
-    a finished run's or another kind of file."""
+    :func:`run_record` read it): a run there did not finish (stopped after writing it, before its
+    track.json; a run tracked again removes the earlier run's files first), or the file is not a
+    ``gaitcap track`` output; None for a finished run's or another kind of file."""
     path = Path(trajectories)
     if path.name != TRAJECTORIES_H5 or (record is not None and record.get("status") == STATUS_OK):
         return None
-    return (f"{path.parent}: no finished {TRACK_JSON} beside {path.name}: a run there did not finish (a re-run "
-            "stopped before its end leaves the earlier run's files) or the file is not gaitcap track's; it is "
-            "read as it is")
+    return (f"{path.parent}: no finished {TRACK_JSON} beside {path.name}: a run there did not finish or the file "
+            "is not gaitcap track's; it is read as it is")
 
 
 def is_finished(out: str | Path) -> bool:
