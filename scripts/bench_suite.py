@@ -38,7 +38,10 @@ masks cost and what the tracker does with the right ones.
 
 Per-session rows are written to ``WORK/suite.csv`` and ``WORK/suite.json`` (read by bench_uncertainty.py,
 bench_smoothing.py and feet_contrast.py); with ``--silhouettes-only`` to ``WORK/suite_silhouettes.csv`` and
-``.json`` instead, so that the tracked runs' rows in the same WORK stay.
+``.json`` instead, so that the tracked runs' rows in the same WORK stay. A run that would replace an earlier
+run's results it does not redo is refused before any work, naming them (``--replace`` replaces them): a
+WORK whose suite.json holds sessions this run leaves out (``--only`` into a full run's WORK), or runs on
+the other videos (``--true-masks`` into a WORK of runs on the sessions' own videos, or the reverse).
 """
 
 from __future__ import annotations
@@ -146,23 +149,75 @@ def longest_run(runs: list) -> int:
 
 def measure(session: Path, truth: Path, truth_masks: Path, run: Path, reuse: bool = False,
             silhouettes_only: bool = False, config: Path | None = None, re_eval: bool = False,
-            body: Path | None = None) -> dict:  # fmt: skip
-    """Track, evaluate and score one session (``reuse``: the row of an earlier run, if it finished;
-    with ``re_eval`` its tracking scored again by the current ``gaitcap eval``; ``body``: an earlier
-    run's output whose body is tracked, ``gaitcap track --body``)."""
-    row_file = run / "suite_row.json"
-    if reuse and row_file.exists() and not silhouettes_only:
+            body: Path | None = None, true_masks: bool = False) -> dict:  # fmt: skip
+    """Track, evaluate and score one session (``reuse``: the row of an earlier run, if it finished
+    and tracked the same videos, ``true_masks`` or not; with ``re_eval`` its tracking scored again by
+    the current ``gaitcap eval``; ``body``: an earlier run's output whose body is tracked, ``gaitcap
+    track --body``)."""
+    row_file = run / ROW_FILE
+    if reuse and row_file.exists() and not silhouettes_only and _row_kind(row_file) == true_masks:
         row = json.loads(row_file.read_text())
         if re_eval and not str(row.get("status", "")).startswith("track failed"):  # scored by the current eval
             row.update(evaluate_run(run, truth))
             row_file.write_text(json.dumps(row, default=str))
         return row
-    row = _measure(session, truth, truth_masks, run, silhouettes_only, config, body)
+    row = _measure(session, truth, truth_masks, run, silhouettes_only, config, body) | {"true_masks": true_masks}
     if silhouettes_only:
         return row
     run.mkdir(parents=True, exist_ok=True)
     row_file.write_text(json.dumps(row, default=str))
     return row
+
+
+#: each run's row, in its folder (``--reuse`` reads it)
+ROW_FILE = "suite_row.json"
+
+
+def _row_kind(path: Path) -> bool | None:
+    """Whether the row (or, for a list, the rows) in ``path`` came from a ``--true-masks`` run (rows
+    written before rows recorded it came from the sessions' own videos); None for a file that cannot be
+    read or rows of both kinds."""
+    try:
+        rows = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    kinds = {bool(r.get("true_masks")) for r in (rows if isinstance(rows, list) else [rows]) if isinstance(r, dict)}
+    return kinds.pop() if len(kinds) == 1 else None
+
+
+def _kind(true_masks: bool) -> str:
+    return "the sessions' true masks (--true-masks)" if true_masks else "the sessions' own videos"
+
+
+def replaces_other_run(work: Path, stem: str, names: list[str], true_masks: bool, silhouettes_only: bool) -> str | None:
+    """Why writing this run (the sessions ``names``, ``true_masks`` or not) into ``work`` would silently
+    replace an earlier run's results that it does not redo: ``work/<stem>.json`` holds rows of sessions
+    this run leaves out (a full suite, replaced by the rows of ``--only``), or of the other videos
+    (``--true-masks`` or not: its runs under ``work/runs`` too); None when it would not."""
+    table = work / f"{stem}.json"
+    hint = "give another --work (or --replace to replace them)"
+    if table.is_file():
+        try:
+            rows = json.loads(table.read_text())
+            earlier = [r["name"] for r in rows]
+        except (OSError, ValueError, TypeError, KeyError):
+            return f"{table}: not an earlier run's table, not replaced: {hint}"
+        left_out = [n for n in earlier if n not in names]
+        if left_out:
+            listed = " ".join(left_out[:6]) + (" ..." if len(left_out) > 6 else "")
+            return (f"{table}: holds the rows of {len(earlier)} sessions, {len(left_out)} of which this run leaves out "
+                    f"({listed}): this run would replace them by its {len(names)}; {hint}")  # fmt: skip
+        kind = _row_kind(table)
+        if kind is not None and kind != true_masks and not silhouettes_only:
+            return f"{table}: holds a run on {_kind(kind)}: this run, on {_kind(true_masks)}, would replace it; {hint}"
+    if silhouettes_only:
+        return None
+    other = [n for n in names if (work / "runs" / n / ROW_FILE).is_file()
+             and _row_kind(work / "runs" / n / ROW_FILE) == (not true_masks)]  # fmt: skip
+    if other:
+        return (f"{work / 'runs'}: holds the runs of {len(other)} of these sessions ({' '.join(other[:6])}) on "
+                f"{_kind(not true_masks)}: this run, on {_kind(true_masks)}, would replace them; {hint}")
+    return None
 
 
 #: a body part is missing from a frame when the run's mask holds less than this fraction of its
@@ -456,6 +511,9 @@ def main() -> None:
     ap.add_argument("--only", nargs="+", metavar="NAME", help="only these sessions (names as in the tables)")
     ap.add_argument("--true-masks", action="store_true", help="track each session's copy drawn from its true masks "
                     "(perfect silhouettes: what the masks cost)")
+    ap.add_argument("--replace", action="store_true", help="write into a WORK whose suite.json (or runs) an earlier "
+                    "run of other sessions (a full run, for --only) or of the other videos (--true-masks or not) wrote: "
+                    "its rows and those sessions' runs are replaced")  # fmt: skip
     ap.add_argument("--tables", type=Path, help="print the tables of an earlier run's suite.json and stop")
     args = ap.parse_args()
     if args.tables:
@@ -469,13 +527,17 @@ def main() -> None:
         ap.error(f"--body {args.body}: not a finished gaitcap track output (no trajectories.h5)")
     if args.body_from is not None and not (args.body_from / "runs").is_dir():
         ap.error(f"--body-from {args.body_from}: not a scripts/bench_suite.py work folder (no runs/)")
+    names = [] if args.only_external else [p["name"] for p in plan(args.sessions, list(WALKS))[args.first :]]
+    if not args.no_external and (SHARED / "external_sessions").is_dir():
+        names += [f"ext_{p.name}" for p in sorted((SHARED / "external_sessions").glob("*")) if (p / "truth").is_dir()]
     if args.only:  # a name that is not in the suite would leave an empty suite.json behind
-        names = [] if args.only_external else [p["name"] for p in plan(args.sessions, list(WALKS))[args.first :]]
-        if not args.no_external and (SHARED / "external_sessions").is_dir():
-            names += [f"ext_{p.name}" for p in sorted((SHARED / "external_sessions").glob("*")) if (p / "truth").is_dir()]
         unknown = [n for n in args.only if n not in names]
         if unknown:
             ap.error(f"--only: no session named {', '.join(unknown)} in this suite (its sessions: {' '.join(names)})")
+        names = [n for n in names if n in args.only]
+    stem = "suite_silhouettes" if args.silhouettes_only else "suite"  # a tracked suite's rows stay
+    if not args.replace and (why := replaces_other_run(args.work, stem, names, args.true_masks, args.silhouettes_only)):
+        ap.error(why)
     args.work.mkdir(parents=True, exist_ok=True)
     todo = [] if args.only_external else own_sessions(args)
     if not args.no_external and (SHARED / "external_sessions").is_dir():
@@ -486,14 +548,13 @@ def main() -> None:
     for i, s in enumerate(todo):
         if args.true_masks:
             s = {**s, "session": true_mask_session(s["session"], s["masks"], args.work / "true_sessions" / s["name"])}
-        r = {k: v for k, v in s.items() if k not in ("session", "truth", "masks")}
+        r = {k: v for k, v in s.items() if k not in ("session", "truth", "masks")} | {"true_masks": args.true_masks}
         body = args.body or (args.body_from / "runs" / s["name"] if args.body_from else None)
         r.update(measure(s["session"], s["truth"], s["masks"], args.work / ("sil_runs" if args.silhouettes_only else "runs") / s["name"], args.reuse,
-                         args.silhouettes_only, args.config, args.re_eval, body))
+                         args.silhouettes_only, args.config, args.re_eval, body, args.true_masks))
         rows.append(r)
         print(f"[{i + 1}/{len(todo)}] {s['name']}: lower {fmt(r.get('lower_mm'))} mm, knee {fmt(r.get('knee_deg'))} deg, "
               f"IoU {fmt(r.get('iou'))}, {r.get('seconds', 0):.0f} s", file=sys.stderr, flush=True)  # fmt: skip
-    stem = "suite_silhouettes" if args.silhouettes_only else "suite"  # a tracked suite's rows stay
     (args.work / f"{stem}.json").write_text(json.dumps(rows, indent=1, default=str))
     keys = ["name", "source", "walk", "seed", "height", "cameras", "status"] + [k for k, _ in METRICS]
     with open(args.work / f"{stem}.csv", "w", newline="") as fh:
