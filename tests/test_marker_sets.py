@@ -406,3 +406,42 @@ def test_mapping_giving_one_point_for_left_and_right_refused(tmp_path, old, new,
     assert "my_lab.yaml" in str(err.value) and f"{pair} are the same point (0.0 mm apart" in str(err.value)
     res = CliRunner().invoke(cli, ["report", str(RAW), "--mapping", str(mine), "-o", str(tmp_path / "r")])
     assert res.exit_code == 1 and "the same point" in res.output and not (tmp_path / "r").exists()
+
+
+@pytest.mark.parametrize(("old", "new", "said"), [
+    ("chord: {proximal: hjc_l, wand: LTHI, marker: LKNE", "chord: {proximal: hjc_l, wand: LTHI, marker: RKNE",
+     "kjc_l: its chord's wand LTHI and marker RKNE are not on one segment: their distance changes by 67 mm"),
+    ("chord: {proximal: hjc_l, wand: LTHI, marker: LKNE", "chord: {proximal: hjc_l, wand: RTHI, marker: LKNE",
+     "kjc_l: its chord's wand RTHI and marker LKNE are not on one segment"),
+    ("chord: {proximal: kjc_l, wand: LTIB, marker: LANK", "chord: {proximal: kjc_l, wand: LTIB, marker: RANK",
+     "ajc_l: its chord's wand LTIB and marker RANK are not on one segment"),
+    ("chord: {proximal: hjc_l, wand: LTHI, marker: LKNE", "chord: {proximal: hjc_l, wand: RTHI, marker: RKNE",
+     "the left shank, knee_l to ankle_l, changes length by 294 mm over the frames (333 to 627 mm"),
+])  # fmt: skip
+def test_mapping_naming_the_other_sides_marker_in_a_chord_refused(tmp_path, old, new, said):
+    """A lab mapping whose left knee (ankle) chord names a right marker ('marker: RKNE' in kjc_l's
+    rule) was accepted: 'gaitcap markers' said 'fits' (exit 0) and the left knee lay 37 mm from the
+    right one, the left shank 526 mm long (its length changing by 242 mm over walk.c3d), with exit 0.
+    The chord's wand and marker must stay on one segment, and each thigh and shank keep its length."""
+    shipped = (MAPPINGS_DIR / "plugin_gait.yaml").read_text()
+    assert old in shipped
+    mine = tmp_path / "my_lab.yaml"
+    mine.write_text(shipped.replace(old, new))
+    with pytest.raises(InputError) as err:
+        read_motion(RAW, mapping=mine)
+    assert f"{RAW}: mapping 'plugin_gait' ({mine}): {said}" in str(err.value)
+    assert "names the other side's marker or point" in str(err.value)
+    res = CliRunner().invoke(cli, ["markers", str(RAW), "--mapping", str(mine)])
+    assert res.exit_code == 1 and "mapping plugin_gait: does NOT fit: " in res.output and said in res.output
+    res = CliRunner().invoke(cli, ["report", str(RAW), "--mapping", str(mine), "-o", str(tmp_path / "r")])
+    assert res.exit_code == 1 and said in res.output and not (tmp_path / "r").exists()
+
+
+def test_shipped_files_keep_their_limbs_and_chords_on_one_segment():
+    """The checks above refuse none of the real walks with their shipped mappings (and `gaitcap markers`
+    computing the joint centres prints no log of the reading)."""
+    for path in (RAW, PIG, OPENSIM, WALKING / "rajagopal_walk.trc"):
+        read_motion(path)
+    res = CliRunner().invoke(cli, ["markers", str(RAW)])
+    assert res.exit_code == 0 and "mapping plugin_gait: fits" in res.output
+    assert "typical chord distance" not in res.output  # the reading's information log

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import contextlib
+import logging
+from collections.abc import Iterator
 from pathlib import Path
 
 from gaitcap.errors import InputError
 from gaitcap.markers.mapping import Mapping, Resolution, load_mapping
-from gaitcap.markers.motion import find_static_trial, read_raw_markers, resolve_shipped
+from gaitcap.markers.motion import find_static_trial, read_motion, read_raw_markers, resolve_shipped
 from gaitcap.trajectory import LOWER_LIMB, POINT_NAMES, Trajectory
 
 
@@ -68,6 +71,12 @@ def describe_file(path: str | Path, mapping: Mapping | str | Path | None = None,
             static_line = f"  static trial: {found}"
         except InputError as e:
             state = f"does NOT fit: {str(e).split(': ', 1)[1]}"
+    if state == "fits":  # the joint centres computed: a rule that names the other side's marker shows there
+        try:
+            with _quiet(logging.getLogger("gaitcap.markers")):  # the account is the output, not the reading's log
+                read_motion(path, main.mapping, static, subject=subject)
+        except InputError as e:
+            state = f"does NOT fit: {str(e).split(': ', 1)[1]}"
     lines.append(f"mapping {main.mapping.name}: {state}")
     if static_line:
         lines.append(static_line)
@@ -90,3 +99,14 @@ def describe_file(path: str | Path, mapping: Mapping | str | Path | None = None,
             why = "fits too" if other.fits else f"missing {', '.join(other.missing_required())}"
             lines.append(f"other mapping {other.mapping.name}: {why}")
     return "\n".join(lines)
+
+
+@contextlib.contextmanager
+def _quiet(logger: logging.Logger) -> Iterator[None]:
+    """``logger``'s information messages left out inside the block (warnings stay)."""
+    level = logger.level
+    logger.setLevel(max(logging.WARNING, level))
+    try:
+        yield
+    finally:
+        logger.setLevel(level)

@@ -329,10 +329,11 @@ def hold_floor_contacts(markers: Trajectory, contacts: dict[str, FloorContact]) 
 class _Evaluator:
     """Evaluates a mapping's definitions in order over a marker trajectory."""
 
-    def __init__(self, markers: Trajectory, static: Trajectory | None, source: str) -> None:
+    def __init__(self, markers: Trajectory, static: Trajectory | None, source: str, label: str = "mapping") -> None:
         self.markers = markers
         self.static = static
         self.source = source
+        self.label = label  # the mapping's (Mapping.label), for the errors
         self.values: dict[str, np.ndarray] = {}
 
     def get(self, name: str) -> np.ndarray:
@@ -378,12 +379,28 @@ class _Evaluator:
             return self._shift(rule.shift)  # type: ignore[arg-type]
         if kind == "chord":
             c: ChordRule = rule.chord  # type: ignore[assignment]
-            return chord_point(self.get(c.proximal), self.get(c.wand), self.get(c.marker), self._chord_distance(name, c))
+            wand, marker = self.get(c.wand), self.get(c.marker)
+            self._refuse_apart(name, f"its chord's wand {c.wand} and marker {c.marker}", wand, marker, MAX_WAND_SPREAD_M,
+                               "a wand and its joint's marker, on one segment, keep theirs within 2 cm")  # fmt: skip
+            return chord_point(self.get(c.proximal), wand, marker, self._chord_distance(name, c))
         if kind == "lerp":
             r: LerpRule = rule.lerp  # type: ignore[assignment]
             a, b = self.get(r.start), self.get(r.end)
             return a + r.fraction * (b - a)
         raise InputError(f"unknown rule {kind}")  # pragma: no cover - schema prevents it
+
+    def _refuse_apart(self, name: str, what: str, a: np.ndarray, b: np.ndarray, limit: float, norm: str) -> None:
+        """Raise when the distance between ``a`` and ``b`` (points of one body segment) changes by more
+        than ``limit`` over the frames (:func:`length_spread`): one of them is on another segment,
+        most likely the other side's (``RKNE`` in the left knee's rule)."""
+        spread = length_spread(a, b)
+        if spread is not None and spread[1] - spread[0] > limit:
+            raise InputError(
+                f"{self.source}: {self.label}: {name}: {what} are not on one segment: their distance changes by "
+                f"{1000 * (spread[1] - spread[0]):.0f} mm over the frames ({1000 * spread[0]:.0f} to "
+                f"{1000 * spread[1]:.0f} mm, 5th to 95th percentile; {norm}): a rule names the other side's marker "
+                "or point, or the file's labels of the two sides are swapped in part of it"
+            )  # fmt: skip
 
     def _harrington(self, r: HarringtonRule) -> np.ndarray:
         if r.sacral is not None:
@@ -453,6 +470,57 @@ def _evaluate_alternatives(ev: _Evaluator, name: str, rules: list[Rule], n_frame
 
 SAME_POINT_M = 0.01  # a left and a right joint centre closer than this (median over frames) are one point
 
+#: the length of a limb segment between two joint centres, hip-knee or knee-ankle, changes by less than
+#: this over a file's frames (5th to 95th percentile; at most 45 mm in the shared Plug-in-Gait, C3D.ORG
+#: and OpenSim walks); a joint centre a rule builds from the other side's marker changes it by 160-300 mm
+MAX_SEGMENT_SPREAD_M = 0.1
+#: the distance between a chord's wand and its marker (THI-KNE, TIB-ANK), on one segment, changes by less
+#: than this (at most 17 mm in the shared walks; 66-350 mm with one of them the other side's)
+MAX_WAND_SPREAD_M = 0.04
+#: the limb segments whose length is checked: (segment, proximal joint, distal joint)
+LIMB_SEGMENTS = (("thigh", "hip", "knee"), ("shank", "knee", "ankle"))
+#: frames with both points that a length's spread needs to be judged
+MIN_SPREAD_FRAMES = 10
+
+
+def length_spread(a: np.ndarray, b: np.ndarray) -> tuple[float, float] | None:
+    """The 5th and 95th percentiles over the frames of the distance between ``a`` and ``b`` ((T, 3),
+    metres); None for fewer than :data:`MIN_SPREAD_FRAMES` frames with both (a standing trial's
+    few frames, a constant point, or gaps)."""
+    d = np.atleast_1d(np.linalg.norm(np.asarray(a, np.float64) - np.asarray(b, np.float64), axis=-1))
+    d = d[np.isfinite(d)]
+    if len(d) < MIN_SPREAD_FRAMES:
+        return None
+    lo, hi = np.percentile(d, [5, 95])
+    return float(lo), float(hi)
+
+
+def _refuse_limbs_off_their_segments(resolution: Resolution, names: tuple[str, ...], points: np.ndarray,
+                                     source: str) -> None:  # fmt: skip
+    """A thigh or shank (hip-knee, knee-ankle) whose length changes by more than
+    :data:`MAX_SEGMENT_SPREAD_M` over the frames: one of its joint centres is built from the other
+    side's markers (the right knee marker in the left knee's chord), and lies off the limb.
+
+    Raises:
+        InputError: naming the mapping (its file), the two points and how each is computed.
+    """
+    for side in ("l", "r"):
+        for segment, proximal, distal in LIMB_SEGMENTS:
+            a, b = f"{proximal}_{side}", f"{distal}_{side}"
+            if a not in names or b not in names:
+                continue
+            spread = length_spread(points[:, names.index(a)], points[:, names.index(b)])
+            if spread is None or spread[1] - spread[0] <= MAX_SEGMENT_SPREAD_M:
+                continue
+            how = f"{a} = {resolution.describe(a)}, {b} = {resolution.describe(b)}"
+            raise InputError(
+                f"{source}: {resolution.mapping.label}: the {'left' if side == 'l' else 'right'} {segment}, {a} to {b}, "
+                f"changes length by {1000 * (spread[1] - spread[0]):.0f} mm over the frames ({1000 * spread[0]:.0f} "
+                f"to {1000 * spread[1]:.0f} mm, 5th to 95th percentile; a limb's joint centres keep theirs within a "
+                f"few cm; {how}): a rule of one of them names the other side's marker or point, or the file's labels "
+                "of the two sides are swapped in part of it"
+            )  # fmt: skip
+
 
 def _refuse_same_left_and_right(resolution: Resolution, names: tuple[str, ...], points: np.ndarray, source: str) -> None:
     """A left point and its right twin that are one point (median distance under 1 cm): a rule names
@@ -498,7 +566,7 @@ def apply_mapping(
         raise InputError(f"{source}: {mapping.label} needs markers missing from the file: "
                          f"{resolution.explain_missing(markers.names)}")  # fmt: skip
     markers = hold_floor_contacts(fill_segment_gaps(markers, mapping.segments), mapping.floor_contacts)
-    ev = _Evaluator(markers, static, source)
+    ev = _Evaluator(markers, static, source, mapping.label)
     for name, rule in mapping.definitions():
         if name in resolution.unresolved:
             continue
@@ -506,6 +574,7 @@ def apply_mapping(
     names = tuple(resolution.output_points())
     points = np.stack([ev.values[n] for n in names], axis=1)
     _refuse_same_left_and_right(resolution, names, points, source)
+    _refuse_limbs_off_their_segments(resolution, names, points, source)
     meta = {**markers.meta, "mapping": mapping.name}
     return Trajectory(names, points, markers.rate_hz, markers.t0_s, markers.events, meta)
 
