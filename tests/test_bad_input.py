@@ -102,6 +102,8 @@ def test_calibration_missing_a_key(tmp_path):
         ("subject: {heigth_m: 1.7}\n", "subject.heigth_m: unknown key (did you mean 'height_m'?)"),
         ("subject: {height_m: tall}\n", "subject.height_m: Input should be a valid number, unable to parse string as a number"),
         ("subject: {height_m: 172}\n", "subject.height_m: Input should be less than 2.6"),
+        ("subject: {height_m: true}\n", "subject.height_m: Value error, a number is expected, not a boolean (YAML "
+                                        "reads true/false, yes/no, on/off as booleans)"),  # was a 1.0 m subject
     ],
 )
 def test_session_yaml_errors(tmp_path, yaml_text, expected):
@@ -317,6 +319,26 @@ def test_an_infinite_or_nan_number_in_a_config_is_refused_naming_the_key(tmp_pat
         path.write_text(text)
         with pytest.raises(ConfigError, match=rf"t\.yaml: {key}: .*finite"):
             load_tracking_config(path)
+
+
+def test_a_boolean_where_a_config_expects_a_number_is_refused_naming_the_key(tmp_path):
+    """Pydantic's lax mode read YAML's true/false (yes/no, on/off) as 1 and 0: ``beta: yes`` tracked with
+    beta 1, ``seed: true`` with seed 1, ``height_m: true`` in session.yaml as a 1.0 m subject."""
+    import yaml
+
+    from gaitcap.config import default_config_path
+    from gaitcap.errors import ConfigError
+    from gaitcap.tracking.config import load_tracking_config
+
+    data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
+    for key, value in (("beta", "yes"), ("seed", "true"), ("threads", "off")):
+        text = yaml.safe_dump({**data, key: 12345}).replace(f"{key}: 12345", f"{key}: {value}")
+        path = tmp_path / "t.yaml"
+        path.write_text(text)
+        with pytest.raises(ConfigError, match=rf"t\.yaml: {key}: Value error, a number is expected, not a boolean"):
+            load_tracking_config(path)
+    path.write_text(yaml.safe_dump({**data, "soft_silhouettes": True}))  # a boolean where one is expected
+    assert load_tracking_config(path).soft_silhouettes is True
 
 
 def test_a_disk_about_to_be_full_stops_the_stream_before_hdf5_fails(tmp_path, monkeypatch):

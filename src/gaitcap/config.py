@@ -9,12 +9,14 @@ from __future__ import annotations
 
 import difflib
 import logging
+import types
+import typing
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, TypeVar
 
 import yaml
-from pydantic import BaseModel, ConfigDict, ValidationError
+from pydantic import BaseModel, ConfigDict, ValidationError, ValidationInfo, field_validator
 
 from gaitcap.errors import ConfigError
 
@@ -69,11 +71,54 @@ class Strict(BaseModel):
 
     model_config = ConfigDict(extra="forbid", validate_assignment=True, frozen=False, allow_inf_nan=False)
 
+    @field_validator("*", mode="before")
+    @classmethod
+    def _no_boolean_for_a_number(cls, value: Any, info: ValidationInfo) -> Any:
+        """A YAML boolean (``true``, ``no``, ``on``...) where a number is expected is refused: pydantic
+        reads it as 1 or 0 (``height_m: true`` was a 1.0 m subject)."""
+        field = cls.model_fields.get(info.field_name or "")
+        if field is not None and _boolean_for_a_number(value, field.annotation):
+            raise ValueError("a number is expected, not a boolean (YAML reads true/false, yes/no, on/off as booleans)")
+        return value
+
     def __setattr__(self, name: str, value: Any) -> None:
         try:
             super().__setattr__(name, value)
         except ValidationError as e:
             raise ConfigError(format_validation_error(e, type(self).__name__, type(self))) from e
+
+
+def _number_types(annotation: Any) -> tuple[bool, bool]:
+    """Whether ``annotation`` (a field's type) admits a number (int, float), and a boolean."""
+    if annotation is bool:
+        return False, True
+    if annotation in (int, float):
+        return True, False
+    origin = typing.get_origin(annotation)
+    if origin is typing.Annotated:
+        return _number_types(typing.get_args(annotation)[0])
+    if origin in (typing.Union, types.UnionType):
+        found = [_number_types(a) for a in typing.get_args(annotation)]
+        return any(n for n, _ in found), any(b for _, b in found)
+    return False, False
+
+
+def _boolean_for_a_number(value: Any, annotation: Any) -> bool:
+    """``value`` is a boolean where ``annotation`` expects a number, itself or as an item of a list,
+    tuple or mapping of numbers."""
+    if isinstance(value, bool):
+        number, boolean = _number_types(annotation)
+        return number and not boolean
+    origin, args = typing.get_origin(annotation), typing.get_args(annotation)
+    if origin in (typing.Union, types.UnionType):
+        containers = [a for a in args if typing.get_origin(a) in (list, tuple, set, frozenset, dict)]
+        return bool(containers) and all(_boolean_for_a_number(value, a) for a in containers)
+    if origin in (list, tuple, set, frozenset) and isinstance(value, (list, tuple)):
+        items = [a for a in args if a is not Ellipsis]
+        return any(_boolean_for_a_number(v, items[min(k, len(items) - 1)]) for k, v in enumerate(value)) if items else False
+    if origin is dict and isinstance(value, Mapping) and len(args) == 2:
+        return any(_boolean_for_a_number(v, args[1]) for v in value.values())
+    return False
 
 
 def read_yaml(path: str | Path) -> Any:
