@@ -71,9 +71,14 @@ class Camera:
                                    "cv2.Rodrigues")  # fmt: skip
         if rvec.shape != (3,) or tvec.shape != (3,) or not np.all(np.isfinite(np.r_[rvec, tvec])):
             raise CalibrationError(f"camera {self.name!r}: rotation and translation must be 3 finite numbers")
-        w, h = (int(v) for v in self.size)
-        if w <= 0 or h <= 0:
-            raise CalibrationError(f"camera {self.name!r}: size must be two positive integers [w, h]")
+        try:
+            w, h = (int(v) for v in self.size)
+            whole = all(float(v) == int(v) for v in self.size)
+        except (TypeError, ValueError):  # not two numbers ('ab', [640]): a bare unpacking error before
+            w = h = 0
+            whole = False
+        if w <= 0 or h <= 0 or not whole:
+            raise CalibrationError(f"camera {self.name!r}: size must be two positive integers [w, h], got {self.size!r}")
         object.__setattr__(self, "matrix", K)
         object.__setattr__(self, "dist", dist)
         object.__setattr__(self, "rvec", rvec)

@@ -91,7 +91,7 @@ class Trajectory:
     meta: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        pts = np.asarray(self.points, dtype=np.float64)
+        pts = np.array(self.points, dtype=np.float64)  # a copy: the caller's array changed later does not change it
         names = tuple(self.names)
         if pts.ndim != 3 or pts.shape[2] != 3 or pts.shape[1] != len(names):
             raise InputError(f"trajectory: points must have shape (T, {len(names)}, 3), got {pts.shape}")
