@@ -35,6 +35,9 @@ EVENT_KINDS: tuple[EventKind, EventKind] = ("foot_strike", "foot_off")
 #: ``Trajectory.meta`` key: side -> sub-frame indices where the toe, held on the floor through a
 #: gap of its marker, was last within the foot's reach (its lift-off; gaitcap.markers.jointcentres)
 TOE_RELEASES = "toe_releases"
+#: ``Trajectory.meta["format"]`` of a tracking run's trajectories (``gaitcap.io.trajectories_h5``): its
+#: gait events keep their anchors (``GaitOptions.refine_tracked``)
+TRACKED_FORMAT = "trajectories.h5"
 
 
 def exchanged_frames(a: np.ndarray, b: np.ndarray, pairs: Sequence[tuple[int, int]]) -> np.ndarray:
@@ -76,7 +79,8 @@ class Trajectory:
 
     Attributes:
         names: point names, length P.
-        points: positions, shape (T, P, 3), metres; NaN where a point is missing.
+        points: positions, shape (T, P, 3), metres; NaN where a point is missing. A float64 array is
+            held, not copied (a clip's passes are views of its frames).
         rate_hz: sampling rate.
         t0_s: time of frame 0 in seconds (C3D files start at ``(first_frame - 1) / rate``).
         events: gait events, times on the same axis as :meth:`times`.
@@ -91,7 +95,7 @@ class Trajectory:
     meta: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        pts = np.array(self.points, dtype=np.float64)  # a copy: the caller's array changed later does not change it
+        pts = np.asarray(self.points, dtype=np.float64)  # no copy: a pass of a clip is a view of its frames
         names = tuple(self.names)
         if pts.ndim != 3 or pts.shape[2] != 3 or pts.shape[1] != len(names):
             raise InputError(f"trajectory: points must have shape (T, {len(names)}, 3), got {pts.shape}")
