@@ -155,6 +155,22 @@ def test_event_threshold_in_milliseconds_is_the_same_at_every_frame_rate(truth):
         "event timing not available (no detected event matched a reference event)"]
 
 
+def test_a_tracking_runs_events_are_scored_as_its_report_finds_them(truth):
+    """At 50 Hz and above a tracking run's events keep their anchors (GaitOptions.refine_tracked): eval
+    scores OUT's events as the report detects them, not refined as a marker file's would be."""
+    from gaitcap.evaluation.compare import align
+    from gaitcap.gait.options import GaitOptions
+    from gaitcap.trajectory import TRACKED_FORMAT
+
+    fast = truth.resample(50.0)
+    out = replace(tracked(fast, fast.points + [0.01, 0, 0]), meta={"format": TRACKED_FORMAT})
+    assert align(out, fast).trajectory("est").meta == {"format": TRACKED_FORMAT}
+    anchors = evaluate(out, fast, options=GaitOptions(refine=False)).events
+    assert evaluate(out, fast).events == anchors
+    as_markers = evaluate(replace(out, meta={}), fast).events  # read from elsewhere: refined
+    assert as_markers["n_matched"] and as_markers != anchors
+
+
 def test_cli_event_threshold_in_milliseconds(tmp_path, truth):
     a = write_out(tmp_path / "A", tracked(truth, truth.points))
     b = write_out(tmp_path / "B", tracked(truth, truth.points))

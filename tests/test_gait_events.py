@@ -64,6 +64,30 @@ def test_refinement_only_at_rates_that_resolve_the_landing() -> None:
     assert any(e.source == SOURCE_REFINED for e in forced)
 
 
+def test_a_tracking_runs_trajectories_keep_their_anchors_at_every_rate(tmp_path) -> None:
+    """A tracked heel has no sharp landing: its events keep their anchors at 50 Hz and above too,
+    unless refine_tracked; read back from a trajectories.h5, the trajectory is known as a tracking run's."""
+    from dataclasses import replace
+
+    from gaitcap.gait.events import SOURCE, SOURCE_REFINED
+    from gaitcap.io.trajectories_h5 import read_trajectory, write_trajectory
+    from gaitcap.trajectory import TRACKED_FORMAT
+
+    fast = Walker().trajectory()
+    assert fast.rate_hz >= GaitOptions().refine_min_rate_hz
+    write_trajectory(tmp_path / "trajectories.h5", fast)
+    tracked = read_trajectory(tmp_path / "trajectories.h5")
+    assert tracked.meta["format"] == TRACKED_FORMAT
+    kept, _ = detect_events(tracked)
+    assert kept and all(e.source == SOURCE for e in kept)
+    anchors, _ = detect_events(fast, GaitOptions(refine=False))
+    assert [e.time_s for e in kept] == pytest.approx([e.time_s for e in anchors])
+    refined, _ = detect_events(tracked, GaitOptions(refine_tracked=True))
+    assert any(e.source == SOURCE_REFINED for e in refined)
+    marker, _ = detect_events(replace(tracked, meta={**tracked.meta, "format": "c3d"}))
+    assert any(e.source == SOURCE_REFINED for e in marker)
+
+
 @pytest.mark.parametrize("walker", [Walker(), Walker(in_place=True, heading_deg=200.0), Walker(rate_hz=25.0, duration=5.0)])
 def test_parameters_match_the_closed_form_truth(walker: Walker) -> None:
     tr = walker.trajectory()

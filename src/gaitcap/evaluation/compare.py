@@ -100,6 +100,8 @@ class Aligned:
         flagged: (F,) OUT has a NaN among the points.
         ref_missing: (F,) the reference has a NaN (excluded too, counted apart).
         dropped: points OUT never tracked.
+        formats: ``"est"`` and ``"ref"`` -> their trajectories' ``meta["format"]`` (what they were read
+            from: a tracking run's gait events keep their anchors, ``GaitOptions.refine_tracked``).
     """
 
     names: tuple[str, ...]
@@ -110,6 +112,7 @@ class Aligned:
     flagged: np.ndarray
     ref_missing: np.ndarray
     dropped: tuple[str, ...] = ()
+    formats: dict[str, str] = field(default_factory=dict)
 
     @property
     def valid(self) -> np.ndarray:
@@ -119,7 +122,8 @@ class Aligned:
         pts = (self.est if which == "est" else self.ref).copy()
         if mask_invalid:
             pts[~self.valid] = np.nan
-        return Trajectory(self.names, pts, self.rate_hz, float(self.times[0]))
+        fmt = self.formats.get(which)
+        return Trajectory(self.names, pts, self.rate_hz, float(self.times[0]), meta={"format": fmt} if fmt else {})
 
 
 def align(out: Trajectory, ref: Trajectory) -> Aligned:
@@ -150,7 +154,7 @@ def align(out: Trajectory, ref: Trajectory) -> Aligned:
     return Aligned(
         names=tuple(names), est=est, ref=refp, times=out.times()[keep], rate_hz=out.rate_hz,
         flagged=~np.isfinite(est).all(axis=(1, 2)), ref_missing=~np.isfinite(refp).all(axis=(1, 2)),
-        dropped=dropped,
+        dropped=dropped, formats={k: str(t.meta["format"]) for k, t in (("est", out), ("ref", ref)) if t.meta.get("format")},
     )  # fmt: skip
 
 

@@ -91,6 +91,9 @@ class GaitOptions(Strict):
             forward acceleration for foot offs, see :mod:`gaitcap.gait.events`).
         refine_min_rate_hz: the refinement is applied only to trajectories sampled at least this
             fast (at 25 fps it makes events worse, see :mod:`gaitcap.gait.events`).
+        refine_tracked: refine a tracking run's trajectories too (``trajectories.h5``); off, their
+            anchors are kept at every rate: the tracked heel's lowest point is no sharp landing (see
+            :mod:`gaitcap.gait.events`).
         strike_window_s: the foot-strike refinement looks this far after the anchor.
         off_window_s: the foot-off refinement looks this far after (and half as far before) it.
         window_stride_s: the two windows above are for strides up to this long (s); on a walk whose
@@ -108,6 +111,7 @@ class GaitOptions(Strict):
     treadmill_speed_ratio: float = Field(0.15, gt=0.0, lt=1.0)
     refine: bool = True
     refine_min_rate_hz: float = Field(50.0, ge=0.0)
+    refine_tracked: bool = False
     strike_window_s: float = Field(0.12, gt=0.0)
     off_window_s: float = Field(0.1, gt=0.0)
     window_stride_s: float = Field(1.25, gt=0.0)

@@ -26,7 +26,7 @@ import numpy as np
 from gaitcap import __version__
 from gaitcap.errors import InputError
 from gaitcap.io.atomic import atomic_path
-from gaitcap.trajectory import GaitEvent, Trajectory
+from gaitcap.trajectory import TRACKED_FORMAT, GaitEvent, Trajectory
 
 _STR = h5py.string_dtype("utf-8")
 
@@ -122,7 +122,7 @@ def read_trajectory(path: str | Path) -> Trajectory:
             names = tuple(_text(d.attrs["names"]))
             rate = float(d.attrs["rate_hz"])
             t0 = float(d.attrs.get("t0_s", f["times"][0] if "times" in f and len(f["times"]) else 0.0))
-            meta: dict[str, Any] = {"source": str(path), "format": "trajectories.h5",
+            meta: dict[str, Any] = {"source": str(path), "format": TRACKED_FORMAT,
                                     "gaitcap_version": str(f.attrs.get("gaitcap_version", ""))}  # fmt: skip
             for key in ("uncertainty", "quality"):
                 if key in f:
