@@ -445,3 +445,30 @@ def test_points_in_millimetres_are_named_as_the_likely_cause(truth, caplog):
         params = analyse(replace(truth, points=truth.points * 1000.0)).parameters
     assert "the points are likely in millimetres, and gaitcap reads metres" in params.reason
     assert "millimetres" in caplog.text and "millimetres" not in analyse(truth).parameters.reason
+
+
+@pytest.mark.parametrize("record", [None, {"status": "ok", "verdict": "failed",
+                                           "verdict_reasons": ["fewer than 10 % of the frames fit"]}])
+def test_a_reference_run_that_failed_or_did_not_finish_is_named(tmp_path, truth, record):
+    """A CI's saved reference that is itself a failed run (verdict failed) or not a finished run (no track.json)
+    was compared with silently (exit 0, no note): now a note says so and eval.json holds its verdict."""
+    out = write_out(tmp_path / "OUT", tracked(truth, truth.points))
+    (out / "track.json").write_text(json.dumps({"status": "ok", "verdict": "ok"}))
+    ref = write_out(tmp_path / "REF", tracked(truth, truth.points))
+    if record is not None:
+        (ref / "track.json").write_text(json.dumps(record))
+    res = CliRunner().invoke(cli, ["eval", str(out), "--reference", str(ref), "--require-verdict", "ok"])
+    assert res.exit_code == 0, res.output  # OUT's own verdict is what --require-verdict checks
+    doc = json.loads((out / "eval.json").read_text())
+    if record is None:
+        assert doc["reference_verdict"] is None
+        assert any(n.startswith(f"the reference {ref}: no finished track.json") for n in doc["notes"]), doc["notes"]
+    else:
+        assert doc["reference_verdict"] == "failed"
+        assert any("the reference run's own verdict is failed: fewer than 10 % of the frames fit" in n
+                   for n in doc["notes"]), doc["notes"]
+    assert "the reference" in res.output
+    (ref / "track.json").write_text(json.dumps({"status": "ok", "verdict": "ok"}))
+    res = CliRunner().invoke(cli, ["eval", str(out), "--reference", str(ref), "--force"])
+    doc = json.loads((out / "eval.json").read_text())
+    assert doc["reference_verdict"] == "ok" and not any(n.startswith("the reference") for n in doc["notes"])

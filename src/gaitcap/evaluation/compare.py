@@ -190,6 +190,8 @@ class Evaluation:
     n_out_frames: int = 0
     #: the thresholds checked (:class:`Thresholds`, those given)
     thresholds: dict[str, Any] = field(default_factory=dict)
+    #: a reference run's own verdict (its track.json; None for a truth or a run not judged)
+    reference_verdict: str | None = None
 
     @property
     def n_compared(self) -> int:
@@ -214,6 +216,7 @@ class Evaluation:
             "gaitcap_version": __version__,
             "out": self.out_source,
             "reference": self.reference_source,
+            "reference_verdict": self.reference_verdict,
             "rate_hz": self.rate_hz,
             "verdict": self.verdict,
             "verdict_reasons": self.verdict_reasons,

@@ -12,7 +12,7 @@ from gaitcap.evaluation.compare import Evaluation, compare_lengths, evaluate
 from gaitcap.evaluation.report import (TruthReference, other_run_session, other_session, out_masks, read_tracked,
                                        tracked_path)  # fmt: skip
 from gaitcap.evaluation.silhouettes import silhouette_iou
-from gaitcap.track_summary import read_verdict, run_record, unfinished
+from gaitcap.track_summary import format_verdict, read_verdict, run_record, unfinished
 
 log = logging.getLogger(__name__)
 
@@ -38,6 +38,9 @@ def evaluate_output(out: Path, ref: TruthReference, truth: Path | None = None) -
         mismatch = other_session(truth, record.get("session"))
     else:  # another run: the session it tracked (its track.json), against OUT's
         mismatch = other_run_session(ref.source, record.get("session"))
+        for note in reference_run_notes(ref.source, ev):
+            ev.notes.append(note)
+            log.warning("%s", note)
     if mismatch:
         ev.notes.append(mismatch)
         log.warning("%s", mismatch)
@@ -48,3 +51,20 @@ def evaluate_output(out: Path, ref: TruthReference, truth: Path | None = None) -
     if verdict is not None:
         ev.verdict, ev.verdict_reasons = verdict.verdict, list(verdict.reasons)
     return ev
+
+
+def reference_run_notes(reference: Path, ev: Evaluation) -> list[str]:
+    """What a reference run (``gaitcap eval --reference``; its trajectories.h5) is, by its track.json: its
+    verdict goes to ``ev.reference_verdict``; a note when it is not a finished run or its own verdict is
+    failed (a reference saved from a run that went wrong: OUT alike to it is no sign of a good run)."""
+    record = run_record(reference)
+    notes = []
+    if warning := unfinished(reference, record):
+        notes.append(f"the reference {warning}")
+    verdict = read_verdict(record)
+    ev.reference_verdict = verdict.verdict if verdict is not None else None
+    if verdict is not None and verdict.verdict == "failed":
+        notes.append(f"the reference run's own verdict is {format_verdict(verdict.verdict, verdict.reasons)} "
+                     f"({reference.parent / 'track.json'}): being alike to it says nothing of OUT's accuracy; "
+                     "save a reference from a run judged ok")
+    return notes
