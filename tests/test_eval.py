@@ -91,7 +91,8 @@ def test_nan_frames_are_flagged_and_excluded(truth):
     assert ev.n_flagged == 7
     assert ev.mpjpe_mm == pytest.approx(10.0, abs=1e-6)
     assert ev.to_dict()["frames"] == {"compared": truth.n_frames - 7, "total": truth.n_frames, "out_total": truth.n_frames,
-                                      "outside_reference": 0, "flagged": 7, "reference_missing": 0}  # fmt: skip
+                                      "outside_reference": 0, "flagged": 7, "reference_missing": 0,
+                                      "reference_total": truth.n_frames, "reference_outside_out": 0}  # fmt: skip
     json.dumps(ev.to_dict(), allow_nan=False)  # strict JSON: NaN became null
 
 
@@ -472,3 +473,25 @@ def test_a_reference_run_that_failed_or_did_not_finish_is_named(tmp_path, truth,
     res = CliRunner().invoke(cli, ["eval", str(out), "--reference", str(ref), "--force"])
     doc = json.loads((out / "eval.json").read_text())
     assert doc["reference_verdict"] == "ok" and not any(n.startswith("the reference") for n in doc["notes"])
+
+
+def test_a_run_shorter_than_its_reference_run_fails_the_compared_fraction(tmp_path, truth):
+    """A run that lost its last frames, compared with a saved reference run, passed --min-compared-fraction 1 (exit 0,
+    no note: the fraction counted only OUT's frames). Now the reference run's frames OUT lacks are named in a note and
+    count as not compared; against a truth (a run of --max-frames) only OUT's frames count, as before."""
+    n = truth.n_frames
+    ref = write_out(tmp_path / "REF", tracked(truth, truth.points))
+    short = write_out(tmp_path / "SHORT", tracked(truth, truth.points[: n - 10]))
+    runner = CliRunner()
+    res = runner.invoke(cli, ["eval", str(short), "--reference", str(ref), "--min-compared-fraction", "1"])
+    assert res.exit_code == 3, res.output
+    doc = json.loads((short / "eval.json").read_text())
+    assert f"10 of the reference's {n} frames have no frame in OUT: not compared" in doc["notes"]
+    assert doc["thresholds_failed"] == [f"{n - 10} of {n} frames compared ({(n - 10) / n:.0%}) < 100% (OUT's {n - 10} "
+                                        "and the reference run's 10 that OUT lacks; flagged, or without a reference frame)"]
+    assert doc["frames"]["reference_total"] == n and doc["frames"]["reference_outside_out"] == 10
+    same = runner.invoke(cli, ["eval", str(ref), "--reference", str(ref), "--min-compared-fraction", "1"])
+    assert same.exit_code == 0, same.output
+    ev = evaluate(tracked(truth, truth.points[: n - 10]), truth)
+    assert ev.n_reference_outside == 10 and not ev.reference_is_run
+    assert check_thresholds(ev, Thresholds(min_compared_fraction=1.0)) == []  # a truth longer than the run: not failed

@@ -36,7 +36,8 @@ EXIT_THRESHOLD = 3
               help="As --max-event-error-frames, in milliseconds.")
 @click.option("--min-compared-fraction", type=FiniteFloatRange(min=0, max=1), default=None,
               help="Fail when fewer than this fraction (0-1) of OUT's frames are compared (flagged frames, or "
-                   "frames the reference does not cover, are not).")
+                   "frames the reference does not cover, are not); with --reference, the reference run's frames "
+                   "that OUT lacks count as not compared too.")
 @click.option("--require-verdict", type=click.Choice(["ok", "doubtful"]), default=None,
               help="Fail when the run's own verdict (track.json) is worse than this, or missing.")
 @force_option

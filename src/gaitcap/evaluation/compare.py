@@ -77,7 +77,8 @@ class Thresholds:
     """Limits that make ``gaitcap eval`` fail (exit code 3; None: not checked). ``max_event_error_frames``
     (frames of OUT's rate) and ``max_event_error_ms`` (milliseconds: the same limit at every frame rate)
     also fail on a reference event not detected; ``min_compared_fraction``: of OUT's frames, those compared
-    (not flagged, with a reference frame); ``require_verdict``: OUT's verdict at least this good."""
+    (not flagged, with a reference frame; against a reference run, its frames OUT lacks count too);
+    ``require_verdict``: OUT's verdict at least this good."""
 
     max_mpjpe_mm: float | None = None
     max_angle_rmse_deg: float | None = None
@@ -102,6 +103,8 @@ class Aligned:
         dropped: points OUT never tracked.
         formats: ``"est"`` and ``"ref"`` -> their trajectories' ``meta["format"]`` (what they were read
             from: a tracking run's gait events keep their anchors, ``GaitOptions.refine_tracked``).
+        ref_frames: the reference's frames (at OUT's rate).
+        ref_outside: of them, those at a time OUT has no frame for (not compared).
     """
 
     names: tuple[str, ...]
@@ -113,6 +116,8 @@ class Aligned:
     ref_missing: np.ndarray
     dropped: tuple[str, ...] = ()
     formats: dict[str, str] = field(default_factory=dict)
+    ref_frames: int = 0
+    ref_outside: int = 0
 
     @property
     def valid(self) -> np.ndarray:
@@ -154,7 +159,8 @@ def align(out: Trajectory, ref: Trajectory) -> Aligned:
     return Aligned(
         names=tuple(names), est=est, ref=refp, times=out.times()[keep], rate_hz=out.rate_hz,
         flagged=~np.isfinite(est).all(axis=(1, 2)), ref_missing=~np.isfinite(refp).all(axis=(1, 2)),
-        dropped=dropped, formats={k: str(t.meta["format"]) for k, t in (("est", out), ("ref", ref)) if t.meta.get("format")},
+        dropped=dropped, ref_frames=ref.n_frames, ref_outside=ref.n_frames - len(np.unique(j[keep])),
+        formats={k: str(t.meta["format"]) for k, t in (("est", out), ("ref", ref)) if t.meta.get("format")},
     )  # fmt: skip
 
 
@@ -192,6 +198,18 @@ class Evaluation:
     thresholds: dict[str, Any] = field(default_factory=dict)
     #: a reference run's own verdict (its track.json; None for a truth or a run not judged)
     reference_verdict: str | None = None
+    #: the reference's frames (at OUT's rate), and those at a time OUT has no frame for
+    n_reference_frames: int = 0
+    n_reference_outside: int = 0
+    #: the reference is another tracking run (``--reference``), not a truth: its frames OUT lacks count as not
+    #: compared for ``min_compared_fraction`` (a run that lost frames is a regression)
+    reference_is_run: bool = False
+
+    def compared_share(self) -> tuple[int, float]:
+        """The frames the compared ones are counted against (OUT's own; for a reference run, also the reference's
+        that OUT lacks) and the share compared (0 without any)."""
+        total = self.n_out_frames + (self.n_reference_outside if self.reference_is_run else 0)
+        return total, (self.n_compared / total if total else 0.0)
 
     @property
     def n_compared(self) -> int:
@@ -222,6 +240,7 @@ class Evaluation:
             "verdict_reasons": self.verdict_reasons,
             "frames": {"compared": self.n_compared, "total": self.n_frames, "out_total": self.n_out_frames,
                        "outside_reference": self.n_out_frames - self.n_frames, "flagged": self.n_flagged,
+                       "reference_total": self.n_reference_frames, "reference_outside_out": self.n_reference_outside,
                        "reference_missing": self.n_reference_missing},
             "points": self.points,
             "positions_mm": self.positions,
@@ -460,6 +479,8 @@ def evaluate(
     if len(a.times) < out.n_frames:  # a shorter reference, or one that starts later: said, not hidden
         notes.append(f"{out.n_frames - len(a.times)} of OUT's {out.n_frames} frames have no reference frame: not "
                      "compared")  # fmt: skip
+    if a.ref_outside:  # a longer reference, or OUT starting later: its other frames are not compared either
+        notes.append(f"{a.ref_outside} of the reference's {a.ref_frames} frames have no frame in OUT: not compared")
     if note := _units_note(a):
         notes.append(note)
     positions, per_point, swaps, bias = _positions(a)
@@ -491,7 +512,7 @@ def evaluate(
         n_frames=len(a.times), n_flagged=int(a.flagged.sum()), n_reference_missing=int((a.ref_missing & ~a.flagged).sum()),
         points=list(a.names), positions=positions, per_point_mm=per_point, swaps=swaps, angles_rmse_deg=angles,
         bias_mm=bias, events=events, events_baseline=baseline, parameters=parameters, notes=notes,
-        n_out_frames=out.n_frames,
+        n_out_frames=out.n_frames, n_reference_frames=a.ref_frames, n_reference_outside=a.ref_outside,
     )  # fmt: skip
 
 
@@ -532,10 +553,15 @@ def check_thresholds(ev: Evaluation, limits: Thresholds) -> list[str]:
             failures.append(f"{ev.events['n_missed']} of the reference's {ev.events['n_reference']} events not "
                             "detected in OUT")  # fmt: skip
     if limits.min_compared_fraction is not None:
-        share = ev.n_compared / ev.n_out_frames if ev.n_out_frames else 0.0
+        total, share = ev.compared_share()
         if share < limits.min_compared_fraction:
-            failures.append(f"{ev.n_compared} of OUT's {ev.n_out_frames} frames compared ({share:.0%}) < "
-                            f"{limits.min_compared_fraction:.0%} (flagged, or without a reference frame)")  # fmt: skip
+            if total > ev.n_out_frames:
+                failures.append(f"{ev.n_compared} of {total} frames compared ({share:.0%}) < "
+                                f"{limits.min_compared_fraction:.0%} (OUT's {ev.n_out_frames} and the reference run's "
+                                f"{ev.n_reference_outside} that OUT lacks; flagged, or without a reference frame)")
+            else:
+                failures.append(f"{ev.n_compared} of OUT's {ev.n_out_frames} frames compared ({share:.0%}) < "
+                                f"{limits.min_compared_fraction:.0%} (flagged, or without a reference frame)")  # fmt: skip
     if limits.require_verdict is not None:
         order = {v: k for k, v in enumerate(VERDICTS)}  # ok < doubtful < failed
         if ev.verdict not in order:

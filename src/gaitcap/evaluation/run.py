@@ -38,6 +38,7 @@ def evaluate_output(out: Path, ref: TruthReference, truth: Path | None = None) -
         mismatch = other_session(truth, record.get("session"))
     else:  # another run: the session it tracked (its track.json), against OUT's
         mismatch = other_run_session(ref.source, record.get("session"))
+        ev.reference_is_run = True
         for note in reference_run_notes(ref.source, ev):
             ev.notes.append(note)
             log.warning("%s", note)
