@@ -495,3 +495,28 @@ def test_a_run_shorter_than_its_reference_run_fails_the_compared_fraction(tmp_pa
     ev = evaluate(tracked(truth, truth.points[: n - 10]), truth)
     assert ev.n_reference_outside == 10 and not ev.reference_is_run
     assert check_thresholds(ev, Thresholds(min_compared_fraction=1.0)) == []  # a truth longer than the run: not failed
+
+
+def test_a_run_tracked_from_another_working_folder_is_not_doubted(tmp_path, session, truth, monkeypatch):
+    """track.json records the session as the command line gave it (``gaitcap track walk -o OUT`` gives "walk"), so
+    eval run from another folder resolved it there and asked 'is it the right truth?' of the session's own truth
+    (found running a CI's eval from inside the run's folder). The run's trajectories.h5 records the absolute path,
+    which eval now takes; a truth of another session is still named."""
+    import h5py
+
+    out = write_out(tmp_path / "OUT", tracked(truth, truth.points))
+    with h5py.File(out / "trajectories.h5", "a") as f:
+        f.attrs["session"] = str(session.resolve())
+    (out / "track.json").write_text(json.dumps({"status": "ok", "session": session.name}))
+    monkeypatch.chdir(out)
+    runner = CliRunner()
+    res = runner.invoke(cli, ["eval", ".", "--truth", str(session / "truth.h5")])
+    assert res.exit_code == 0, res.output
+    assert "is it the right truth?" not in res.output
+    other = tmp_path / "walk02"
+    other.mkdir()
+    (other / "calibration.toml").write_text("")
+    (other / "truth.h5").write_bytes((session / "truth.h5").read_bytes())
+    res = runner.invoke(cli, ["eval", ".", "--truth", str(other), "--force"])
+    assert res.exit_code == 0, res.output
+    assert f"is not from the session this run tracked ({session.resolve()}" in res.output

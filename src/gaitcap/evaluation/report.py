@@ -8,6 +8,8 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
+import h5py
+
 from gaitcap.errors import InputError
 from gaitcap.evaluation.compare import CHECKED_ANGLES, Evaluation
 from gaitcap.gait.angles import ANGLE_NAMES
@@ -83,6 +85,23 @@ def out_masks(path: str | Path) -> Path | None:
     return masks if masks.is_file() else None
 
 
+def recorded_session(trajectories: str | Path, record: dict | None) -> str | None:
+    """The session folder a tracking run tracked: its trajectories.h5's ``session`` attribute (the absolute path),
+    else its track.json's ``session`` (``record``: the path as the command line gave it, relative to wherever
+    ``gaitcap track`` ran, so not to be resolved from another working folder); None when neither says."""
+    path = Path(trajectories)
+    try:
+        with h5py.File(path, "r") as f:
+            value = f.attrs.get("session")
+    except OSError:
+        value = None
+    if isinstance(value, bytes):
+        value = value.decode("utf-8", "replace")
+    if isinstance(value, str) and value and Path(value).is_absolute():
+        return value
+    return (record or {}).get("session") or None
+
+
 def other_session(truth: str | Path, tracked_session: str | None) -> str | None:
     """A note when a truth given to ``gaitcap eval`` belongs to another session than the tracked one
     (``tracked_session``: track.json's ``session``): the truth is a session's folder or a file or
@@ -104,7 +123,7 @@ def other_run_session(reference: str | Path, tracked_session: str | None) -> str
     """A note when a reference run (``gaitcap eval --reference``; its trajectories.h5) tracked another
     session than OUT (``tracked_session``), by their track.json; None when they match or either does
     not say."""
-    theirs = (read_track_json(Path(reference).parent) or {}).get("session")
+    theirs = recorded_session(reference, read_track_json(Path(reference).parent))
     if not tracked_session or not theirs or Path(theirs).resolve() == Path(tracked_session).resolve():
         return None
     return (f"the reference run tracked another session ({theirs}) than this run ({tracked_session}), by their "

@@ -10,7 +10,7 @@ from pathlib import Path
 
 from gaitcap.evaluation.compare import Evaluation, compare_lengths, evaluate
 from gaitcap.evaluation.report import (TruthReference, other_run_session, other_session, out_masks, read_tracked,
-                                       tracked_path)  # fmt: skip
+                                       recorded_session, tracked_path)  # fmt: skip
 from gaitcap.evaluation.silhouettes import silhouette_iou
 from gaitcap.track_summary import format_verdict, read_verdict, run_record, unfinished
 
@@ -35,9 +35,9 @@ def evaluate_output(out: Path, ref: TruthReference, truth: Path | None = None) -
         log.warning("%s", warning)
     record = found or {}
     if truth is not None:
-        mismatch = other_session(truth, record.get("session"))
+        mismatch = other_session(truth, recorded_session(tracked_path(out), record))
     else:  # another run: the session it tracked (its track.json), against OUT's
-        mismatch = other_run_session(ref.source, record.get("session"))
+        mismatch = other_run_session(ref.source, recorded_session(tracked_path(out), record))
         ev.reference_is_run = True
         for note in reference_run_notes(ref.source, ev):
             ev.notes.append(note)
