@@ -516,6 +516,16 @@ def evaluate(
     )  # fmt: skip
 
 
+def _worst_point(ev: Evaluation, members: tuple[str, ...] | None) -> str:
+    """`` (worst point NAME X mm)`` of ``ev``'s points among ``members`` (None: all), what a CI log names as the
+    drift; empty when none has a value."""
+    values = {n: v for n, v in ev.per_point_mm.items() if (members is None or n in members) and math.isfinite(v)}
+    if not values:
+        return ""
+    name = max(values, key=values.__getitem__)
+    return f" (worst point {name} {values[name]:.1f} mm)"
+
+
 def check_thresholds(ev: Evaluation, limits: Thresholds) -> list[str]:
     """The thresholds ``ev`` exceeds, one sentence each (empty: all passed); records those checked in
     ``ev.thresholds``.
@@ -532,7 +542,7 @@ def check_thresholds(ev: Evaluation, limits: Thresholds) -> list[str]:
         if not math.isfinite(v):
             failures.append(f"{what} not available (no frame compared)")
         elif v > limit:
-            failures.append(f"{what} {v:.1f} mm > {limit:g} mm")
+            failures.append(f"{what} {v:.1f} mm > {limit:g} mm{_worst_point(ev, LOWER_LIMB if key == 'lower_limb' else None)}")
     if limits.max_angle_rmse_deg is not None:
         name, v = ev.max_checked_angle_rmse()
         if not math.isfinite(v):
@@ -546,12 +556,17 @@ def check_thresholds(ev: Evaluation, limits: Thresholds) -> list[str]:
         if not ev.events or not ev.events.get("n_matched"):
             failures.append("event timing not available (no detected event matched a reference event)")
         else:
+            worst = max(ev.events.get("matches") or [{}], key=lambda m: abs(m.get("error_frames", 0.0)))
             for limit, key, unit, digits in timing:
                 if (v := ev.events.get(key, math.nan)) > limit:
-                    failures.append(f"event timing error {v:.{digits}f} {unit} > {limit:g} {unit}")
+                    where = (f" (worst: {worst['side']} {worst['event']} at {worst['reference_s']:.3f} s, "
+                             f"{worst[f'error_{unit}']:+.{digits}f} {unit})" if worst else "")  # fmt: skip
+                    failures.append(f"event timing error {v:.{digits}f} {unit} > {limit:g} {unit}{where}")
         if ev.events and ev.events.get("n_missed"):
+            missed = [f"{m['side']} {m['event']} at {m['time_s']:.3f} s" for m in ev.events.get("missed", [])]
+            listed = ", ".join(missed[:4]) + (", ..." if len(missed) > 4 else "")
             failures.append(f"{ev.events['n_missed']} of the reference's {ev.events['n_reference']} events not "
-                            "detected in OUT")  # fmt: skip
+                            f"detected in OUT" + (f" ({listed})" if listed else ""))  # fmt: skip
     if limits.min_compared_fraction is not None:
         total, share = ev.compared_share()
         if share < limits.min_compared_fraction:
