@@ -544,3 +544,18 @@ def test_a_failed_threshold_names_what_drifted(truth):
     assert fails == [f"event timing error {ev.events['max_abs_frames']:.2f} frames > 1 frames (worst: {e.side} "
                      f"{e.event} at {e.time_s:.3f} s, +{ev.events['max_abs_frames']:.2f} frames)"], fails
 
+
+
+def test_eval_help_names_the_eval_json_keys_a_ci_reads(tmp_path, truth):
+    """eval --help named 'passed' but not the keys of the thresholds checked and failed ('thresholds',
+    'thresholds_failed'): each key the help names is in eval.json."""
+    import re
+
+    help_text = CliRunner().invoke(cli, ["eval", "--help"]).output
+    paragraph = help_text.split("eval.json also records", 1)[1].split("Exit codes", 1)[0]
+    keys = set(re.findall(r'\("(\w+)"', paragraph))
+    assert keys == {"thresholds", "thresholds_failed", "passed"}, keys
+    out = write_out(tmp_path / "OUT", tracked(truth, truth.points))
+    assert CliRunner().invoke(cli, ["eval", str(out), "--reference", str(out), "--max-mpjpe-mm", "1"]).exit_code == 0
+    doc = json.loads((out / "eval.json").read_text())
+    assert keys <= set(doc) and doc["thresholds"] == {"max_mpjpe_mm": 1.0} and doc["thresholds_failed"] == []

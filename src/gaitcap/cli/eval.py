@@ -68,7 +68,9 @@ def command(
       masks.h5         optional: one dataset per camera, (frames, H, W) uint8 0/1, as many
                        frames as joints.csv has rows
 
-    eval.json also records the thresholds checked, those exceeded and whether all passed ("passed").
+    eval.json also records the thresholds checked ("thresholds": {"max_lower_limb_mpjpe_mm": 40, ...}, the
+    options given), those exceeded ("thresholds_failed": one sentence each, with the value, the limit and the
+    worst point or event) and whether all passed ("passed": true or false).
 
     Exit codes: 0 done (and every threshold given is met); 1 an error (a bad truth folder names
     the file; with --force, an earlier eval.json is removed first, so none is left to misread);
