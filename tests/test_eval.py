@@ -546,6 +546,50 @@ def test_a_failed_threshold_names_what_drifted(truth):
 
 
 
+def test_the_readmes_ci_recipe(tmp_path, session, truth, monkeypatch):
+    """The README's CI recipe, its eval lines run as written: a run like its reference passes both checks (exit 0),
+    a drifted one fails the reference's with exit 3 and one line naming the drift, a missing reference is an error
+    (exit 1). Its synth and track lines are stood in for by this module's session and runs written from its truth
+    (tracking is for tests/test_regression.py)."""
+    import re
+    import shlex
+    import shutil
+    from pathlib import Path
+
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    block = re.search(r"## A regression check in CI\n.*?```bash\n(.*?)```", readme, re.S).group(1)
+    lines = [shlex.split(line) for line in block.splitlines() if line.startswith("gaitcap ")]
+    assert [a[2] for a in lines] == ["synth", "track", "track", "eval", "eval"]
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "ci").mkdir()
+    (tmp_path / "ci" / "walk").symlink_to(session)
+    run_points = truth.points + [0.01, 0, 0]
+    printed: list[str] = []
+
+    def run(args: list[str], points: np.ndarray) -> int:
+        if args[2] == "synth":
+            return 0  # the module's session is ci/walk
+        if args[2] == "track":
+            out = write_out(tmp_path / args[args.index("-o") + 1], tracked(truth, points))
+            (out / "track.json").write_text(json.dumps({"status": "ok", "verdict": "ok", "session": str(session)}))
+            return 0
+        res = CliRunner().invoke(cli, args[1:])
+        printed.append(res.output)
+        return res.exit_code
+
+    assert [run(a, run_points) for a in lines] == [0, 0, 0, 0, 0], printed
+    assert json.loads((tmp_path / "run" / "eval_reference.json").read_text())["passed"] is True
+    drifted = run_points.copy()
+    drifted[:, truth.names.index("knee_l")] += [0.0, 0.0, 0.02]
+    assert [run(a, drifted) for a in lines[2:]] == [0, 0, 3]  # within the truth's 40 mm, not the reference's 0
+    assert "threshold exceeded: MPJPE (all points) 1.0 mm > 0 mm (worst point knee_l 20.0 mm)" in printed[-1]
+    doc = json.loads((tmp_path / "run" / "eval_reference.json").read_text())
+    assert doc["passed"] is False and doc["thresholds"]["max_mpjpe_mm"] == 0.0
+    assert doc["thresholds_failed"] == ["MPJPE (all points) 1.0 mm > 0 mm (worst point knee_l 20.0 mm)"]
+    shutil.rmtree(tmp_path / "ci" / "reference")
+    assert run(lines[4], run_points) == 1 and "file not found" in printed[-1]
+
+
 def test_eval_help_names_the_eval_json_keys_a_ci_reads(tmp_path, truth):
     """eval --help named 'passed' but not the keys of the thresholds checked and failed ('thresholds',
     'thresholds_failed'): each key the help names is in eval.json."""
