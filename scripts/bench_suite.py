@@ -311,11 +311,13 @@ def sole_height_mm(run: Path) -> float | None:
 
 def evaluate_run(run: Path, truth: Path) -> dict:
     """``gaitcap eval`` of a finished run against its truth: the suite's metrics, or the status
-    ``lost: ...`` when eval fails."""
+    ``lost: ...`` when eval fails or compares no frame (every frame flagged)."""
     ev = gaitcap("eval", str(run), "--truth", str(truth), "-o", str(run / "eval.json"), "--force", check=False)
     if ev.returncode != 0:
         return {"status": "lost: " + ((ev.stderr or ev.stdout).strip().splitlines() or [""])[-1].removeprefix("Error: ")}
     d = json.loads((run / "eval.json").read_text())
+    if not d["frames"]["compared"]:  # every frame of the run flagged: nothing compared
+        return {"status": "lost: " + next((n for n in d["notes"] if "no tracked frame" in n), "no frame compared")}
     lower = (d["positions_mm"].get("lower_limb") or {}).get("mpjpe_mm")
     lower_offset_free = (d["positions_mm"].get("lower_limb") or {}).get("offset_free_mpjpe_mm")
     knees = [d["angles_rmse_deg"].get(k) for k in ("knee_flexion_l", "knee_flexion_r")]

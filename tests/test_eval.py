@@ -96,9 +96,24 @@ def test_nan_frames_are_flagged_and_excluded(truth):
     json.dumps(ev.to_dict(), allow_nan=False)  # strict JSON: NaN became null
 
 
-def test_nothing_tracked(truth):
-    with pytest.raises(InputError, match=r"OUT has no tracked point at all \(every frame is NaN\)"):
-        evaluate(tracked(truth, np.full_like(truth.points, np.nan)), truth)
+def test_nothing_tracked(truth, session, tmp_path):
+    """A run lost throughout (every frame NaN, verdict failed) was an error, exit 1 and no eval.json, where its
+    check_thresholds says a value not available fails: a CI took a lost run for a broken job (found with a copy of a
+    run whose points were all NaN). Now nothing is compared, a note says why, and each threshold fails (exit 3)."""
+    ev = evaluate(tracked(truth, np.full_like(truth.points, np.nan)), truth)
+    assert ev.n_compared == 0 and ev.n_flagged == truth.n_frames
+    assert "OUT has no tracked frame at all (every frame is NaN): nothing compared" in ev.notes
+    json.dumps(ev.to_dict(), allow_nan=False)
+    out = write_out(tmp_path / "OUT", tracked(truth, np.full_like(truth.points, np.nan)))
+    (out / "track.json").write_text(json.dumps({"status": "ok", "verdict": "failed", "verdict_reasons": ["lost"]}))
+    res = CliRunner().invoke(cli, ["eval", str(out), "--truth", str(session), "--max-lower-limb-mpjpe-mm", "40",
+                                   "--max-event-error-frames", "2", "--require-verdict", "ok"])  # fmt: skip
+    assert res.exit_code == 3, res.output
+    doc = json.loads((out / "eval.json").read_text())
+    assert doc["passed"] is False and doc["thresholds_failed"] == [
+        "lower-limb MPJPE not available (no frame compared)",
+        "event timing not available (no detected event matched a reference event)",
+        "the run's verdict is failed, not ok"]
 
 
 def test_untracked_point_is_dropped_with_a_note(truth):

@@ -4,7 +4,7 @@ Steps, each a small function:
 
 1. :func:`align`: the frames both trajectories cover (matched by time; the reference is resampled
    first if its rate differs), the points both have. A point OUT never tracked (NaN throughout) is
-   dropped with a note. A frame where OUT has any NaN among the kept points is *flagged* and
+   dropped with a note (none is when OUT tracked no point at all: then every frame is flagged). A frame where OUT has any NaN among the kept points is *flagged* and
    excluded from every position and angle statistic (and counted).
 2. positions: MPJPE over all points, the lower limb (hips, knees, ankles), heel/toe, and per point,
    and each group's MPJPE with every point's constant offset removed (what changes from frame to frame);
@@ -144,9 +144,10 @@ def align(out: Trajectory, ref: Trajectory) -> Aligned:
     if not names:
         raise InputError(f"no point in common (OUT: {', '.join(out.names)}; reference: {', '.join(ref.names)})")
     dropped = tuple(n for n in names if not np.isfinite(out.point(n)).any())
-    names = [n for n in names if n not in dropped]
-    if not names:
-        raise InputError("OUT has no tracked point at all (every frame is NaN)")
+    if len(dropped) < len(names):
+        names = [n for n in names if n not in dropped]
+    else:  # a run lost throughout: every frame flagged, nothing compared (a threshold fails on it, as on any)
+        dropped = ()
     j = np.rint((out.times() - ref.t0_s) * out.rate_hz).astype(int)
     keep = (j >= 0) & (j < ref.n_frames)
     if not keep.any():
@@ -476,6 +477,8 @@ def evaluate(
     """
     a = align(out, reference)
     notes = [f"point never tracked in OUT, not compared: {n}" for n in a.dropped]
+    if a.flagged.all():
+        notes.append("OUT has no tracked frame at all (every frame is NaN): nothing compared")
     if len(a.times) < out.n_frames:  # a shorter reference, or one that starts later: said, not hidden
         notes.append(f"{out.n_frames - len(a.times)} of OUT's {out.n_frames} frames have no reference frame: not "
                      "compared")  # fmt: skip
