@@ -618,3 +618,15 @@ def test_eval_help_names_the_eval_json_keys_a_ci_reads(tmp_path, truth):
     assert CliRunner().invoke(cli, ["eval", str(out), "--reference", str(out), "--max-mpjpe-mm", "1"]).exit_code == 0
     doc = json.loads((out / "eval.json").read_text())
     assert keys <= set(doc) and doc["thresholds"] == {"max_mpjpe_mm": 1.0} and doc["thresholds_failed"] == []
+
+
+def test_a_passing_check_says_so_in_one_line(tmp_path, session, truth):
+    """A passing eval printed its table and 'wrote eval.json', nothing in the CI log saying which thresholds were
+    checked and met: one line now does (and none without thresholds)."""
+    out = write_out(tmp_path / "OUT", tracked(truth, truth.points + [0.01, 0, 0]))
+    res = CliRunner().invoke(cli, ["eval", str(out), "--truth", str(session), "--max-mpjpe-mm", "15",
+                                   "--min-compared-fraction", "0.5"])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    assert res.output.rstrip().splitlines()[-1] == "thresholds met: --max-mpjpe-mm 15, --min-compared-fraction 0.5"
+    res = CliRunner().invoke(cli, ["eval", str(out), "--truth", str(session), "--force"])
+    assert res.exit_code == 0 and "thresholds met" not in res.output

@@ -110,3 +110,6 @@ def command(
     if ev.failures:
         click.echo("threshold exceeded: " + "; ".join(ev.failures), err=True)
         raise SystemExit(EXIT_THRESHOLD)
+    if ev.thresholds:  # one line in a CI's log that says what was checked and passed
+        click.echo("thresholds met: " + ", ".join(f"--{k.replace('_', '-')} {v:g}" if isinstance(v, float)
+                                                  else f"--{k.replace('_', '-')} {v}" for k, v in ev.thresholds.items()))
