@@ -630,3 +630,20 @@ def test_a_passing_check_says_so_in_one_line(tmp_path, session, truth):
     assert res.output.rstrip().splitlines()[-1] == "thresholds met: --max-mpjpe-mm 15, --min-compared-fraction 0.5"
     res = CliRunner().invoke(cli, ["eval", str(out), "--truth", str(session), "--force"])
     assert res.exit_code == 0 and "thresholds met" not in res.output
+
+
+def test_a_batch_output_folder_is_named_as_one(tmp_path, session, truth):
+    """eval of a 'gaitcap track FOLDER -o OUTS' output said only 'OUTS/trajectories.h5: file not found': it now says
+    the folder is a batch's output and names its runs to evaluate one by one (as OUT and as --reference)."""
+    outs = tmp_path / "OUTS"
+    for name in ("walk01", "walk02"):
+        write_out(outs / name, tracked(truth, truth.points))
+    (outs / "batch.json").write_text("[]")
+    runner = CliRunner()
+    for args in (["eval", str(outs), "--truth", str(session)],
+                 ["eval", str(outs / "walk01"), "--reference", str(outs)]):  # fmt: skip
+        res = runner.invoke(cli, args)
+        assert res.exit_code == 1, res.output
+        assert (f"{outs}: a batch's output (batch.json), one run per session: evaluate each run's folder "
+                f"({outs / '<session>'}: walk01, walk02)") in res.output
+    assert runner.invoke(cli, ["eval", str(outs / "walk01"), "--truth", str(session)]).exit_code == 0

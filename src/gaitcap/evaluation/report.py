@@ -33,7 +33,19 @@ def tracked_path(path: str | Path) -> Path:
 
 
 def read_tracked(path: str | Path) -> Trajectory:
-    """The trajectory of a tracking output folder or ``trajectories.h5`` file."""
+    """The trajectory of a tracking output folder or ``trajectories.h5`` file.
+
+    Raises:
+        InputError: no such file, not a trajectories.h5, or a batch's output folder (one run per session in it).
+    """
+    from gaitcap.batch import BATCH_JSON
+
+    path = Path(path)
+    if path.is_dir() and not tracked_path(path).is_file() and (path / BATCH_JSON).is_file():
+        runs = sorted(p.name for p in path.iterdir() if (p / TRAJECTORIES_H5).is_file())
+        listed = ", ".join(runs[:3]) + (", ..." if len(runs) > 3 else "")
+        raise InputError(f"{path}: a batch's output ({BATCH_JSON}), one run per session: evaluate each run's folder"
+                         + (f" ({path / '<session>'}: {listed})" if runs else ""))
     return read_trajectory(tracked_path(path))
 
 
