@@ -115,7 +115,9 @@ def _boolean_for_a_number(value: Any, annotation: Any) -> bool:
         return bool(containers) and all(_boolean_for_a_number(value, a) for a in containers)
     if origin in (list, tuple, set, frozenset) and isinstance(value, (list, tuple)):
         items = [a for a in args if a is not Ellipsis]
-        return any(_boolean_for_a_number(v, items[min(k, len(items) - 1)]) for k, v in enumerate(value)) if items else False
+        if not items:
+            return False
+        return any(_boolean_for_a_number(v, items[min(k, len(items) - 1)]) for k, v in enumerate(value))
     if origin is dict and isinstance(value, Mapping) and len(args) == 2:
         return any(_boolean_for_a_number(v, args[1]) for v in value.values())
     return False

@@ -4,8 +4,9 @@ Steps, each a small function:
 
 1. :func:`align`: the frames both trajectories cover (matched by time; the reference is resampled
    first if its rate differs), the points both have. A point OUT never tracked (NaN throughout) is
-   dropped with a note (none is when OUT tracked no point at all: then every frame is flagged). A frame where OUT has any NaN among the kept points is *flagged* and
-   excluded from every position and angle statistic (and counted).
+   dropped with a note (none is when OUT tracked no point at all: then every frame is flagged). A
+   frame where OUT has any NaN among the kept points is *flagged* and excluded from every position
+   and angle statistic (and counted).
 2. positions: MPJPE over all points, the lower limb (hips, knees, ankles), heel/toe, and per point,
    and each group's MPJPE with every point's constant offset removed (what changes from frame to frame);
    each point's mean signed error in the walking frame (:func:`walking_frame`), the part of its error
@@ -545,7 +546,8 @@ def check_thresholds(ev: Evaluation, limits: Thresholds) -> list[str]:
         if not math.isfinite(v):
             failures.append(f"{what} not available (no frame compared)")
         elif v > limit:
-            failures.append(f"{what} {v:.1f} mm > {limit:g} mm{_worst_point(ev, LOWER_LIMB if key == 'lower_limb' else None)}")
+            worst = _worst_point(ev, LOWER_LIMB if key == "lower_limb" else None)
+            failures.append(f"{what} {v:.1f} mm > {limit:g} mm{worst}")
     if limits.max_angle_rmse_deg is not None:
         name, v = ev.max_checked_angle_rmse()
         if not math.isfinite(v):
@@ -579,7 +581,7 @@ def check_thresholds(ev: Evaluation, limits: Thresholds) -> list[str]:
                                 f"{ev.n_reference_outside} that OUT lacks; flagged, or without a reference frame)")
             else:
                 failures.append(f"{ev.n_compared} of OUT's {ev.n_out_frames} frames compared ({share:.0%}) < "
-                                f"{limits.min_compared_fraction:.0%} (flagged, or without a reference frame)")  # fmt: skip
+                                f"{limits.min_compared_fraction:.0%} (flagged, or without a reference frame)")
     if limits.require_verdict is not None:
         order = {v: k for k, v in enumerate(VERDICTS)}  # ok < doubtful < failed
         if ev.verdict not in order:
