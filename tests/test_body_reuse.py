@@ -8,12 +8,11 @@ import shutil
 
 import h5py
 import pytest
-import yaml
 from click.testing import CliRunner
+from quick_config import quick_tracking
 
 import gaitcap.pipeline as pipeline_module
 from gaitcap.cli.main import cli
-from gaitcap.config import default_config_path
 from gaitcap.errors import ConfigError, InputError
 from gaitcap.pipeline import read_body, run_track
 
@@ -117,11 +116,7 @@ def test_a_given_height_far_from_the_silhouettes_is_warned_about(tracked_session
     assert "+21 %" in _height_mismatch(1.96, "--height", 1.62)
     assert _height_mismatch(1.2, "--height", None) is None
     embedded, first, _ = tracked_session
-    data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
-    data["shape"]["enabled"] = False
-    data["factored_ipf"].update(particles=40, root_particles=80)
-    config = tmp_path / "tracking.yaml"
-    config.write_text(yaml.safe_dump(data))
+    config = quick_tracking(tmp_path)
     wrong = run_track(embedded.session, tmp_path / "wrong", config=config, height_m=1.2, progress=False, max_frames=3)
     assert any("height 1.20 m (--height) is" in n and "the silhouettes show" in n for n in wrong.verdict_notes)
     assert not any("the silhouettes show" in n for n in json.loads((first / "track.json").read_text())["verdict_notes"])

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 from gait_walker import Walker
+from quick_config import quick_tracking
 
 from gaitcap.cli.main import cli
 from gaitcap.errors import InputError
@@ -140,9 +141,6 @@ def test_bad_truth_folders_name_the_file(case, tmp_path):
 
 def test_track_save_masks_streams_the_silhouettes(embedded_session, tmp_path):
     """``--save-masks``: silhouettes.h5 holds, per camera, the masks the cameras' joint extractor gives on each frame."""
-    import yaml
-
-    from gaitcap.config import default_config_path
     from gaitcap.io.silhouettes_h5 import read_cameras, read_masks
     from gaitcap.pipeline import run_track
     from gaitcap.io.calibration_toml import read_calibration
@@ -151,11 +149,7 @@ def test_track_save_masks_streams_the_silhouettes(embedded_session, tmp_path):
     from gaitcap.silhouette.run import Source, prepare_extractor
     from gaitcap.video import iter_synchronised
 
-    data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
-    data["shape"]["enabled"] = False
-    data["factored_ipf"].update(particles=40, root_particles=80)
-    config = tmp_path / "tracking.yaml"
-    config.write_text(yaml.safe_dump(data))
+    config = quick_tracking(tmp_path)
     ses = embedded_session.session
     run_track(ses, tmp_path / "out", config=config, progress=False, max_frames=3, save_masks=True)
     h5 = tmp_path / "out" / "silhouettes.h5"
@@ -194,17 +188,10 @@ def test_track_stopped_half_way_over_an_earlier_run_leaves_none_of_its_outputs(e
     """``track -o OUT --force`` over a finished run, stopped while tracking (Ctrl-C, SIGTERM): none of the
     earlier run's outputs stay beside the new run's partial ones (``gaitcap report OUT`` read the earlier
     run's trajectories.h5, joints.csv/.trc stayed as if finished)."""
-    import yaml
-
     import gaitcap.pipeline as pipeline_module
-    from gaitcap.config import default_config_path
     from gaitcap.pipeline import run_track
 
-    data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
-    data["shape"]["enabled"] = False
-    data["factored_ipf"].update(particles=40, root_particles=80)
-    config = tmp_path / "tracking.yaml"
-    config.write_text(yaml.safe_dump(data))
+    config = quick_tracking(tmp_path)
     out = tmp_path / "out"
     run_track(embedded_session.session, out, config=config, progress=False, max_frames=3, save_masks=True)
     (out / "eval.json").write_text("{}")
@@ -236,11 +223,7 @@ def test_track_takes_a_silhouette_configuration(embedded_session, tmp_path):
     from gaitcap.cli.main import cli
     from gaitcap.config import default_config_path
 
-    data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
-    data["shape"]["enabled"] = False
-    data["factored_ipf"].update(particles=40, root_particles=80)
-    tracking = tmp_path / "tracking.yaml"
-    tracking.write_text(yaml.safe_dump(data))
+    tracking = quick_tracking(tmp_path)
     sil = yaml.safe_load(default_config_path("silhouette.yaml").read_text())
     sil["background"]["samples"] = 17
     mine = tmp_path / "silhouette.yaml"

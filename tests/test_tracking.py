@@ -12,6 +12,7 @@ import h5py
 import numpy as np
 import pytest
 import yaml
+from quick_config import quick_tracking
 
 from gaitcap.body.measures import model_lengths
 from gaitcap.body.model import load_body_model
@@ -1206,11 +1207,7 @@ def test_what_the_session_check_tolerated_is_noted_in_track_json(embedded_sessio
     session = tmp_path / "session"
     shutil.copytree(embedded_session.session, session)
     write_calibration(session / "calibration.toml", read_calibration(session / "calibration.toml"), {"error": 1.5})
-    data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
-    data["shape"]["enabled"] = False
-    data["factored_ipf"].update(particles=40, root_particles=80)
-    config = tmp_path / "tracking.yaml"
-    config.write_text(yaml.safe_dump(data))
+    config = quick_tracking(tmp_path)
     summary = run_track(session, tmp_path / "out", config=config, progress=False, max_frames=4)
     assert "records is 1.50 px overall (above 1 px: a poor calibration" in summary.verdict_notes[0]
     assert json.loads((tmp_path / "out" / "track.json").read_text())["verdict_notes"] == summary.verdict_notes
@@ -1771,11 +1768,7 @@ def test_track_json_records_the_options_of_the_run(tracked_session):
 def test_the_seed_can_be_given_alone_and_draws_another_run(embedded_session, tmp_path):
     """--seed (run_track's ``seed``) overrides the configuration's seed without a whole -c file: recorded in
     track.json's options and the run's configuration, and another seed draws another run."""
-    data = yaml.safe_load(default_config_path("tracking.yaml").read_text())
-    data["shape"]["enabled"] = False
-    data["factored_ipf"].update(particles=40, root_particles=80)
-    config = tmp_path / "tracking.yaml"
-    config.write_text(yaml.safe_dump(data))
+    config = quick_tracking(tmp_path)
     poses = {}
     for seed in (None, 5):
         out = tmp_path / f"seed{seed}"
