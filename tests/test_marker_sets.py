@@ -388,6 +388,15 @@ def test_mapping_leaving_out_a_joint_refused_by_markers_report_and_synth_naming_
     assert read_motion(RAW, mapping=mine).names.count("knee_r") == 0  # the library reads what it defines
 
 
+def _edited_mapping(folder, old: str, new: str):
+    """A lab's mapping: the shipped Plug-in-Gait one with ``old`` (which it holds) replaced by ``new``."""
+    shipped = (MAPPINGS_DIR / "plugin_gait.yaml").read_text()
+    assert old in shipped
+    mine = folder / "my_lab.yaml"
+    mine.write_text(shipped.replace(old, new))
+    return mine
+
+
 @pytest.mark.parametrize(("old", "new", "pair"), [
     ("harrington: {side: left, lasi: LASI, rasi: RASI, sacral: SACR}",
      "harrington: {side: right, lasi: LASI, rasi: RASI, sacral: SACR}", "hip_l and hip_r"),
@@ -397,10 +406,7 @@ def test_mapping_giving_one_point_for_left_and_right_refused(tmp_path, old, new,
     """A lab mapping with the wrong side ('side: right' in the left hip's Harrington rule, or
     knee_l reading kjc_r) gave a report and a synthetic session with both hips (knees) at one
     point and exit 0 (found writing a lab's own mapping for a renamed walk.c3d)."""
-    shipped = (MAPPINGS_DIR / "plugin_gait.yaml").read_text()
-    assert old in shipped
-    mine = tmp_path / "my_lab.yaml"
-    mine.write_text(shipped.replace(old, new))
+    mine = _edited_mapping(tmp_path, old, new)
     with pytest.raises(InputError) as err:
         read_motion(RAW, mapping=mine)
     assert "my_lab.yaml" in str(err.value) and f"{pair} are the same point (0.0 mm apart" in str(err.value)
@@ -423,10 +429,7 @@ def test_mapping_naming_the_other_sides_marker_in_a_chord_refused(tmp_path, old,
     rule) was accepted: 'gaitcap markers' said 'fits' (exit 0) and the left knee lay 37 mm from the
     right one, the left shank 526 mm long (its length changing by 242 mm over walk.c3d), with exit 0.
     The chord's wand and marker must stay on one segment, and each thigh and shank keep its length."""
-    shipped = (MAPPINGS_DIR / "plugin_gait.yaml").read_text()
-    assert old in shipped
-    mine = tmp_path / "my_lab.yaml"
-    mine.write_text(shipped.replace(old, new))
+    mine = _edited_mapping(tmp_path, old, new)
     with pytest.raises(InputError) as err:
         read_motion(RAW, mapping=mine)
     assert f"{RAW}: mapping 'plugin_gait' ({mine}): {said}" in str(err.value)
