@@ -226,3 +226,23 @@ def test_the_overlay_mask_is_not_drawn_in_the_reports_left_and_right_colours():
     for bgr in (MASK_BGR, OUTLINE_BGR):
         b, g, r = bgr
         assert not (g > 150 and r < 80 and b < 80) and not (r > 150 and g < 80 and b < 80)  # neither green nor red
+
+
+def test_a_trajectories_file_is_not_read_as_masks(tmp_path):
+    """read_cameras on a trajectories.h5 (its /points (T, P, 3) at the root) gave ['points',
+    'points_unfiltered'] as cameras; a truth's masks.h5 of uint8 datasets is still read."""
+    import h5py
+
+    from gaitcap.errors import InputError
+    from gaitcap.io.trajectories_h5 import write_trajectory
+    from gaitcap.trajectory import Trajectory
+
+    path = tmp_path / "trajectories.h5"
+    write_trajectory(path, Trajectory(("hip_l", "hip_r"), np.zeros((4, 2, 3)), 25.0))
+    with pytest.raises(InputError, match=r"trajectories\.h5: no masks \(neither a /masks group nor"):
+        read_cameras(path)
+    masks = tmp_path / "masks.h5"
+    with h5py.File(masks, "w") as f:
+        f["cam1"] = np.zeros((4, 6, 8), np.uint8)
+        f["points"] = np.zeros((4, 2, 3))
+    assert read_cameras(masks) == ["cam1"]

@@ -116,13 +116,18 @@ def _open(path: str | Path) -> h5py.File:
 
 
 def _mask_group(path: str | Path, f: h5py.File) -> h5py.Group:
-    """Where the masks are: the ``/masks`` group, or the root when it holds (T, H, W) datasets
-    (a truth folder's ``masks.h5``: one dataset per camera)."""
+    """Where the masks are: the ``/masks`` group, or the root when it holds (T, H, W) datasets of 0/1
+    (a truth folder's ``masks.h5``: one uint8 dataset per camera; not a trajectories.h5's points)."""
     if "masks" in f and isinstance(f["masks"], h5py.Group):
         return f["masks"]
-    if any(isinstance(d, h5py.Dataset) and d.ndim == 3 for d in f.values()):
+    if any(_is_masks(d) for d in f.values()):
         return f
-    raise InputError(f"{path}: no masks (neither a /masks group nor (frames, H, W) datasets at the root)")
+    raise InputError(f"{path}: no masks (neither a /masks group nor (frames, H, W) uint8 datasets at the root)")
+
+
+def _is_masks(item: h5py.Group | h5py.Dataset) -> bool:
+    """A (frames, H, W) dataset of integers or booleans."""
+    return isinstance(item, h5py.Dataset) and item.ndim == 3 and item.dtype.kind in "uib"
 
 
 def _mask_dataset(path: str | Path, f: h5py.File, camera: str) -> h5py.Dataset:
@@ -139,7 +144,7 @@ def read_cameras(path: str | Path) -> list[str]:
     """Names of the cameras stored in a silhouettes (or truth) HDF5 file."""
     with _open(path) as f:
         group = _mask_group(path, f)
-        return [k for k, v in group.items() if isinstance(v, h5py.Dataset) and v.ndim == 3]
+        return [k for k, v in group.items() if _is_masks(v)]
 
 
 def read_masks(path: str | Path, camera: str, frames: slice | None = None) -> np.ndarray:
