@@ -448,3 +448,25 @@ def test_shipped_files_keep_their_limbs_and_chords_on_one_segment():
     res = CliRunner().invoke(cli, ["markers", str(RAW)])
     assert res.exit_code == 0 and "mapping plugin_gait: fits" in res.output
     assert "typical chord distance" not in res.output  # the reading's information log
+
+
+def test_recorded_events_are_not_called_detected(tmp_path):
+    """With --recorded-events the parameters come from the file's EVENT group, yet parameters.json's
+    info.event_method said 'Zeni et al. 2008 ...' and report.html 'Events: 9 detected (Zeni et al. 2008 ...),
+    9 recorded in the file': a clinician took the table for the detector's (found comparing walk.c3d's report
+    with and without the flag). Now both name the recorded events; without the flag, as before."""
+    import json
+    import re
+
+    from gaitcap.gait.analysis import RECORDED_EVENT_METHOD
+
+    for flag, out in (("--recorded-events", "rec"), (None, "det")):
+        res = CliRunner().invoke(cli, ["report", str(PIG), "-o", str(tmp_path / out)] + ([flag] if flag else []))
+        assert res.exit_code == 0, res.output
+    rec = json.loads((tmp_path / "rec" / "parameters.json").read_text())["info"]["event_method"]
+    det = json.loads((tmp_path / "det" / "parameters.json").read_text())["info"]["event_method"]
+    assert rec == RECORDED_EVENT_METHOD and det.startswith("Zeni")
+    text = (tmp_path / "rec" / "report.html").read_text()
+    assert "detected (Zeni" not in text
+    assert re.search(r"Events: the 9 recorded in the file \(--recorded-events\), used for the parameters", text)
+    assert re.search(r"Events: 12 detected \(Zeni.*\), 9 recorded in the file", (tmp_path / "det" / "report.html").read_text())

@@ -36,6 +36,9 @@ from gaitcap.trajectory import SIDES, TOE_RELEASES, GaitEvent, Trajectory, side_
 
 log = logging.getLogger("gaitcap.gait.analysis")
 
+#: ``parameters.info["event_method"]`` when the input's recorded events were used (``recorded``)
+RECORDED_EVENT_METHOD = "recorded in the input file (its C3D EVENT group or force plates), not detected"
+
 
 @dataclass(frozen=True)
 class WalkPass:
@@ -101,7 +104,8 @@ class GaitAnalysis:
 
     Attributes:
         trajectory: the analysed trajectory (its own ``events`` are the file's reference events).
-        events: events detected from the foot kinematics, sorted by time.
+        events: events detected from the foot kinematics, sorted by time (the input's recorded ones
+            with ``recorded``: :attr:`events_recorded`).
         passes: the passes along the walkway (one for a clip without a turn), each with its walking
             direction (:attr:`direction`: the first pass's).
         parameters: spatio-temporal parameters (``parameters.status`` tells if there were enough steps).
@@ -119,6 +123,9 @@ class GaitAnalysis:
     angle_notes: dict[str, str]
     cycles: dict[str, list[GaitCycle]]
     curves: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
+    #: True when :attr:`events` are the input file's recorded events (``analyse(..., recorded=True)``,
+    #: ``gaitcap report --recorded-events``), not detected ones
+    events_recorded: bool = False
 
     @property
     def direction(self) -> WalkingDirection:
@@ -211,6 +218,8 @@ def analyse(traj: Trajectory, options: GaitOptions | None = None, recorded: bool
         log.info("%d passes along the walkway (frames %s), each analysed along its own direction", len(passes),
                  ", ".join(f"{p.start}-{p.stop - 1}" for p in passes))  # fmt: skip
     params = compute_parameters(traj, events, passes[0].direction, opt.plausible, passes=parts)
+    if recorded:  # the parameters are the recorded events', not the detector's
+        params.info["event_method"] = RECORDED_EVENT_METHOD
     if stopped:  # the strides and steps across each stop are no gait cycle: left out (see the module docstring)
         params.info["stops_s"] = stopped
         said = "; ".join(f"{a:.2f}-{b:.2f} s" for a, b in stopped)
@@ -228,4 +237,4 @@ def analyse(traj: Trajectory, options: GaitOptions | None = None, recorded: bool
         }
     if not params.ok:
         log.warning("%s", params.reason)
-    return GaitAnalysis(traj, events, passes, params, angles, notes, cycles, curves)
+    return GaitAnalysis(traj, events, passes, params, angles, notes, cycles, curves, events_recorded=recorded)

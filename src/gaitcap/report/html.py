@@ -236,6 +236,18 @@ def _passes_note(analysis: GaitAnalysis) -> str:
     return f"; {len(analysis.passes)} passes along the walkway (frames {frames}), each along its own direction"
 
 
+def _events_text(analysis: GaitAnalysis) -> str:
+    """The source line's sentence on the events: which the parameters and cycles were computed from
+    (detected, or the file's recorded ones with ``--recorded-events``) and how many the file records."""
+    n_ref = len(analysis.reference_events)
+    if analysis.events_recorded:
+        return (f"Events: the {len(analysis.events)} recorded in the file (--recorded-events), used for the "
+                "parameters and cycles instead of detected ones.")
+    method = html.escape(str(analysis.parameters.info.get("event_method")))
+    recorded = f"{n_ref} recorded in the file" if n_ref else "none recorded"
+    return f"Events: {len(analysis.events)} detected ({method}), {recorded}."
+
+
 def render_report(analysis: GaitAnalysis, title: str = "Gait report", view: FitView | None = None,
                   sheet_frames: list[int] | None = None) -> str:  # fmt: skip
     """The whole report as one HTML string; ``view`` adds the tracking's verdict and fit, with the
@@ -252,8 +264,7 @@ def render_report(analysis: GaitAnalysis, title: str = "Gait report", view: FitV
         f"{_direction_text(info.get('walking_direction'), frame)} ({html.escape(str(info.get('direction_method')))}"
         f"{', walking in place, belt speed %.2f m/s' % -info['belt_velocity_m_s'] if info.get('in_place') else ''}"
         f"{_passes_note(analysis)}). "
-        f"Events: {len(analysis.events)} detected ({html.escape(str(info.get('event_method')))}), "
-        f"{len(analysis.reference_events)} recorded in the file. gaitcap {__version__}.</p>"
+        f"{_events_text(analysis)} gaitcap {__version__}.</p>"
     )
     if p.status == STATUS_NOT_ENOUGH_STEPS:
         parts.append(f"<div class='warn'><b>Not enough steps.</b> {_sentence(p.reason, 'not enough steps: ')}</div>")

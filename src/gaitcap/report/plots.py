@@ -130,7 +130,8 @@ def foot_trajectories_figure(analysis: GaitAnalysis) -> plt.Figure:
                   borderaxespad=0.0)  # fmt: skip
     a1.grid(alpha=0.3)
     a2.grid(alpha=0.3)
-    a1.set_title("Foot trajectories (lines: detected foot strike solid, foot off dashed)")
+    which = "recorded" if analysis.events_recorded else "detected"
+    a1.set_title(f"Foot trajectories (lines: {which} foot strike solid, foot off dashed)")
     return fig
 
 
@@ -151,14 +152,16 @@ def event_timeline_figure(analysis: GaitAnalysis) -> plt.Figure:
         for e in analysis.events:
             if e.side == side:
                 ax.plot(e.time_s, row, marker="|" if e.event == "foot_strike" else "x", color=c, ms=16, mew=2)
-        for e in analysis.reference_events:
+        for e in () if analysis.events_recorded else analysis.reference_events:
             if e.side == side:
                 ax.plot(e.time_s, row + 0.38, marker="o", mfc="none", color="k", ms=6)
     ax.set_yticks([0, 1], list(SIDES))
     ax.set_xlim(t[0], t[-1])
     ax.set_ylim(-0.6, 1.7)
     ax.set_xlabel("time (s)")
-    ax.set_title("Event timeline (bars: stance of complete cycles; | foot strike, x foot off; o recorded events)")
+    which = "recorded (used)" if analysis.events_recorded else "detected"
+    circles = "; o recorded in the file" if analysis.reference_events and not analysis.events_recorded else ""
+    ax.set_title(f"Event timeline (bars: stance of complete cycles; {which}: | foot strike, x foot off{circles})")
     ax.grid(axis="x", alpha=0.3)
     return fig
 
