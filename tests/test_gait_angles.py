@@ -113,3 +113,24 @@ def test_missing_points_give_nan_angles_not_errors() -> None:
 def test_cardan_identity_is_zero() -> None:
     eye = np.broadcast_to(np.eye(3), (2, 3, 3))
     assert np.allclose(cardan_yxz(eye, eye), 0.0)
+
+
+@pytest.mark.parametrize("knee", [5.0, 40.0])
+def test_knee_and_ankle_do_not_need_the_pelvis_markers(knee: float) -> None:
+    """A marker file whose ASIS markers are in a gap (C3D.ORG's gait-pig.c3d from 2.28 s to its end) has no
+    pelvis frame there, yet its hip, knee and ankle centres: every angle was NaN, knee and ankle too, so the
+    report's second left cycle had no knee curve at all (found comparing cycles.h5 with the file's own
+    angles). Now the knee and ankle take the hip centres' line where the pelvis frame is missing; the pelvis
+    and hip angles, which need it, stay NaN."""
+    tr = _pose(_leg(20, knee, 5), _leg(20, knee, 5))
+    asis = {"LASI": [0.05, 0.12, 0.95], "RASI": [0.05, -0.12, 0.95], "SACR": [-0.12, 0.0, 0.97]}
+    pts = np.concatenate([tr.points, np.array([[v for v in asis.values()]])], axis=1)
+    pts = np.repeat(pts, 2, axis=0)
+    pts[1, len(POINT_NAMES):] = np.nan  # frame 1: the pelvis markers in a gap
+    ang, notes = joint_angles(Trajectory(POINT_NAMES + tuple(asis), pts, 100.0), FWD)
+    assert notes["pelvis_frame"] == "ASIS/PSIS markers"
+    for s in ("_l", "_r"):
+        assert ang[f"knee_flexion{s}"] == pytest.approx([knee, knee], abs=1e-6)
+        assert ang[f"ankle_dorsiflexion{s}"] == pytest.approx([5.0, 5.0], abs=1e-6)
+        assert np.isfinite(ang[f"hip_flexion{s}"][0]) and np.isnan(ang[f"hip_flexion{s}"][1])
+        assert np.isnan(ang[f"pelvis_tilt{s}"][1])

@@ -16,7 +16,9 @@ X anterior, Y to the subject's left, Z proximal (up), for both sides.
   lacks Plug-in-Gait's anatomical anterior tilt of typically about 10 degrees), else along the
   world vertical (tilt = 0 by construction). Obliquity and rotation are well determined.
 - femur: Z = knee -> hip; Y = normal of the hip-knee-ankle plane (pointing left), blended towards
-  the pelvis Y when the knee is nearly straight (the plane is then undefined); X = Y x Z. With joint
+  the pelvis Y when the knee is nearly straight (the plane is then undefined; in frames without a
+  pelvis frame, e.g. ASIS markers in a gap, towards the hip centres' line, so the knee and ankle
+  angles are still given there while the pelvis and hip angles are not); X = Y x Z. With joint
   centres only the femur's axial rotation comes from the knee's flexion plane, so hip rotation is
   only meaningful when the knee is flexed (swing), and knee ab/adduction and rotation are zero by
   construction (not reported).
@@ -150,6 +152,10 @@ def leg_frames(traj: Trajectory, side: Side, pelvis: np.ndarray) -> tuple[np.nda
     n = np.cross(shank, thigh)  # left-pointing normal of the leg plane for a flexed knee
     sin_k = np.linalg.norm(n, axis=1) / (np.linalg.norm(thigh, axis=1) * np.linalg.norm(shank, axis=1))
     y_pel = pelvis[:, :, 1]
+    # where the pelvis frame is missing (a marker file's ASIS markers in a gap) but the hip centres are
+    # not, the leg's reference left axis is the hip centres' line: the knee and ankle angles need no pelvis
+    hips_y = _unit(traj.point("hip_l") - traj.point("hip_r"))
+    y_pel = np.where(np.isfinite(y_pel).all(axis=1, keepdims=True), y_pel, hips_y)
     n_hat = _unit(n)
     n_hat = np.where(np.sum(n_hat * y_pel, axis=1, keepdims=True) < 0, -n_hat, n_hat)  # hyperextension
     w = np.clip(sin_k / np.sin(np.radians(_STRAIGHT_KNEE_DEG)), 0.0, 1.0)[:, None]
