@@ -147,3 +147,26 @@ def test_the_uncertainty_threshold_is_drawn_clear_of_the_panels_edge(analysis) -
     bottom, top = fig.axes[1].get_ylim()
     assert bottom == 0 and top >= 1.1 * fit.uncertain_mm
     plt.close(fig)
+
+
+def test_a_cycle_without_an_angle_is_not_counted_in_its_panel() -> None:
+    """Each side's curves are over its complete cycles, and the legend said 'left (n=2)' for every panel,
+    counting a cycle whose angle is missing throughout (gait-pig.c3d's second left cycle has no pelvis or
+    hip angle: its ASIS markers are in a gap) as if it had one (found comparing cycles.h5 with the file's
+    own angles). Now curve_stats counts the cycles that have the angle, the legend gives each side's
+    complete cycles, and a panel with fewer names them in its title."""
+    from gaitcap.markers.motion import read_markers, read_motion
+    from gaitcap.report.pipeline import with_pelvis_markers
+
+    pig = Path(__file__).resolve().parent / "fixtures" / "walking" / "gait-pig.c3d"
+    a = analyse(with_pelvis_markers(read_motion(pig), read_markers(pig)))
+    assert len(a.cycles["left"]) == 2
+    assert a.curve_stats("left", "hip_flexion")[2] == 1
+    assert a.curve_stats("left", "knee_flexion")[2] == 2
+    fig = plots.angle_curves_figure(a)
+    titles = {ax.get_title() for ax in fig.axes}
+    assert "Hip flexion (+) / extension (left n=1)" in titles
+    assert "Knee flexion (+) / extension" in titles
+    legend = [t.get_text() for t in fig.axes[-1].get_legend().get_texts()]
+    assert legend[:2] == ["left (n=2)", "right (n=2)"]
+    plt.close(fig)

@@ -138,8 +138,11 @@ class GaitAnalysis:
         return self.trajectory.events
 
     def curve_stats(self, side: str, angle: str) -> tuple[np.ndarray, np.ndarray, int]:
-        """Mean and SD (101,) over the cycles of ``side`` (NaN-aware), and the cycle count."""
+        """Mean and SD (101,) over the cycles of ``side`` (NaN-aware), and the count of cycles that have
+        the angle (a cycle whose angle is missing throughout, e.g. its pelvis markers in a gap, is not
+        counted)."""
         c = self.curves[side][angle]
+        c = c[np.isfinite(c).any(axis=1)] if len(c) else c
         if len(c) == 0:
             nan = np.full(101, np.nan)
             return nan, nan, 0

@@ -65,24 +65,28 @@ def angle_curves_figure(analysis: GaitAnalysis) -> plt.Figure:
     fig, axes = plt.subplots(3, 3, figsize=(12, 9), layout="constrained")
     x = np.linspace(0, 100, 101)
     for ax, name in zip(axes.flat, ANGLE_NAMES, strict=False):
+        fewer = []  # the sides whose cycles lack this angle in some of them
         for side in SIDES:
             mean, sd, n = analysis.curve_stats(side, name)
+            if n < len(analysis.cycles[side]):
+                fewer.append(f"{side} n={n}")
             if n == 0:
                 continue
             c = COLOURS[side]
-            ax.plot(x, mean, color=c, lw=1.8, label=f"{side} (n={n})")
+            ax.plot(x, mean, color=c, lw=1.8)
             if n > 1:
                 ax.fill_between(x, mean - sd, mean + sd, color=c, alpha=0.2, lw=0)
             fo = [cy.pct(cy.foot_off_s) for cy in analysis.cycles[side]]
             ax.axvline(float(np.mean(fo)), color=c, ls="--", lw=1)
-        ax.set_title(ANGLE_TITLES[name], fontsize=10)
+        ax.set_title(ANGLE_TITLES[name] + (f" ({', '.join(fewer)})" if fewer else ""), fontsize=10)
         ax.set_xlim(0, 100)
         ax.axhline(0, color="0.6", lw=0.6)
         ax.grid(alpha=0.3)
     spare = axes.flat[-1]
     spare.axis("off")
-    handles, labels = axes.flat[0].get_legend_handles_labels()
     sides = [side for side in SIDES if analysis.cycles[side]]
+    handles = [Line2D([], [], color=COLOURS[side], lw=1.8) for side in sides]
+    labels = [f"{side} (n={len(analysis.cycles[side])})" for side in sides]
     handles += [Line2D([], [], color=COLOURS[side], ls="--", lw=1) for side in sides]
     labels += [f"{side} foot off (mean)" for side in sides]
     if handles:
