@@ -470,3 +470,21 @@ def test_recorded_events_are_not_called_detected(tmp_path):
     assert "detected (Zeni" not in text
     assert re.search(r"Events: the 9 recorded in the file \(--recorded-events\), used for the parameters", text)
     assert re.search(r"Events: 12 detected \(Zeni.*\), 9 recorded in the file", (tmp_path / "det" / "report.html").read_text())
+
+
+def test_pelvic_rotation_differs_from_plug_in_gait_by_the_walking_direction():
+    """README ('angles.csv'): the pelvis angles are relative to the estimated walking direction, Plug-in-Gait's
+    to the lab's axis, so pelvic rotation differs from the file's own by the angle between them (2.8 deg on
+    gait-pig.c3d); a clinician comparing the two saw a constant offset the README did not explain."""
+    from gaitcap.gait.analysis import analyse
+    from gaitcap.report.pipeline import with_pelvis_markers
+
+    a = analyse(with_pelvis_markers(read_motion(PIG), read_markers(PIG)))
+    heading = float(np.degrees(np.arctan2(a.direction.forward[1], a.direction.forward[0])))
+    pig = read_c3d_angles(PIG)
+    for side, sign in (("l", 1.0), ("r", -1.0)):
+        ours, theirs = a.angles[f"pelvis_rotation_{side}"], pig.get(f"{side.upper()}PelvisAngles")[:, 2]
+        ok = np.isfinite(ours) & np.isfinite(theirs)
+        offset = float(np.mean(ours[ok] - theirs[ok]))
+        assert offset == pytest.approx(sign * heading, abs=0.1) and abs(heading) == pytest.approx(2.8, abs=0.1)
+        assert float(np.std(ours[ok] - theirs[ok])) < 0.2
