@@ -81,11 +81,12 @@ def test_body_that_cannot_be_reused_is_named(tracked_session, tmp_path):
         read_body(no_height.parent)
 
 
-def test_cli_body_with_height_exits_with_the_reason(tracked_session, tmp_path):
+def test_cli_body_with_height_is_a_usage_error(tracked_session, tmp_path):
+    """--body with --height is a usage error (exit 2, as other commands' conflicting options), not a failed run."""
     embedded, first, _ = tracked_session
     result = CliRunner().invoke(cli, ["track", str(embedded.session), "-o", str(tmp_path / "out"), "--body", str(first),
                                       "--height", "1.7"])  # fmt: skip
-    assert result.exit_code == 1
+    assert result.exit_code == 2
     assert "--body" in result.output and "not both" in result.output
     assert not (tmp_path / "out").exists()
 

@@ -70,6 +70,8 @@ def command(ctx: click.Context, source: Path, out: Path, tracker: str | None, co
         gaitcap track sessions/walk02 -o results/walk02 --body results/walk01
         gaitcap track sessions/ -o results/ --jobs 2
     """
+    if body is not None and height_m is not None:  # a usage error (exit 2), before any work
+        raise click.UsageError("give --height or --body, not both: the body carries the subject's height")
     quiet = bool(ctx.obj.get("quiet"))
     kwargs = {"config": config, "tracker": tracker, "height_m": height_m, "max_frames": max_frames,
               "save_masks": save_masks, "body": body, "silhouette_config": silhouette_config, "seed": seed}
