@@ -157,6 +157,18 @@ def test_opensim_joint_centres(opensim):
     assert np.nanmedian(opensim.point("hip_r")[:, 1] - opensim.point("hip_l")[:, 1]) < -0.1
 
 
+def test_markers_counts_the_events_the_force_table_gives():
+    """gaitcap markers said '0 events in the file' for the OpenSim walk, whose report takes 8 from the
+    force-plate table beside it: the account now says so."""
+    from click.testing import CliRunner
+
+    from gaitcap.cli.main import cli
+
+    res = CliRunner().invoke(cli, ["markers", str(OPENSIM_WALK)])
+    assert res.exit_code == 0, res.output
+    assert "0 events in the file (8 found from the force-plate table beside it)" in res.output.splitlines()[0]
+
+
 def test_static_trial_passed_explicitly_or_missing(tmp_path):
     walk = tmp_path / "trial.trc"
     shutil.copyfile(OPENSIM_WALK, walk)

@@ -74,7 +74,9 @@ def describe_file(path: str | Path, mapping: Mapping | str | Path | None = None,
     if state == "fits":  # the joint centres computed: a rule that names the other side's marker shows there
         try:
             with _quiet(logging.getLogger("gaitcap.markers")):  # the account is the output, not the reading's log
-                read_motion(path, main.mapping, static, subject=subject)
+                joints = read_motion(path, main.mapping, static, subject=subject)
+            if not raw.events and joints.events:  # as gaitcap report and synth take them
+                lines[0] += f" ({_forces_note(joints.events)})"
         except InputError as e:
             state = f"does NOT fit: {str(e).split(': ', 1)[1]}"
     lines.append(f"mapping {main.mapping.name}: {state}")
@@ -99,6 +101,16 @@ def describe_file(path: str | Path, mapping: Mapping | str | Path | None = None,
             why = "fits too" if other.fits else f"missing {', '.join(other.missing_required())}"
             lines.append(f"other mapping {other.mapping.name}: {why}")
     return "\n".join(lines)
+
+
+#: where events that a file's EVENT group lacks come from (GaitEvent.source, gaitcap.markers.events)
+_EVENT_SOURCES = {"grf": "the force-plate table beside it", "forceplate": "its force plates"}
+
+
+def _forces_note(events: list) -> str:
+    """What the events a marker file's reading found outside its EVENT group are, and where from."""
+    sources = sorted({_EVENT_SOURCES.get(e.source, e.source) for e in events})
+    return f"{len(events)} found from {' and '.join(sources)}"
 
 
 @contextlib.contextmanager
