@@ -9,9 +9,11 @@ installs the cache with the sources and the first run compiles nothing. A cache 
 when everything it is keyed on matches: the source file's content (numba >= 0.68 stamps it with a
 sha256 of the file, not its modification time, which pip does not keep), numba's version, the
 Python version, the function's bytecode, the argument types and the CPU (name and features: a wheel
-built on the machine that runs it). Otherwise, or when the package's folder is read-only, numba
-compiles at first use as before and caches the result where it can write (``__pycache__``, else its
-user-wide cache folder).
+built on the machine that runs it). Otherwise numba compiles at first use as before and caches the
+result where it can write. When the package's folder is read-only, the folder numba writes to
+(``NUMBA_CACHE_DIR``, else its user-wide cache folder under HOME, else a private temporary folder of
+the process) is first given a copy of the package's entries (:mod:`gaitcap.jit`), so a read-only
+install compiles nothing either when they match.
 
 Imports numpy and numba only (the build environment has nothing else).
 """
