@@ -46,6 +46,17 @@ def table(install_s: float, walls: list[float]) -> str:
     return "\n".join(rows)
 
 
+def clear_outputs(work: Path) -> None:
+    """Remove this script's outputs of an earlier call from ``work`` (the venv, the demo folders and
+    logs; nothing else), creating ``work`` when it does not exist."""
+    for old in [work / "venv", *work.glob("demo-*")]:
+        if old.is_dir() and not old.is_symlink():
+            shutil.rmtree(old)
+        else:
+            old.unlink(missing_ok=True)
+    work.mkdir(parents=True, exist_ok=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--work", type=Path, default=Path("/tmp/gaitcap-first-run"), help="venv, outputs and logs")
@@ -54,12 +65,7 @@ def main() -> None:
     args = ap.parse_args()
     if args.runs < 1:
         ap.error("--runs must be at least 1")
-    for old in [args.work / "venv", *args.work.glob("demo-*")]:  # this script's outputs only
-        if old.is_dir():
-            shutil.rmtree(old)
-        else:
-            old.unlink()
-    args.work.mkdir(parents=True, exist_ok=True)
+    clear_outputs(args.work)
     venv = args.work / "venv"
     subprocess.run([args.python, "-m", "venv", str(venv)], check=True)
     install_s = timed([str(venv / "bin" / "pip"), "install", "-q", str(REPO)], args.work / "install.log", args.work)
