@@ -20,3 +20,15 @@ def test_the_pythons_named_agree():
     heading = next(line for line in (ROOT / "README.md").read_text().splitlines() if line.startswith("## Quick start"))
     assert f"Python >= 3.{named[0]}" in heading
     assert ", ".join(f"3.{n}" for n in named[:-1]) + f" and 3.{named[-1]}" in heading
+
+
+def test_the_licence_is_an_spdx_expression_with_a_setuptools_that_reads_it():
+    # the table form license = {text = "MIT"}: the wheel's build (setuptools 84) warned "`project.license`
+    # as a TOML table is deprecated ... By 2027-Feb-18, you need to update your project ... or your
+    # builds will no longer be supported" (seen with pip install -v; pip hides it otherwise)
+    data = tomllib.loads((ROOT / "pyproject.toml").read_text())
+    assert data["project"]["license"] == "MIT"
+    floor = next(re.fullmatch(r"setuptools>=(\d+)(\.\d+)*", r) for r in data["build-system"]["requires"]
+                 if r.startswith("setuptools"))  # fmt: skip
+    assert floor and int(floor[1]) >= 77  # the first to read an SPDX expression
+    assert not any(c.startswith("License ::") for c in data["project"].get("classifiers", []))  # refused beside it
