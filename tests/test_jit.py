@@ -3,6 +3,7 @@ from __future__ import annotations
 import atexit
 import importlib.util
 import logging
+import os
 import shutil
 from pathlib import Path
 from types import ModuleType
@@ -114,3 +115,20 @@ def test_cached_njit_compiles_without_the_cache_when_numba_has_nowhere_to_keep_i
     assert caplog.text.count("no writable cache folder") == 1  # once per module
     assert "NUMBA_CACHE_DIR" in caplog.text
     shutil.rmtree(jit._private_dir, ignore_errors=True)
+
+
+def test_the_user_cache_is_refreshed_from_a_newer_install_only(shipped_package, tmp_path):
+    """An install newer than the user's copy (an upgrade: pip does not keep the files' times) replaces
+    it; a copy newer than the install (kernels the user compiled since) is kept."""
+    mod = _load(shipped_package / "kernels.py", f"gaitcap_jit_probe_{tmp_path.name}_first")
+    shipped = next((shipped_package / "__pycache__").glob("kernels.twice-*.nbi"))
+    copy = Path(mod.twice.stats.cache_path) / shipped.name
+    assert copy.read_bytes() == shipped.read_bytes()
+    copy.write_bytes(b"an older install's")
+    os.utime(copy, (shipped.stat().st_mtime - 60,) * 2)
+    _load(shipped_package / "kernels.py", f"gaitcap_jit_probe_{tmp_path.name}_upgraded")
+    assert copy.read_bytes() == shipped.read_bytes()
+    copy.write_bytes(b"the user's own")
+    os.utime(copy, (shipped.stat().st_mtime + 60,) * 2)
+    _load(shipped_package / "kernels.py", f"gaitcap_jit_probe_{tmp_path.name}_again")
+    assert copy.read_bytes() == b"the user's own"
