@@ -91,6 +91,22 @@ def test_verdict_notes_reach_the_banner_as_notes():
     assert "<li>" not in verdict_banner(read_verdict({"verdict": "ok"}))
 
 
+def test_the_angle_note_warns_of_the_ankles_when_the_verdict_notes_feet_off_the_masks():
+    """A clinician read the demo's left ankle at -59 to 31 degrees (Plug-in-Gait's -10 to 20) with the only
+    warning in the verdict's banner: where the verdict notes feet off the masks, the angle note says the
+    ankle curves follow the legs."""
+    from gaitcap.report.html import FitView, render_report
+
+    analysis = analyse(Walker(duration=4.0, rate_hz=25.0).trajectory())
+    feet = "feet placed where a camera's silhouette has little of them (foot_l in 35 of 56 frames: ...)"
+    warned = render_report(analysis, view=FitView(verdict=read_verdict({"verdict": "ok", "verdict_notes": [feet]})))
+    assert "The ankle angles come from the tracked heel and toe points" in warned
+    for notes in ([], ["no camera views the walk obliquely"]):
+        quiet = render_report(analysis, view=FitView(verdict=read_verdict({"verdict": "ok", "verdict_notes": notes})))
+        assert "The ankle angles come from" not in quiet
+    assert "The ankle angles come from" not in render_report(analysis)  # a marker file: no verdict
+
+
 def test_angle_bands_grow_with_the_uncertainty_and_are_seeded():
     traj = Walker(duration=2.0, rate_hz=50.0).trajectory()
     direction = analyse(traj).direction

@@ -601,8 +601,8 @@ _SUPPORT_NOTES = (
      "placed them off the masks"),
     (FOOT_SEGMENTS, "feet", "foot",
      "either the masks do not show the shoes there (a shoe of the floor's colour and brightness cannot be told "
-     "from it), or the tracker placed the feet off them; the heel and toe points, and the gait events read from "
-     "them, follow the legs above"),
+     "from it), or the tracker placed the feet off them; the heel and toe points, and the gait events and ankle "
+     "angles read from them, follow the legs above"),
 )  # fmt: skip
 
 

@@ -181,6 +181,20 @@ _NO_PELVIS_MARKERS = (
 )
 
 
+#: the angle note of a tracking run whose verdict notes feet placed off the masks (quality._support_notes)
+_FEET_OFF_MASKS = (
+    " The ankle angles come from the tracked heel and toe points. This run's verdict notes feet placed where "
+    "the masks show little of them, and there the heel and toe follow the legs, not the feet (on the demo's "
+    "walk the left ankle read -59 to 31° against Plug-in-Gait's -10 to 20°): look at the feet in the contact "
+    "sheet before reading the ankle curves clinically."
+)
+
+
+def _feet_off_masks(view: FitView) -> bool:
+    """The run's verdict notes feet placed where the silhouettes have little of them."""
+    return view.verdict is not None and any(n.startswith("feet placed where") for n in view.verdict.notes)
+
+
 def parameter_table(analysis: GaitAnalysis) -> str:
     p = analysis.parameters
     rows = ["<thead><tr><th>Parameter</th><th>Overall</th><th>Left</th><th>Right</th><th>Symmetry index (%)</th></tr>"
@@ -287,7 +301,8 @@ def render_report(analysis: GaitAnalysis, title: str = "Gait report", view: FitV
             f"<p class='note'>Plug-in-Gait order and signs (see gaitcap.gait.angles). Pelvis frame: "
             f"{html.escape(analysis.angle_notes.get('pelvis_frame', ''))}."
             + ("" if "ASIS" in analysis.angle_notes.get("pelvis_frame", "") else _NO_PELVIS_MARKERS)
-            + " Hip rotation comes from the knee's flexion plane: reliable only while the knee is flexed.</p>"
+            + " Hip rotation comes from the knee's flexion plane: reliable only while the knee is flexed."
+            + (_FEET_OFF_MASKS if _feet_off_masks(view) else "") + "</p>"
         )
     parts.append(angle_time_section(analysis, view))
     parts.append("<h2>Foot trajectories</h2>" + _img(plots.foot_trajectories(analysis), "foot trajectories"))
