@@ -414,8 +414,8 @@ STILL_POINTS = ("pelvis", "heel_l", "toe_l", "heel_r", "toe_r")
 def standing_still(points: np.ndarray, names: tuple[str, ...], rate_hz: float) -> np.ndarray:
     """(T,) bool: the frames of points (T, P, 3) sampled at ``rate_hz`` where the subject stands still
     (:func:`gaitcap.gait.passes.stops` of the pelvis, heels and toes): a stop in the middle of a walk,
-    whose feet keep the order of the last step rather than the stride's rhythm. None without those
-    points."""
+    whose feet keep the order of the last step rather than the stride's rhythm. All False without
+    those points."""
     out = np.zeros(len(points), bool)
     if not all(n in names for n in STILL_POINTS):
         return out

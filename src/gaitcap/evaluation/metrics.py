@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gaitcap.timeseries import finite_runs
 from gaitcap.trajectory import EVENT_KINDS, GaitEvent, exchanged_frames
 
 #: the left/right point pairs of the legs, exchanged by a left/right swap
@@ -130,10 +131,8 @@ def swap_mask(est: np.ndarray, ref: np.ndarray, names: Sequence[str]) -> np.ndar
 
 
 def runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    """``(start, stop)`` of each run of True in a (F,) bool array."""
-    m = np.concatenate([[False], np.asarray(mask, dtype=bool), [False]])
-    d = np.diff(m.astype(np.int8))
-    return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist(), strict=True))
+    """``(start, stop)`` of each run of True in a (F,) bool array (:func:`gaitcap.timeseries.finite_runs`)."""
+    return finite_runs(mask)
 
 
 def wrap_deg(d: np.ndarray) -> np.ndarray:

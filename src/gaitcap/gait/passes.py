@@ -21,6 +21,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from gaitcap.timeseries import finite_runs
+
 #: a pelvis travelling less than this (metres) along its principal axis walks on the spot (a treadmill)
 MIN_TRAVEL_M = 0.5
 #: metres the pelvis travels back along its travel axis, and had travelled forth, where the walk turns
@@ -71,10 +73,10 @@ def turns(xy: np.ndarray) -> np.ndarray:
 def pelvis_velocity(xy: np.ndarray, rate_hz: float) -> np.ndarray:
     """(T, 2) m/s: the velocity of the pelvis path xy (T, 2), its displacement over
     :data:`SPEED_SPAN_S` centred on the frame; NaN within half the span of the path's ends and where
-    a frame of the span's ends is missing."""
+    a frame of the span's ends is missing. (Paths (T, ..., 2) of other points alike: :func:`stops`.)"""
     half = max(1, round(SPEED_SPAN_S * rate_hz / 2))
     T = len(xy)
-    velocity = np.full((T, 2), np.nan)
+    velocity = np.full(np.shape(xy), np.nan)
     if T > 2 * half:
         velocity[half:-half] = (xy[2 * half :] - xy[: -2 * half]) * (rate_hz / (2 * half))
     return velocity
@@ -212,17 +214,6 @@ def stops(tracks: np.ndarray, rate_hz: float) -> list[tuple[int, int]]:
     :data:`STOP_SPEED_M_S` (its displacement over :data:`SPEED_SPAN_S`, centred on the frame). A subject
     who stands still in the middle of a walk: the stride across it is no gait cycle. A frame where a
     path or its span is missing is not still; empty when there is no such stop."""
-    T = len(tracks)
-    half = max(1, round(SPEED_SPAN_S * rate_hz / 2))
-    if T <= 2 * half:
-        return []
-    speed = np.full((T, tracks.shape[1]), np.inf)
     with np.errstate(invalid="ignore"):
-        speed[half:-half] = np.linalg.norm(tracks[2 * half :] - tracks[: -2 * half], axis=-1) * (rate_hz / (2 * half))
-        still = np.all(speed < STOP_SPEED_M_S, axis=1)
-    out = []
-    edges = np.diff(np.concatenate([[0], still.astype(np.int8), [0]]))
-    for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True):
-        if (b - a) / rate_hz >= MIN_STOP_S:
-            out.append((int(a), int(b)))
-    return out
+        still = np.all(np.linalg.norm(pelvis_velocity(tracks, rate_hz), axis=-1) < STOP_SPEED_M_S, axis=1)
+    return [(a, b) for a, b in finite_runs(still) if (b - a) / rate_hz >= MIN_STOP_S]
