@@ -37,12 +37,10 @@ from gaitcap.io.calibration_toml import read_calibration_metadata
 from gaitcap.session import CALIBRATION_FILE, VIDEO_EXTENSIONS, VIDEOS_DIR, Session
 from gaitcap.tracking.init import height_on_vertical, silhouette_centroid, silhouette_row_centre, triangulate
 from gaitcap.tracking.observation import Observation, TrackingView
-from gaitcap.video import VideoInfo, VideoReader, probe_video
+from gaitcap.video import VideoInfo, VideoReader, differing_rates, probe_video
 
 log = logging.getLogger(__name__)
 
-#: relative tolerance between two cameras' frame rates
-FPS_RTOL = 1e-3
 #: frames whose silhouettes are checked against the calibration (the first ones seen by 2+ cameras)
 SILHOUETTE_CHECK_FRAMES = 5
 #: the heights (m) between which the centre of a person's silhouettes lies (about 1 m when
@@ -140,9 +138,9 @@ def _check_fps(videos: dict[str, CameraVideo], allow_mismatch: bool, notes: list
             + ", ".join(f"{cam} ({videos[cam].path})" for cam in unknown)
         )
     first = next(iter(rates.values()))
-    if all(math.isclose(fps, first, rel_tol=FPS_RTOL) for fps in rates.values()):
+    listing = differing_rates(rates)
+    if listing is None:
         return first
-    listing = ", ".join(f"{cam} {fps:g} fps" for cam, fps in rates.items())
     if not allow_mismatch:
         raise InputError(f"the cameras' frame rates differ: {listing}; re-encode the videos at one rate")
     note = f"frame rates differ ({listing}); using {first:g} fps as allowed"

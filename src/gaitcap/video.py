@@ -20,6 +20,7 @@ Writing videos (overlays, synthetic sessions) is not this module's job.
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Iterable, Iterator, Mapping
 from contextlib import ExitStack
 from dataclasses import dataclass
@@ -201,6 +202,19 @@ def probe_video(path: str | Path) -> VideoInfo:
     """
     with VideoReader(path) as video:
         return video.info
+
+
+#: relative tolerance between two cameras' frame rates
+FPS_RTOL = 1e-3
+
+
+def differing_rates(rates: Mapping[str, float]) -> str | None:
+    """``"cam1 30 fps, cam2 25 fps"`` when the cameras' frame rates (camera -> fps) differ by more than
+    :data:`FPS_RTOL` (their frames k are then not one instant), else None."""
+    first = next(iter(rates.values()), None)
+    if first is None or all(math.isclose(fps, first, rel_tol=FPS_RTOL) for fps in rates.values()):
+        return None
+    return ", ".join(f"{cam} {fps:g} fps" for cam, fps in rates.items())
 
 
 def sample_indices(frame_count: int, n: int) -> np.ndarray:

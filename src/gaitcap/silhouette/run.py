@@ -13,7 +13,6 @@ from __future__ import annotations
 import contextlib
 import csv
 import logging
-import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -35,7 +34,7 @@ from gaitcap.silhouette.config import SilhouetteConfig
 from gaitcap.silhouette.extract import FLAG_NAMES, FrameQuality, SilhouetteExtractor, flag_names
 from gaitcap.silhouette.joint import JointExtractor
 from gaitcap.silhouette.overlay import draw_overlay
-from gaitcap.video import VideoReader, iter_synchronised, sample_frames
+from gaitcap.video import VideoReader, differing_rates, iter_synchronised, sample_frames
 
 log = logging.getLogger(__name__)
 
@@ -222,11 +221,9 @@ def run_silhouettes(
 
 
 def _check_rates(prepared: Sequence[_Camera]) -> None:
-    """Refuse a session whose videos' frame rates differ (their frames k are not the same instant), in
-    the words of :func:`gaitcap.session_check.check_session_videos`."""
-    first = prepared[0].fps
-    if not all(math.isclose(c.fps, first, rel_tol=1e-3) for c in prepared):
-        listing = ", ".join(f"{c.source.camera} {c.fps:g} fps" for c in prepared)
+    """Refuse a session whose videos' frame rates differ (their frames k are not the same instant), as
+    ``gaitcap track`` does (:func:`gaitcap.session_check.check_session_videos`)."""
+    if listing := differing_rates({c.source.camera: c.fps for c in prepared}):
         raise InputError(f"the cameras' frame rates differ: {listing}; re-encode the videos at one rate")
 
 
