@@ -42,11 +42,13 @@ def _png(fig: plt.Figure) -> bytes:
     return buf.getvalue()
 
 
-def _legend_beside(ax: plt.Axes, **kwargs) -> None:
-    """The axes' legend to the right of it, outside the plotting area: a legend inside it covers the
-    curves where they run high at the end of a walk (and the contact sheet's ticks of the fit plot)."""
-    if ax.get_legend_handles_labels()[0]:
-        ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, **kwargs)
+def _legend_beside(ax: plt.Axes, extra: list[Line2D] | None = None) -> None:
+    """The axes' legend (its labelled artists, then ``extra`` entries) to the right of it, outside the
+    plotting area: a legend inside it covers the curves where they run high at the end of a walk (and
+    the contact sheet's ticks of the fit plot)."""
+    handles = ax.get_legend_handles_labels()[0] + list(extra or [])
+    if handles:
+        ax.legend(handles=handles, fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
 
 
 def _event_handles(sides: list[str], styles: dict[str, str]) -> list[Line2D]:
@@ -127,11 +129,8 @@ def foot_trajectories_figure(analysis: GaitAnalysis) -> plt.Figure:
     a1.set_ylabel("forward, relative to pelvis (m)")
     a2.set_ylabel("height (m)")
     a2.set_xlabel("time (s)")
-    handles, _ = a1.get_legend_handles_labels()
-    events = _event_handles(sorted({e.side for e in analysis.events}), {"foot_strike": "-", "foot_off": "--"})
-    if handles or events:
-        a1.legend(handles=handles + events, fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0),
-                  borderaxespad=0.0)  # fmt: skip
+    sides = sorted({e.side for e in analysis.events})
+    _legend_beside(a1, _event_handles(sides, {"foot_strike": "-", "foot_off": "--"}))
     a1.grid(alpha=0.3)
     a2.grid(alpha=0.3)
     which = "recorded" if analysis.events_recorded else "detected"
@@ -200,9 +199,8 @@ def fit_timeline_figure(fit: FitRecord, times: np.ndarray, sheet: list[int], eve
             if e.event == "foot_strike":
                 ax.axvline(e.time_s, color=COLOURS[e.side], ls=":", lw=1)
         ax.grid(alpha=0.3)
-    strikes = _event_handles(sorted({e.side for e in events or [] if e.event == "foot_strike"}), {"foot_strike": ":"})
-    a1.legend(handles=a1.get_legend_handles_labels()[0] + strikes, fontsize=8, loc="upper left",
-              bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)  # fmt: skip
+    strikes = sorted({e.side for e in events or [] if e.event == "foot_strike"})
+    _legend_beside(a1, _event_handles(strikes, {"foot_strike": ":"}))
     _legend_beside(a2)
     a1.plot(times[sheet], np.full(len(sheet), 1.02), "v", color="0.3", ms=5, clip_on=False)
     a1.set_ylim(min(0.0, float(np.nanmin(rec.fit, initial=0.0)) - 0.05), 1.05)  # a fit below 0: more XOR than |S|
