@@ -29,15 +29,17 @@ def evaluate_output(out: Path, ref: TruthReference, truth: Path | None = None) -
         ev.notes += notes
     elif ref.masks is not None:
         ev.notes.append("silhouettes not compared: OUT holds no silhouettes.h5 (track with --save-masks)")
-    found = run_record(tracked_path(out))  # the run's track.json, read once
-    if warning := unfinished(tracked_path(out), found):
+    trajectories = tracked_path(out)
+    found = run_record(trajectories)  # the run's track.json, read once
+    if warning := unfinished(trajectories, found):
         ev.notes.append(warning)
         log.warning("%s", warning)
     record = found or {}
+    session = recorded_session(trajectories, record)
     if truth is not None:
-        mismatch = other_session(truth, recorded_session(tracked_path(out), record))
+        mismatch = other_session(truth, session)
     else:  # another run: the session it tracked (its track.json), against OUT's
-        mismatch = other_run_session(ref.source, recorded_session(tracked_path(out), record))
+        mismatch = other_run_session(ref.source, session)
         ev.reference_is_run = True
         for note in reference_run_notes(ref.source, ev):
             ev.notes.append(note)
