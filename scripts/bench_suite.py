@@ -367,11 +367,16 @@ def own_sessions(args: argparse.Namespace) -> list[dict]:
     return rows
 
 
+def external_dirs() -> list[Path]:
+    """The external sessions' folders (those with a truth), sorted; none without the shared data."""
+    return sorted(p for p in (SHARED / "external_sessions").glob("*") if (p / "truth").is_dir())
+
+
 def external_sessions() -> list[dict]:
     base = SHARED / "external_sessions"
     rows = []
     readme = (base / "README.md").read_text()
-    for session in sorted(p for p in base.glob("*") if (p / "truth").is_dir()):
+    for session in external_dirs():
         info = json.loads((session / "truth" / "info.json").read_text())
         line = next((ln for ln in readme.splitlines() if f"`{session.name}`" in ln), "")
         bare = "shorts" in line
@@ -531,7 +536,7 @@ def main() -> None:
         ap.error(f"--body-from {args.body_from}: not a scripts/bench_suite.py work folder (no runs/)")
     names = [] if args.only_external else [p["name"] for p in plan(args.sessions, list(WALKS))[args.first :]]
     if not args.no_external and (SHARED / "external_sessions").is_dir():
-        names += [f"ext_{p.name}" for p in sorted((SHARED / "external_sessions").glob("*")) if (p / "truth").is_dir()]
+        names += [f"ext_{p.name}" for p in external_dirs()]
     if args.only:  # a name that is not in the suite would leave an empty suite.json behind
         unknown = [n for n in args.only if n not in names]
         if unknown:
