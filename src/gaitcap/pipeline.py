@@ -53,6 +53,7 @@ from gaitcap.session_check import SessionVideos, check_session_videos, check_sil
 from gaitcap.silhouette.config import SilhouetteConfig
 from gaitcap.silhouette.joint import JointExtractor, floor_check
 from gaitcap.silhouette.run import Source, camera_attrs, file_attrs, prepare_extractor, quality_row
+from gaitcap.sync_check import head_top, pair_offsets, sync_note
 from gaitcap.timeseries import finite_runs
 from gaitcap.track_summary import (EVAL_FILE, GAIT_DIR, JOINTS_CSV, JOINTS_TRC, TRACK_JSON, TRAJECTORIES_H5, TrackSummary,
                                    format_verdict, is_finished, options_record, run_configs, write_track_json)  # fmt: skip
@@ -249,8 +250,9 @@ def _attempt(session: Path, out: Path, ses: Session, videos, views, likelihood, 
     # first frames (initialisation, shape calibration) are read ahead without waiting for the
     # tracker; once they are in the head, the queue shrinks back to PREFETCH_FRAMES
     buffered = _buffered_frames(cfg)
+    tops: list[list[float]] = []  # the silhouettes' tops per frame and camera, for the frame sync's check
     stream = Prefetched(_observations(ses, videos.rig.names, views, sil_cfg, n_frames, stages, saver,
-                                      cfg.soft_silhouettes), depth=max(PREFETCH_FRAMES, buffered))  # fmt: skip
+                                      cfg.soft_silhouettes, tops), depth=max(PREFETCH_FRAMES, buffered))  # fmt: skip
     head = Head(stream, buffered, on_read=lambda n: stream.set_depth(max(PREFETCH_FRAMES, buffered - n)))
     with stream, kernel_threads(cfg.threads):
         with _switch_interval(START_SWITCH_S):
@@ -266,7 +268,7 @@ def _attempt(session: Path, out: Path, ses: Session, videos, views, likelihood, 
             saver.open()
         return _track_session(session, out, ses, videos, cfg, views, likelihood, head, stream, height_m, n_frames,
                               progress, on_frame, t_start, stages, reused, lost_legs, notes,
-                              warn=not prepared, options=options or {})  # fmt: skip
+                              warn=not prepared, options=options or {}, tops=tops)  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -429,7 +431,7 @@ class MaskSaver:
 
 def _observations(ses: Session, cams: tuple[str, ...], views, sil_cfg: SilhouetteConfig,
                   n_frames: int, stages: Stages, saver: MaskSaver | None = None,
-                  soft: bool = False) -> Iterator[Observation]:  # fmt: skip
+                  soft: bool = False, tops: list[list[float]] | None = None) -> Iterator[Observation]:  # fmt: skip
     """The session's observations, frame by frame (run by the prefetch thread): each camera's
     background is fitted first, then each frame's silhouettes are extracted and prepared, with
     the row prefix sums and areas the likelihood reads. The frames' cameras are processed side by
@@ -439,7 +441,8 @@ def _observations(ses: Session, cams: tuple[str, ...], views, sil_cfg: Silhouett
     The backgrounds are fitted one after the other: side by side, they raise the peak memory for
     no measurable time; the floor check's geometry (calibration only) is built beside them. With
     ``saver`` the full-resolution masks are kept (:class:`MaskSaver`). With ``soft`` the tracker sees
-    each pixel's foreground confidence (:meth:`JointExtractor.process_soft`), otherwise the 0/1 masks."""
+    each pixel's foreground confidence (:meth:`JointExtractor.process_soft`), otherwise the 0/1 masks.
+    With ``tops`` each frame's :func:`gaitcap.sync_check.head_top` per camera is appended to it."""
     sources = {cam: Source(cam, ses.videos[cam], ses.backgrounds.get(cam)) for cam in cams}
     error: BaseException | None = None
     try:
@@ -465,6 +468,8 @@ def _observations(ses: Session, cams: tuple[str, ...], views, sil_cfg: Silhouett
                 for c in range(len(cams)):
                     obs.prefix(c)
                 obs.areas  # noqa: B018 - cached here, off the tracking thread
+                if tops is not None:
+                    tops.append([head_top(s) for s in obs.silhouettes])
                 yield obs
     except GeneratorExit:  # the tracking took what it needed: the frames decoded so far are kept
         raise
@@ -491,11 +496,14 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
                    head: Head[Observation], stream: Iterator[Observation], height_m: float | None, n_frames: int,
                    progress: bool, on_frame, t_start: float, stages: Stages,
                    reused: ReusedBody | None = None, lost_legs: bool = False,
-                   notes: tuple[str, ...] = (), warn: bool = True, options: dict | None = None) -> TrackSummary:  # fmt: skip
+                   notes: tuple[str, ...] = (), warn: bool = True, options: dict | None = None,
+                   tops: list[list[float]] | None = None) -> TrackSummary:  # fmt: skip
     """:func:`run_track` once the output folder is ready: ``head`` the buffered first frames, the
     others read from ``stream``; ``reused``: the body to track (no shape calibration); ``lost_legs``,
     ``notes``, ``options``: see :func:`_attempt`; ``warn``: log the warnings about the subject's
-    height (the session's second run, ``lost_legs``, notes them again without repeating them)."""
+    height and the frame sync (the session's second run, ``lost_legs``, notes them again without
+    repeating them); ``tops``: the silhouettes' tops per frame and camera, filled by the stream as it is
+    read (:func:`_observations`), for the frame sync's check once every frame is tracked."""
     say = log.warning if warn else log.debug
     if reused is not None:
         height, height_source = reused.model.height_m, "--body"
@@ -551,12 +559,25 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
     except BaseException as e:
         writer.abort(e)
         raise
+    if tops and (unsynced := _sync_note(tops, videos)):
+        say("%s: %s", session, unsynced)
+        notes = (*notes, unsynced)
     run = TrackedRun(session, out, videos, cfg, filt.model, writer, tracked, support, height, height_source,
                      shape_note, tuple(body_problems), timing, stages, t_start, tuple(backward_notes),
                      dict(options or {}))  # fmt: skip
     if lost_legs and support is not None and (low := unsupported_legs(support, cfg.verdict)):
         raise LegsLost(low, run)  # nothing written yet: the run is finished or discarded by run_track
     return _finish_run(run, notes)
+
+
+def _sync_note(tops: list[list[float]], videos: SessionVideos) -> str | None:
+    """The note on cameras whose videos look out of step (:mod:`gaitcap.sync_check`), or None."""
+    cams = list(videos.rig.names)
+    pairs = pair_offsets(np.array(tops, float).reshape(len(tops), len(cams)), cams, videos.fps)
+    for p in pairs:
+        log.debug("frame sync %s-%s: lag %.2f frames, correlation %.2f%s", p.first, p.second, p.lag, p.correlation,
+                  "" if p.judged else " (not judged)")  # fmt: skip
+    return sync_note(pairs, cams, videos.fps, {c: v.path for c, v in videos.videos.items()})
 
 
 @dataclass(frozen=True)

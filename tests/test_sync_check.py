@@ -1,0 +1,119 @@
+"""The frame sync's check (gaitcap.sync_check): cameras whose videos start a few frames apart are found
+from the rise and fall of the silhouettes' tops, named with the offset and how to trim them;
+synchronised or rhythmless series say nothing."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gaitcap.sync_check import PairOffset, head_top, out_of_step, pair_offset, pair_offsets, start_delays, sync_note
+
+FPS = 25.0
+
+
+def walk_tops(n: int, start: int = 0, rng: np.random.Generator | None = None, noise: float = 0.15) -> np.ndarray:
+    """A head-top series of a walk (rows, up positive: the head rises and falls once a step, a step every
+    13.5 frames, and climbs in the image as the subject nears the camera) seen from frame ``start`` of
+    the walk on."""
+    t = np.arange(start, start + n, dtype=float)
+    x = 1.2 * np.cos(2 * np.pi * t / 13.5) + 0.3 * t - 0.002 * t**2
+    return x + (0.0 if rng is None else rng.normal(0.0, noise, n))
+
+
+def test_head_top_is_the_first_row_to_a_fraction():
+    sil = np.zeros((100, 80), np.float32)
+    sil[20:90, 30:40] = 1.0
+    sil[19, 30:35] = 1.0  # half a row above the head
+    sil[5, 0] = 1.0  # a stray pixel is not the top
+    assert head_top(sil) == pytest.approx(-19.5)
+    assert np.isnan(head_top(np.zeros((10, 10), np.float32)))
+
+
+@pytest.mark.parametrize("delay", [1, 2, 4, -1, -2, -4])
+def test_a_camera_started_later_is_found_with_its_offset(rng, delay):
+    n = 60
+    a = walk_tops(n, max(0, -delay), rng)  # -delay: the first camera started later
+    b = walk_tops(n, max(0, delay), rng)
+    pair = pair_offset(a, b, FPS, "cam1", "cam2")
+    assert pair.judged and pair.correlation > 0.8
+    assert pair.lag == pytest.approx(delay, abs=0.35)
+    assert out_of_step([pair], FPS) == [pair]
+    note = sync_note([pair], ["cam1", "cam2"], FPS)
+    assert note is not None and "out of step" in note
+    later, earlier = ("cam2", "cam1") if delay > 0 else ("cam1", "cam2")
+    assert "cam2's video starts" in note
+    assert ("after cam1's" if delay > 0 else "before cam1's") in note
+    frames = f"{abs(delay)} frame{'s' if abs(delay) > 1 else ''}"
+    assert f"trim the first {frames} of {earlier}" in note
+    assert f"ffmpeg -i videos/{earlier}.mp4" in note and f"trim=start_frame={abs(delay)}" in note
+    assert f"of {later}" not in note
+
+
+def test_synchronised_videos_say_nothing(rng):
+    a, b = walk_tops(60, 0, rng), walk_tops(60, 0, rng)
+    pair = pair_offset(a, b, FPS)
+    assert pair.judged and abs(pair.lag) < 0.3
+    assert sync_note([pair], ["a", "b"], FPS) is None
+
+
+def test_a_pair_without_the_rhythm_is_not_judged(rng):
+    """A camera in line with the walkway: its series is noise, the pair says nothing either way."""
+    a = walk_tops(60, 0, rng)
+    b = rng.normal(0.0, 1.0, 60)
+    pair = pair_offset(a, b, FPS)
+    assert not pair.judged
+    assert sync_note([pair], ["a", "b"], FPS) is None
+
+
+def test_a_clip_too_short_is_not_judged(rng):
+    pair = pair_offset(walk_tops(20, 2, rng), walk_tops(20, 0, rng), FPS)
+    assert not pair.judged
+
+
+def test_three_cameras_one_late_is_trimmed_in_the_others(rng):
+    n = 60
+    spread = np.stack([walk_tops(n, 2, rng), walk_tops(n, 0, rng), walk_tops(n, 2, rng)], axis=1)
+    pairs = pair_offsets(spread, ["c1", "c2", "c3"], FPS)
+    assert start_delays(pairs, ["c1", "c2", "c3"]) == {"c1": 2, "c2": 0, "c3": 2}
+    note = sync_note(pairs, ["c1", "c2", "c3"], FPS)
+    assert note is not None and "trim the first 2 frames of c2" in note and "of c1" not in note
+
+
+def test_start_delays_leave_out_cameras_no_judged_pair_reaches():
+    pairs = [PairOffset("a", "b", 2.1, 0.9, True), PairOffset("a", "c", 0.0, 0.1, False)]
+    assert start_delays(pairs, ["a", "b", "c"]) == {"a": 0, "b": 2}
+
+
+def test_track_notes_a_camera_started_two_frames_late(embedded_session, tmp_path):
+    """A session whose second camera's video starts 2 frames late is tracked with a warning and a note in
+    track.json naming the cameras, the offset and the trim (before: nothing said it)."""
+    import json
+    import shutil
+
+    from quick_config import quick_tracking
+
+    from gaitcap.io.video_write import AtomicVideoWriter
+    from gaitcap.pipeline import run_track
+    from gaitcap.video import VideoReader
+
+    src = embedded_session.session
+    ses = tmp_path / "late"
+    shutil.copytree(src, ses, ignore=shutil.ignore_patterns("videos"))
+    (ses / "videos").mkdir()
+    for video in sorted((src / "videos").iterdir()):
+        drop = 2 if video.stem == "cam2" else 0
+        with VideoReader(video) as reader:
+            frames = [f for _, f in reader]
+            fps, size = reader.info.fps, reader.info.size
+        with AtomicVideoWriter(ses / "videos" / video.name, fps, size) as writer:
+            for frame in frames[drop:]:
+                writer.write(frame)
+    config = quick_tracking(tmp_path, backward={"enabled": False})
+    summary = run_track(ses, tmp_path / "out", config=config, progress=False, seed=0)
+    notes = json.loads((tmp_path / "out" / "track.json").read_text())["verdict_notes"]
+    assert notes == summary.verdict_notes
+    sync = [n for n in notes if "out of step" in n]
+    assert len(sync) == 1, notes
+    assert "cam2's video starts 2." in sync[0] and "after cam1's" in sync[0]
+    assert "trim the first 2 frames of cam1" in sync[0] and "ffmpeg -i videos/cam1.mp4" in sync[0]
