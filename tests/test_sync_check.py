@@ -117,3 +117,12 @@ def test_track_notes_a_camera_started_two_frames_late(embedded_session, tmp_path
     assert len(sync) == 1, notes
     assert "cam2's video starts 2." in sync[0] and "after cam1's" in sync[0]
     assert "trim the first 2 frames of cam1" in sync[0] and "ffmpeg -i videos/cam1.mp4" in sync[0]
+
+
+def test_a_run_keeps_enough_frames_for_the_check_at_every_common_rate():
+    """The pipeline keeps the first MAX_FRAMES frames' tops (memory flat in the clip's length): that
+    covers the window the check reads at up to 120 fps."""
+    from gaitcap.sync_check import MAX_FRAMES, WINDOW_S
+
+    for fps in (25, 30, 50, 60, 100, 120):
+        assert MAX_FRAMES >= round(WINDOW_S * fps)

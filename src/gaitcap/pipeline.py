@@ -53,7 +53,7 @@ from gaitcap.session_check import SessionVideos, check_session_videos, check_sil
 from gaitcap.silhouette.config import SilhouetteConfig
 from gaitcap.silhouette.joint import JointExtractor, floor_check
 from gaitcap.silhouette.run import Source, camera_attrs, file_attrs, prepare_extractor, quality_row
-from gaitcap.sync_check import head_top, pair_offsets, sync_note
+from gaitcap.sync_check import MAX_FRAMES, head_top, pair_offsets, sync_note
 from gaitcap.timeseries import finite_runs
 from gaitcap.track_summary import (EVAL_FILE, GAIT_DIR, JOINTS_CSV, JOINTS_TRC, TRACK_JSON, TRAJECTORIES_H5, TrackSummary,
                                    format_verdict, is_finished, options_record, run_configs, write_track_json)  # fmt: skip
@@ -442,7 +442,8 @@ def _observations(ses: Session, cams: tuple[str, ...], views, sil_cfg: Silhouett
     no measurable time; the floor check's geometry (calibration only) is built beside them. With
     ``saver`` the full-resolution masks are kept (:class:`MaskSaver`). With ``soft`` the tracker sees
     each pixel's foreground confidence (:meth:`JointExtractor.process_soft`), otherwise the 0/1 masks.
-    With ``tops`` each frame's :func:`gaitcap.sync_check.head_top` per camera is appended to it."""
+    With ``tops`` each frame's :func:`gaitcap.sync_check.head_top` per camera is appended to it (the first
+    :data:`~gaitcap.sync_check.MAX_FRAMES` frames)."""
     sources = {cam: Source(cam, ses.videos[cam], ses.backgrounds.get(cam)) for cam in cams}
     error: BaseException | None = None
     try:
@@ -468,7 +469,7 @@ def _observations(ses: Session, cams: tuple[str, ...], views, sil_cfg: Silhouett
                 for c in range(len(cams)):
                     obs.prefix(c)
                 obs.areas  # noqa: B018 - cached here, off the tracking thread
-                if tops is not None:
+                if tops is not None and len(tops) < MAX_FRAMES:  # the check reads the clip's first seconds
                     tops.append([head_top(s) for s in obs.silhouettes])
                 yield obs
     except GeneratorExit:  # the tracking took what it needed: the frames decoded so far are kept

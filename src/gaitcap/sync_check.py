@@ -51,6 +51,8 @@ MIN_PIXELS = 20
 MAX_LAG_S = 0.24
 #: the seconds of the clip looked at, from its start (the quadratic trend fits a short walk only)
 WINDOW_S = 4.0
+#: the most frames a run keeps for the check (WINDOW_S at 120 fps): a run's memory stays flat in its length
+MAX_FRAMES = 480
 #: fewer seconds of frames overlapping at a lag: the pair is not judged (two steps at least)
 MIN_OVERLAP_S = 1.2
 #: a pair whose best correlation is lower is not judged
