@@ -92,6 +92,7 @@ METRICS = (
     ("lower_mm", "lower-limb MPJPE (mm)"),
     ("lower_offset_free_mm", "lower-limb MPJPE, each joint's constant offset removed (mm)"),
     ("knee_deg", "knee flexion RMSE (deg)"),
+    ("ankle_deg", "ankle dorsiflexion RMSE (deg)"),
     ("swap_frames", "frames with swapped legs"), ("longest_swap", "longest swap (frames)"),
     ("iou", "silhouette IoU (mean)"), ("iou_p10", "silhouette IoU (10th pct of frames)"),
     ("parts_missing", "camera-frames missing the head or a foot"),
@@ -322,6 +323,8 @@ def evaluate_run(run: Path, truth: Path) -> dict:
     lower_offset_free = (d["positions_mm"].get("lower_limb") or {}).get("offset_free_mpjpe_mm")
     knees = [d["angles_rmse_deg"].get(k) for k in ("knee_flexion_l", "knee_flexion_r")]
     knees = [k for k in knees if k is not None]
+    ankles = [d["angles_rmse_deg"].get(k) for k in ("ankle_dorsiflexion_l", "ankle_dorsiflexion_r")]
+    ankles = [a for a in ankles if a is not None]
     swaps = d.get("left_right_swaps") or {}
     events = d.get("events") or {}
     params = (d.get("parameters") or {}).get("values") or {}
@@ -337,7 +340,8 @@ def evaluate_run(run: Path, truth: Path) -> dict:
         return float(np.mean(per_side)) if per_side else None
 
     return dict(
-        lower_mm=lower, lower_offset_free_mm=lower_offset_free, knee_deg=float(np.mean(knees)) if knees else None, swap_frames=swaps.get("n_frames"),
+        lower_mm=lower, lower_offset_free_mm=lower_offset_free, knee_deg=float(np.mean(knees)) if knees else None,
+        ankle_deg=float(np.mean(ankles)) if ankles else None, swap_frames=swaps.get("n_frames"),
         longest_swap=longest_run(swaps.get("runs") or []), event_ms=events.get("mean_abs_ms"),
         events_missed=events.get("n_missed"), cadence_pct=pct("cadence_steps_per_min"), stride_pct=pct("stride_length_m"),
         flagged=d["frames"]["flagged"], frames=d["frames"]["total"],
