@@ -126,3 +126,16 @@ def test_a_run_keeps_enough_frames_for_the_check_at_every_common_rate():
 
     for fps in (25, 30, 50, 60, 100, 120):
         assert MAX_FRAMES >= round(WINDOW_S * fps)
+
+
+def test_frames_without_a_silhouette_give_no_warning_and_no_judgement():
+    """A camera that never sees the subject (NaN tops): not judged, and nothing printed to the user."""
+    import warnings
+
+    from gaitcap.sync_check import pair_offset
+
+    seen = np.sin(np.arange(60) * 0.5)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        p = pair_offset(np.full(60, np.nan), seen, 25.0)
+    assert not p.judged

@@ -34,6 +34,7 @@ walk (4 of the 59 sessions read about a frame out of step when synchronised).
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -88,7 +89,8 @@ def _despiked(x: np.ndarray) -> np.ndarray:
         return x
     half = SPIKE_FRAMES // 2
     padded = np.concatenate([np.full(half, x[0]), x, np.full(half, x[-1])])
-    with np.errstate(invalid="ignore"):
+    with np.errstate(invalid="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # a window of NaN only (no silhouette): its median NaN
         median = np.nanmedian(np.lib.stride_tricks.sliding_window_view(padded, SPIKE_FRAMES), axis=1)
         return np.where(np.abs(x - median) > SPIKE_ROWS, np.nan, x)
 
