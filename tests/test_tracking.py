@@ -1170,11 +1170,13 @@ def test_a_run_whose_legs_lie_off_the_masks_is_tracked_again_with_doubt(embedded
         return real(*args, **kwargs)
 
     monkeypatch.setattr(pipeline_module, "_track_session", failing_with_doubt)
+    monkeypatch.setattr(pipeline_module, "_sync_note", lambda tops, videos: "cam2's video starts 2.0 frames after")
     kept = run_track(embedded_session.session, out, config=config, progress=False, max_frames=5, force=True)
     monkeypatch.undo()
     assert runs == [False, True]  # the first run is not tracked again
     assert kept.status == "ok" and kept.verdict_notes[0].startswith("the first run's legs lay off a camera's masks (")
     assert "failed (no pose fits): this is the first run" in kept.verdict_notes[0]
+    assert "cam2's video starts 2.0 frames after" in kept.verdict_notes  # the first run's own notes kept with it
     assert json.loads((out / "track.json").read_text())["verdict_notes"] == kept.verdict_notes
     assert not list(out.glob(".*.part*"))
     with h5py.File(out / "trajectories.h5") as f:

@@ -214,7 +214,7 @@ def run_track(
             log.warning("%s: tracking with the doubtful pixels failed (%s): the first run is kept", session, e)
             return _finish_run(lost.run, notes=(
                 f"the first run's legs lay off a camera's masks ({lost.listing}); tracking again with the faint "
-                f"pixels outside them counted as doubtful failed ({e}): this is the first run",))  # fmt: skip
+                f"pixels outside them counted as doubtful failed ({e}): this is the first run", *lost.notes))  # fmt: skip
         except BaseException as e:
             lost.run.writer.abort(e)
             raise
@@ -230,9 +230,10 @@ class LegsLost(Exception):
     anything of that run is written, so that it is tracked again (``lost_legs``); ``run`` holds the run
     tracked, its trajectories in the writer's temporary file."""
 
-    def __init__(self, low: dict[str, tuple[int, int]], run: TrackedRun) -> None:
+    def __init__(self, low: dict[str, tuple[int, int]], run: TrackedRun, notes: tuple[str, ...] = ()) -> None:
         self.listing = unsupported_listing(low)  # "thigh_l in 38 of 56 frames, ..."
         self.run = run  # kept (:func:`_finish_run`) if tracking it again fails, else discarded
+        self.notes = notes  # the run's own notes (the frame sync's), written with it if it is kept
         super().__init__(self.listing)
 
 
@@ -567,7 +568,7 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
                      shape_note, tuple(body_problems), timing, stages, t_start, tuple(backward_notes),
                      dict(options or {}))  # fmt: skip
     if lost_legs and support is not None and (low := unsupported_legs(support, cfg.verdict)):
-        raise LegsLost(low, run)  # nothing written yet: the run is finished or discarded by run_track
+        raise LegsLost(low, run, notes)  # nothing written yet: the run is finished or discarded by run_track
     return _finish_run(run, notes)
 
 
