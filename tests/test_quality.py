@@ -598,3 +598,18 @@ def test_feet_the_silhouettes_hold_little_of_get_a_note_of_their_own(walk):
     assert not [n for n in a.verdict.notes if n.startswith("legs placed where")]
     assert unsupported_legs(support, cfg) == {}
     assert unsupported_legs(support, cfg, FOOT_SEGMENTS) == {"foot_l": (T // 2, T)}
+
+
+def test_cameras_out_of_step_make_the_verdict_doubtful():
+    """The frame sync check's finding (gaitcap.sync_check) is a reason of its own, naming the cameras."""
+    from gaitcap.quality import RunSignals, judge
+    from gaitcap.tracking.config import VerdictConfig
+
+    base = dict(n_frames=50, n_tracked=50, n_ok=50, n_crossed=0, floor_m=0.0)
+    cfg = VerdictConfig()
+    assert judge(RunSignals(**base), cfg).verdict == "ok"
+    late = judge(RunSignals(**base, out_of_step="cam2's video starts 1.1 frames (45 ms) after cam1's"), cfg)
+    assert late.verdict == "doubtful"
+    assert late.reasons == ("the cameras' videos look out of step (cam2's video starts 1.1 frames (45 ms) after "
+                            "cam1's): views a frame apart put the joints centimetres off (see the note on trimming "
+                            "the videos)",)

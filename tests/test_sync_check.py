@@ -86,8 +86,8 @@ def test_start_delays_leave_out_cameras_no_judged_pair_reaches():
 
 
 def test_track_notes_a_camera_started_two_frames_late(embedded_session, tmp_path):
-    """A session whose second camera's video starts 2 frames late is tracked with a warning and a note in
-    track.json naming the cameras, the offset and the trim (before: nothing said it)."""
+    """A session whose second camera's video starts 2 frames late is tracked with a warning, a note in
+    track.json naming the cameras, the offset and the trim, and a doubtful verdict (before: nothing said it)."""
     import json
     import shutil
 
@@ -117,6 +117,8 @@ def test_track_notes_a_camera_started_two_frames_late(embedded_session, tmp_path
     assert len(sync) == 1, notes
     assert "cam2's video starts 2." in sync[0] and "after cam1's" in sync[0]
     assert "trim the first 2 frames of cam1" in sync[0] and "ffmpeg -i videos/cam1.mp4" in sync[0]
+    assert summary.verdict == "doubtful"  # a run whose views are a frame or more apart is not to be trusted as is
+    assert any(r.startswith("the cameras' videos look out of step (cam2's video starts 2.") for r in summary.verdict_reasons)
 
 
 def test_a_run_keeps_enough_frames_for_the_check_at_every_common_rate():

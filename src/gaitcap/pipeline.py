@@ -53,7 +53,7 @@ from gaitcap.session_check import SessionVideos, check_session_videos, check_sil
 from gaitcap.silhouette.config import SilhouetteConfig
 from gaitcap.silhouette.joint import JointExtractor, floor_check
 from gaitcap.silhouette.run import Source, camera_attrs, file_attrs, prepare_extractor, quality_row
-from gaitcap.sync_check import MAX_FRAMES, head_top, pair_offsets, sync_note
+from gaitcap.sync_check import MAX_FRAMES, head_top, out_of_step_listing, pair_offsets, sync_note
 from gaitcap.timeseries import finite_runs
 from gaitcap.track_summary import (EVAL_FILE, GAIT_DIR, JOINTS_CSV, JOINTS_TRC, TRACK_JSON, TRAJECTORIES_H5, TrackSummary,
                                    format_verdict, is_finished, options_record, run_configs, write_track_json)  # fmt: skip
@@ -561,25 +561,29 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
     except BaseException as e:
         writer.abort(e)
         raise
+    out_of_step = ""
     if tops and (unsynced := _sync_note(tops, videos)):
-        say("%s: %s", session, unsynced)
-        notes = (*notes, unsynced)
+        out_of_step, note = unsynced
+        say("%s: %s", session, note)
+        notes = (*notes, note)
     run = TrackedRun(session, out, videos, cfg, filt.model, writer, tracked, support, height, height_source,
                      shape_note, tuple(body_problems), timing, stages, t_start, tuple(backward_notes),
-                     dict(options or {}))  # fmt: skip
+                     dict(options or {}), out_of_step)  # fmt: skip
     if lost_legs and support is not None and (low := unsupported_legs(support, cfg.verdict)):
         raise LegsLost(low, run, notes)  # nothing written yet: the run is finished or discarded by run_track
     return _finish_run(run, notes)
 
 
-def _sync_note(tops: list[list[float]], videos: SessionVideos) -> str | None:
-    """The note on cameras whose videos look out of step (:mod:`gaitcap.sync_check`), or None."""
+def _sync_note(tops: list[list[float]], videos: SessionVideos) -> tuple[str, str] | None:
+    """Cameras whose videos look out of step (:mod:`gaitcap.sync_check`): (the pairs in words, for the
+    verdict's reason; the note, with how to trim the videos), or None."""
     cams = list(videos.rig.names)
     pairs = pair_offsets(np.array(tops, float).reshape(len(tops), len(cams)), cams, videos.fps)
     for p in pairs:
         log.debug("frame sync %s-%s: lag %.2f frames, correlation %.2f%s", p.first, p.second, p.lag, p.correlation,
                   "" if p.judged else " (not judged)")  # fmt: skip
-    return sync_note(pairs, cams, videos.fps, {c: v.path for c, v in videos.videos.items()})
+    note = sync_note(pairs, cams, videos.fps, {c: v.path for c, v in videos.videos.items()})
+    return None if note is None else (out_of_step_listing(pairs, videos.fps), note)
 
 
 @dataclass(frozen=True)
@@ -606,6 +610,7 @@ class TrackedRun:
     t_start: float
     backward_notes: tuple[str, ...] = ()  # what the backward pass did that a reader should know (_mirror_run)
     options: dict = field(default_factory=dict)  # the command's options (track_summary.run_options)
+    out_of_step: str = ""  # the cameras whose videos look out of step, in words (sync_check; empty: none)
 
 
 def _finish_run(run: TrackedRun, notes: tuple[str, ...]) -> TrackSummary:
@@ -626,7 +631,7 @@ def _finish_run(run: TrackedRun, notes: tuple[str, ...]) -> TrackSummary:
         with stages.timed("verdict"):
             judged = assess(raw, names, writer.read_fit(), quality, run.height, videos.fps, cfg.verdict,
                             cfg.uncertainty, rig=videos.rig, body_problems=run.body_problems,
-                            leg_support=run.support)  # fmt: skip
+                            leg_support=run.support, out_of_step=run.out_of_step)  # fmt: skip
         writer.finish(points, note, uncertainty=judged.uncertainty)
     except BaseException as e:
         writer.abort(e)

@@ -126,6 +126,8 @@ class RunSignals:
             (:func:`gaitcap.tracking.support.segment_support`; NaN: not judged), empty when not measured.
         n_uncertain: tracked frames whose lower-limb points' mean calibrated uncertainty is above the
             verdict's ``uncertain_mm`` (:func:`assess`; 0 when not measured).
+        out_of_step: the cameras whose videos look out of step, in words
+            (:func:`gaitcap.sync_check.out_of_step_listing`; empty: none found or not checked).
     """
 
     n_frames: int
@@ -142,6 +144,7 @@ class RunSignals:
     moving_backwards: tuple[int, int, int, int] = (0, 0, 0, 0)
     leg_support: dict[str, np.ndarray] = field(default_factory=dict)
     n_uncertain: int = 0
+    out_of_step: str = ""
 
     @property
     def n_exchanged(self) -> int:
@@ -536,6 +539,9 @@ def judge(signals: RunSignals, cfg: VerdictConfig) -> RunVerdict:
     if s.n_uncertain > cfg.max_uncertain_fraction * s.n_tracked:
         reasons.append(f"the lower-limb points' uncertainty is above {cfg.uncertain_mm:g} mm in {s.n_uncertain} of "
                        f"{s.n_tracked} tracked frames: positions may be off by several centimetres")  # fmt: skip
+    if s.out_of_step:
+        reasons.append(f"the cameras' videos look out of step ({s.out_of_step}): views a frame apart put the joints "
+                       "centimetres off (see the note on trimming the videos)")  # fmt: skip
     small = {k: v for k, v in s.image_height_px.items() if v < cfg.min_image_height_px}
     if small:
         listed = ", ".join(f"{v:.0f} px in {k}" for k, v in small.items())
@@ -681,13 +687,14 @@ class Assessment:
 def assess(points: np.ndarray, names: tuple[str, ...], fit: np.ndarray, quality: np.ndarray, height_m: float,
            rate_hz: float, verdict_cfg: VerdictConfig, uncertainty_cfg: UncertaintyConfig,
            rig: CameraRig | None = None, body_problems: tuple[str, ...] = (),
-           leg_support: dict[str, np.ndarray] | None = None) -> Assessment:  # fmt: skip
+           leg_support: dict[str, np.ndarray] | None = None, out_of_step: str = "") -> Assessment:  # fmt: skip
     """Signals, verdict and calibrated uncertainty of one run from the tracker's raw points
     (T, P, 3), fit (T,) and quality (T,) (``points_unfiltered``, ``fit``, ``quality`` of
-    trajectories.h5); ``body_problems``, ``leg_support``: see :class:`RunSignals`."""
+    trajectories.h5); ``body_problems``, ``leg_support``, ``out_of_step``: see :class:`RunSignals`."""
     signals = replace(run_signals(points, names, quality, height_m, rig, verdict_cfg.crossed_margin_m,
                                   rate_hz=rate_hz, exchanged_margin_m=verdict_cfg.exchanged_margin_m),
-                      body_problems=body_problems, leg_support=dict(leg_support or {}))  # fmt: skip
+                      body_problems=body_problems, leg_support=dict(leg_support or {}),
+                      out_of_step=out_of_step)  # fmt: skip
     u = calibrated_uncertainty(points, names, fit, signals, rate_hz, uncertainty_cfg)
     signals = replace(signals, n_uncertain=_uncertain_frames(u, names, quality, verdict_cfg.uncertain_mm))
     return Assessment(signals, judge(signals, verdict_cfg), u)

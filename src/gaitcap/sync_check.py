@@ -192,16 +192,22 @@ def _s(n: int) -> str:
     return "" if n == 1 else "s"
 
 
+def out_of_step_listing(pairs: Sequence[PairOffset], fps: float) -> str:
+    """The pairs out of step (:func:`out_of_step`) in words, "cam2's video starts 1.1 frames (45 ms)
+    after cam1's (correlation 0.92); ..."; empty when none is."""
+    return "; ".join(
+        f"{p.second}'s video starts {abs(p.lag):.1f} frames ({1000 * abs(p.lag) / fps:.0f} ms) "
+        f"{'after' if p.lag > 0 else 'before'} {p.first}'s (correlation {p.correlation:.2f})"
+        for p in out_of_step(pairs, fps))  # fmt: skip
+
+
 def sync_note(pairs: Sequence[PairOffset], cameras: Sequence[str], fps: float,
               videos: Mapping[str, Path] | None = None) -> str | None:  # fmt: skip
     """One sentence for track.json and the log when some pair is out of step (:func:`out_of_step`),
     naming the cameras, the offset in frames and milliseconds and how to trim the videos; else None."""
-    bad = out_of_step(pairs, fps)
-    if not bad:
+    found = out_of_step_listing(pairs, fps)
+    if not found:
         return None
-    found = "; ".join(
-        f"{p.second}'s video starts {abs(p.lag):.1f} frames ({1000 * abs(p.lag) / fps:.0f} ms) "
-        f"{'after' if p.lag > 0 else 'before'} {p.first}'s (correlation {p.correlation:.2f})" for p in bad)
     delays = start_delays(pairs, cameras)
     latest = max(delays.values(), default=0)
     trims = {c: latest - d for c, d in delays.items() if latest - d > 0}
