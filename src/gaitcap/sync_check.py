@@ -221,4 +221,4 @@ def sync_note(pairs: Sequence[PairOffset], cameras: Sequence[str], fps: float,
                "and put the result in place of the original (moved out of videos/), then track again")
     return (f"the cameras' videos look out of step ({found}; from when the head rises and falls in each "
             f"camera's silhouettes): gaitcap takes frame k of every video as one instant, and views out of step "
-            f"by a frame put the joints centimetres off with nothing else showing it{fix}")
+            f"by a frame put the joints centimetres off{fix}")
