@@ -146,11 +146,11 @@ def pair_offset(a: np.ndarray, b: np.ndarray, fps: float, first: str = "a", seco
     r = np.array([_correlation(a, b, int(k), round(MIN_OVERLAP_S * fps)) for k in lags])
     if not np.isfinite(r).any():
         return PairOffset(first, second, math.nan, math.nan, False)
+    from gaitcap.gait.signals import parabolic_peak  # with scipy.signal, which a run imports late anyway
+
     i = int(np.nanargmax(r))
     inside = 0 < i < len(r) - 1 and bool(np.isfinite(r[i - 1]) and np.isfinite(r[i + 1]))
-    lag = float(lags[i])
-    if inside and (den := r[i - 1] - 2 * r[i] + r[i + 1]) < 0:
-        lag += 0.5 * float(r[i - 1] - r[i + 1]) / float(den)
+    lag = float(lags[i]) + (parabolic_peak(r, i) - i)  # the parabola's vertex through the best lag and its neighbours
     return PairOffset(first, second, lag, float(r[i]), inside and r[i] >= MIN_CORRELATION)
 
 
