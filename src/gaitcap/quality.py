@@ -612,6 +612,17 @@ _SUPPORT_NOTES = (
 )  # fmt: skip
 
 
+#: how a support note (:func:`_support_notes`) begins, ``what`` "legs" or "feet"
+SUPPORT_NOTE_START = "{what} placed where a camera's silhouette has little of them"
+
+
+def feet_off_masks(notes: tuple[str, ...] | list[str]) -> bool:
+    """Whether a run's verdict notes hold the feet's support note (:func:`_support_notes`): feet placed
+    where the silhouettes show little of them, whose heel and toe follow the legs."""
+    start = SUPPORT_NOTE_START.format(what="feet")
+    return any(n.startswith(start) for n in notes)
+
+
 def _support_notes(s: RunSignals, cfg: VerdictConfig) -> tuple[str, ...]:
     """A note (not a reason) for the legs, and one for the feet, naming those the silhouettes hold
     little of in many frames (:func:`unsupported_legs`): there the other cameras and the priors
@@ -620,7 +631,7 @@ def _support_notes(s: RunSignals, cfg: VerdictConfig) -> tuple[str, ...]:
     for segments, what, unit, meaning in _SUPPORT_NOTES:
         low = unsupported_legs(s.leg_support, cfg, segments)
         if low:
-            notes.append(f"{what} placed where a camera's silhouette has little of them ({unsupported_listing(low)}: "
+            notes.append(f"{SUPPORT_NOTE_START.format(what=what)} ({unsupported_listing(low)}: "
                          f"less than {100 * cfg.min_leg_support:.0f} % of the {unit} on the masks): {meaning}; look "
                          "at the masks (silhouettes.h5, gaitcap track --save-masks) and at the model drawn over the "
                          "frames (gaitcap report)")  # fmt: skip

@@ -14,6 +14,7 @@ import numpy as np
 from gaitcap import __version__
 from gaitcap.gait.analysis import GaitAnalysis
 from gaitcap.gait.parameters import OVERALL_KEYS, SIDE_KEYS, STATUS_IMPLAUSIBLE, STATUS_NOT_ENOUGH_STEPS
+from gaitcap.quality import feet_off_masks
 from gaitcap.report import plots
 from gaitcap.report.fit import FitRecord
 from gaitcap.report.sheet import ContactSheet, SheetRow
@@ -192,7 +193,7 @@ _FEET_OFF_MASKS = (
 
 def _feet_off_masks(view: FitView) -> bool:
     """The run's verdict notes feet placed where the silhouettes have little of them."""
-    return view.verdict is not None and any(n.startswith("feet placed where") for n in view.verdict.notes)
+    return view.verdict is not None and feet_off_masks(view.verdict.notes)
 
 
 def parameter_table(analysis: GaitAnalysis) -> str:
