@@ -150,11 +150,11 @@ def longest_run(runs: list) -> int:
 
 def measure(session: Path, truth: Path, truth_masks: Path, run: Path, reuse: bool = False,
             silhouettes_only: bool = False, config: Path | None = None, re_eval: bool = False,
-            body: Path | None = None, true_masks: bool = False) -> dict:  # fmt: skip
+            body: Path | None = None, true_masks: bool = False, sil_config: Path | None = None) -> dict:  # fmt: skip
     """Track, evaluate and score one session (``reuse``: the row of an earlier run, if it finished
     and tracked the same videos, ``true_masks`` or not; with ``re_eval`` its tracking scored again by
     the current ``gaitcap eval``; ``body``: an earlier run's output whose body is tracked, ``gaitcap
-    track --body``)."""
+    track --body``; ``sil_config``: the silhouette.yaml of the run, ``gaitcap track --silhouette-config``)."""
     row_file = run / ROW_FILE
     if reuse and row_file.exists() and not silhouettes_only and _row_kind(row_file) == true_masks:
         row = json.loads(row_file.read_text())
@@ -162,7 +162,7 @@ def measure(session: Path, truth: Path, truth_masks: Path, run: Path, reuse: boo
             row.update(evaluate_run(run, truth))
             row_file.write_text(json.dumps(row, default=str))
         return row
-    row = _measure(session, truth, truth_masks, run, silhouettes_only, config, body) | {"true_masks": true_masks}
+    row = _measure(session, truth, truth_masks, run, silhouettes_only, config, body, sil_config) | {"true_masks": true_masks}
     if silhouettes_only:
         return row
     run.mkdir(parents=True, exist_ok=True)
@@ -253,12 +253,15 @@ def silhouette_row(masks: Path, truth_masks: Path, session: Path, truth: Path) -
 
 
 def _measure(session: Path, truth: Path, truth_masks: Path, run: Path,
-             silhouettes_only: bool = False, config: Path | None = None, body: Path | None = None) -> dict:  # fmt: skip
+             silhouettes_only: bool = False, config: Path | None = None, body: Path | None = None,
+             sil_config: Path | None = None) -> dict:  # fmt: skip
     if silhouettes_only:
-        gaitcap("silhouettes", str(session), "-o", str(run), "--force", check=False)
+        gaitcap("silhouettes", str(session), "-o", str(run), "--force", *(["-c", str(sil_config)] if sil_config else []),
+                check=False)
         return {"status": "silhouettes only", **silhouette_row(run / "silhouettes.h5", truth_masks, session, truth)}
     t0, started = time.perf_counter(), time.time()
     extra = (["-c", str(config)] if config else []) + (["--body", str(body)] if body else [])
+    extra += ["--silhouette-config", str(sil_config)] if sil_config else []
     tr = gaitcap("track", str(session), "-o", str(run), "--force", "--save-masks", *extra, check=False)
     row: dict = {"seconds": time.perf_counter() - t0, "status": "ok"}
     # a run judged failed exits 1 too, but is written: scored; one that wrote nothing leaves the earlier run's
@@ -514,6 +517,8 @@ def main() -> None:
                     "current `gaitcap eval` (new metrics; the tracking is not repeated)")
     ap.add_argument("--silhouettes-only", action="store_true", help="only the silhouettes' IoU (no tracking): a minute")
     ap.add_argument("--config", type=Path, help="tracking configuration YAML given to every `gaitcap track`")
+    ap.add_argument("--silhouette-config", type=Path, help="silhouette configuration YAML given to every `gaitcap track` "
+                    "(--silhouette-config) and `gaitcap silhouettes` (-c)")
     ap.add_argument("--body", type=Path, help="track every session with this earlier run's body (gaitcap track "
                     "--body): sessions of one subject, with --only")
     ap.add_argument("--body-from", type=Path, metavar="WORK", help="track each session with the body of its own "
@@ -534,6 +539,8 @@ def main() -> None:
         return
     if args.config is not None and not args.config.is_file():
         ap.error(f"--config {args.config}: no such file (a tracking configuration YAML)")
+    if args.silhouette_config is not None and not args.silhouette_config.is_file():
+        ap.error(f"--silhouette-config {args.silhouette_config}: no such file (a silhouette configuration YAML)")
     if args.body is not None and not (args.body.is_file() or (args.body / "trajectories.h5").is_file()):
         ap.error(f"--body {args.body}: not a finished gaitcap track output (no trajectories.h5)")
     if args.body_from is not None and not (args.body_from / "runs").is_dir():
@@ -562,7 +569,7 @@ def main() -> None:
         r = {k: v for k, v in s.items() if k not in ("session", "truth", "masks")} | {"true_masks": args.true_masks}
         body = args.body or (args.body_from / "runs" / s["name"] if args.body_from else None)
         r.update(measure(s["session"], s["truth"], s["masks"], args.work / ("sil_runs" if args.silhouettes_only else "runs") / s["name"], args.reuse,
-                         args.silhouettes_only, args.config, args.re_eval, body, args.true_masks))
+                         args.silhouettes_only, args.config, args.re_eval, body, args.true_masks, args.silhouette_config))
         rows.append(r)
         print(f"[{i + 1}/{len(todo)}] {s['name']}: lower {fmt(r.get('lower_mm'))} mm, knee {fmt(r.get('knee_deg'))} deg, "
               f"IoU {fmt(r.get('iou'))}, {r.get('seconds', 0):.0f} s", file=sys.stderr, flush=True)  # fmt: skip
