@@ -32,6 +32,42 @@ def test_different_frame_counts_use_the_common_range_with_a_warning(tmp_path, ca
     assert len(checked.notes) == 1
 
 
+def test_skip_frames_shorten_a_camera_and_are_checked(tmp_path, caplog):
+    """session.yaml's skip_frames: the frames common to all cameras are counted after each camera's skip;
+    a skip of a camera the calibration does not have, or of every frame a video has, is refused naming
+    session.yaml and the camera; a skip that is not a whole number of frames at least 0 names the key."""
+    import yaml
+
+    from gaitcap.errors import ConfigError
+
+    root = make_session(tmp_path / "s", frames={"cam0": 20, "cam1": 18})
+    (root / "session.yaml").write_text(yaml.safe_dump({"skip_frames": {"cam0": 2}}))
+    s = Session.open(root)
+    assert s.offsets == {"cam0": 2, "cam1": 0}
+    from gaitcap.silhouette.run import sources_from_session
+
+    assert [(src.camera, src.skip) for src in sources_from_session(root)] == [("cam0", 2), ("cam1", 0)]
+    with caplog.at_level(logging.WARNING, logger="gaitcap"):
+        checked = check_session_videos(s)
+    assert checked.n_frames == 18 and checked.notes == ()  # 20 - 2 = 18: the same length, nothing to say
+    (root / "session.yaml").write_text(yaml.safe_dump({"skip_frames": {"cam0": 5}}))
+    with caplog.at_level(logging.WARNING, logger="gaitcap"):
+        checked = check_session_videos(Session.open(root))
+    assert checked.n_frames == 15
+    assert "videos of different lengths after skip_frames (cam0 15, cam1 18 frames)" in caplog.text
+    (root / "session.yaml").write_text(yaml.safe_dump({"skip_frames": {"cam1": 18}}))
+    with pytest.raises(InputError, match=r"session\.yaml: skip_frames leaves no frame of camera 'cam1' \(18 skipped of the 18"):
+        check_session_videos(Session.open(root))
+    (root / "session.yaml").write_text(yaml.safe_dump({"skip_frames": {"cam2": 1}}))
+    with pytest.raises(InputError, match=r"session\.yaml: skip_frames names 'cam2', not a camera of calibration\.toml "
+                                         r"\(its cameras: cam0, cam1\)"):  # fmt: skip
+        Session.open(root)
+    for bad in (-1, 1.5, "two"):
+        (root / "session.yaml").write_text(yaml.safe_dump({"skip_frames": {"cam0": bad}}))
+        with pytest.raises(ConfigError, match=r"session\.yaml.*skip_frames\.cam0"):
+            Session.open(root)
+
+
 def test_different_frame_rates_are_an_error_unless_allowed(tmp_path, caplog):
     s = Session.open(make_session(tmp_path / "s", fps={"cam0": 25.0, "cam1": 30.0}))
     with pytest.raises(InputError, match="the cameras' frame rates differ: cam0 25 fps, cam1 30 fps"):

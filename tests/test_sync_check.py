@@ -47,7 +47,8 @@ def test_a_camera_started_later_is_found_with_its_offset(rng, delay):
     frames = f"{abs(delay)} frame{'s' if abs(delay) > 1 else ''}"
     assert f"trim the first {frames} of {earlier}" in note
     assert f"ffmpeg -i videos/{earlier}.mp4" in note and f"trim=start_frame={abs(delay)}" in note
-    assert f"of {later}" not in note
+    assert f"set skip_frames: {{{earlier}: {abs(delay)}}} in session.yaml" in note
+    assert f"of {later}" not in note and f"{later}:" not in note
 
 
 def test_synchronised_videos_say_nothing(rng):
@@ -80,17 +81,33 @@ def test_three_cameras_one_late_is_trimmed_in_the_others(rng):
     assert note is not None and "trim the first 2 frames of c2" in note and "of c1" not in note
 
 
+def test_the_skip_frames_advised_add_to_the_sessions_own():
+    """The offsets are measured on the videos as the session reads them (after its skip_frames): the
+    setting advised is the session's plus the frames to trim, less what every camera would skip alike."""
+    from gaitcap.sync_check import corrected_skips
+
+    cams = ["cam1", "cam2", "cam3"]
+    assert corrected_skips({"cam1": 2}, {}, cams) == {"cam1": 2}
+    assert corrected_skips({"cam1": 1}, {"cam1": 1}, cams) == {"cam1": 2}  # one frame was not enough
+    assert corrected_skips({"cam1": 1}, {"cam2": 1}, cams[:2]) == {}  # the wrong camera was skipped: undo it
+    assert corrected_skips({"cam1": 1, "cam3": 1}, {"cam2": 3}, cams) == {"cam2": 2}  # cam2's skip went too far
+
+
 def test_start_delays_leave_out_cameras_no_judged_pair_reaches():
     pairs = [PairOffset("a", "b", 2.1, 0.9, True), PairOffset("a", "c", 0.0, 0.1, False)]
     assert start_delays(pairs, ["a", "b", "c"]) == {"a": 0, "b": 2}
 
 
-def test_track_notes_a_camera_started_two_frames_late(embedded_session, tmp_path):
+def test_track_notes_a_camera_started_two_frames_late_and_skip_frames_brings_it_into_step(embedded_session, tmp_path):
     """A session whose second camera's video starts 2 frames late is tracked with a warning, a note in
-    track.json naming the cameras, the offset and the trim, and a doubtful verdict (before: nothing said it)."""
+    track.json naming the cameras, the offset, the skip_frames to set and the trim, and a doubtful
+    verdict (before: nothing said it); with the skip_frames the note advises, in session.yaml, the same
+    videos are tracked in step: no note, no such reason (before: no way short of re-encoding)."""
     import json
+    import re
     import shutil
 
+    import yaml
     from quick_config import quick_tracking
 
     from gaitcap.io.video_write import AtomicVideoWriter
@@ -119,6 +136,15 @@ def test_track_notes_a_camera_started_two_frames_late(embedded_session, tmp_path
     assert "trim the first 2 frames of cam1" in sync[0] and "ffmpeg -i videos/cam1.mp4" in sync[0]
     assert summary.verdict == "doubtful"  # a run whose views are a frame or more apart is not to be trusted as is
     assert any(r.startswith("the cameras' videos look out of step (cam2's video starts 2.") for r in summary.verdict_reasons)
+
+    advised = re.search(r"set skip_frames: (\{[^}]*\}) in session\.yaml", sync[0])
+    assert advised is not None and yaml.safe_load(advised.group(1)) == {"cam1": 2}
+    info = yaml.safe_load((ses / "session.yaml").read_text()) if (ses / "session.yaml").exists() else {}
+    (ses / "session.yaml").write_text(yaml.safe_dump({**(info or {}), "skip_frames": yaml.safe_load(advised.group(1))}))
+    synced = run_track(ses, tmp_path / "synced", config=config, progress=False, seed=0)
+    assert not [n for n in synced.verdict_notes if "out of step" in n], synced.verdict_notes
+    assert not [r for r in synced.verdict_reasons if "out of step" in r]
+    assert synced.n_frames == summary.n_frames == len(frames) - 2  # cam1's frames 2.. with cam2's 0..
 
 
 def test_a_run_keeps_enough_frames_for_the_check_at_every_common_rate():

@@ -1170,7 +1170,7 @@ def test_a_run_whose_legs_lie_off_the_masks_is_tracked_again_with_doubt(embedded
         return real(*args, **kwargs)
 
     monkeypatch.setattr(pipeline_module, "_track_session", failing_with_doubt)
-    monkeypatch.setattr(pipeline_module, "_sync_note", lambda tops, videos: ("cam2 2 frames late",
+    monkeypatch.setattr(pipeline_module, "_sync_note", lambda tops, videos, skipped: ("cam2 2 frames late",
                                                                        "cam2's video starts 2.0 frames after"))
     kept = run_track(embedded_session.session, out, config=config, progress=False, max_frames=5, force=True)
     monkeypatch.undo()

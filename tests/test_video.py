@@ -68,6 +68,23 @@ def test_synchronised_iteration_stops_at_shortest(tmp_path, clip, caplog):
     assert "different lengths" in caplog.text and "b ended" in caplog.text
 
 
+def test_synchronised_iteration_skips_a_cameras_first_frames(clip):
+    """offsets (session.yaml's skip_frames): step k holds frame k + offset of that camera's video, and
+    the steps end with the video that runs out first after its skip."""
+    steps = list(iter_synchronised({"a": clip, "b": clip}, offsets={"b": 3}))
+    assert [(i, _level(f["a"]), _level(f["b"])) for i, f in steps] == [(k, k, k + 3) for k in range(17)]
+    ranged = list(iter_synchronised({"a": clip, "b": clip}, 2, 6, offsets={"a": 1}))
+    assert [(i, _level(f["a"]), _level(f["b"])) for i, f in ranged] == [(k, k + 1, k) for k in range(2, 6)]
+
+
+def test_the_report_draws_a_skipped_cameras_frames_at_the_sessions_index(clip):
+    """report.html's contact sheet reads frame k of the session from frame k + skip of the video."""
+    from gaitcap.report.sheet import _session_frames
+
+    frames = _session_frames(clip, [0, 4, 16, 18], 3)
+    assert {k: _level(f) for k, f in frames.items()} == {0: 3, 4: 7, 16: 19}  # 18 + 3 is past the end
+
+
 def test_missing_video(tmp_path):
     with pytest.raises(InputError, match="not found"):
         probe_video(tmp_path / "nope.mp4")

@@ -445,7 +445,7 @@ def _observations(ses: Session, cams: tuple[str, ...], views, sil_cfg: Silhouett
     each pixel's foreground confidence (:meth:`JointExtractor.process_soft`), otherwise the 0/1 masks.
     With ``tops`` each frame's :func:`gaitcap.sync_check.head_top` per camera is appended to it (the first
     :data:`~gaitcap.sync_check.MAX_FRAMES` frames)."""
-    sources = {cam: Source(cam, ses.videos[cam], ses.backgrounds.get(cam)) for cam in cams}
+    sources = {cam: Source(cam, ses.videos[cam], ses.backgrounds.get(cam), skip=ses.offsets[cam]) for cam in cams}
     error: BaseException | None = None
     try:
         with ThreadPoolExecutor(max_workers=len(cams), thread_name_prefix="gaitcap-camera") as pool:
@@ -454,7 +454,7 @@ def _observations(ses: Session, cams: tuple[str, ...], views, sil_cfg: Silhouett
                 prepared = {cam: prepare_extractor(sources[cam], sil_cfg) for cam in cams}
             joint = JointExtractor([prepared[c][0] for c in cams], [ses.rig[c] for c in cams], map_fn=pool.map,
                                    floor=floor.result())  # fmt: skip
-            for t, images in iter_synchronised({c: ses.videos[c] for c in cams}, 0, n_frames):
+            for t, images in iter_synchronised({c: ses.videos[c] for c in cams}, 0, n_frames, ses.offsets):
                 frame = [images[c] for c in cams]
                 if soft:  # (mask, soft, quality) per camera
                     done, seen = zip(*(((m, q), s) for m, s, q in joint.process_soft(frame)))
@@ -562,7 +562,7 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
         writer.abort(e)
         raise
     out_of_step = ""
-    if tops and (unsynced := _sync_note(tops, videos)):
+    if tops and (unsynced := _sync_note(tops, videos, ses.offsets)):
         out_of_step, note = unsynced
         say("%s: %s", session, note)
         notes = (*notes, note)
@@ -574,7 +574,7 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
     return _finish_run(run, notes)
 
 
-def _sync_note(tops: list[list[float]], videos: SessionVideos) -> tuple[str, str] | None:
+def _sync_note(tops: list[list[float]], videos: SessionVideos, skipped: dict[str, int]) -> tuple[str, str] | None:
     """Cameras whose videos look out of step (:mod:`gaitcap.sync_check`): (the pairs in words, for the
     verdict's reason; the note, with how to trim the videos), or None."""
     cams = list(videos.rig.names)
@@ -582,7 +582,7 @@ def _sync_note(tops: list[list[float]], videos: SessionVideos) -> tuple[str, str
     for p in pairs:
         log.debug("frame sync %s-%s: lag %.2f frames, correlation %.2f%s", p.first, p.second, p.lag, p.correlation,
                   "" if p.judged else " (not judged)")  # fmt: skip
-    note = sync_note(pairs, cams, videos.fps, {c: v.path for c, v in videos.videos.items()})
+    note = sync_note(pairs, cams, videos.fps, {c: v.path for c, v in videos.videos.items()}, skipped)
     return None if note is None else (out_of_step_listing(pairs, videos.fps), note)
 
 

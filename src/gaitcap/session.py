@@ -4,8 +4,12 @@
 <session>/calibration.toml                  # see gaitcap.io.calibration_toml
 <session>/videos/<camera>.<mp4|avi|mov|mkv> # one video per camera, named after its table
 <session>/background/<camera>.<png|jpg>     # optional: the empty scene, per camera
-<session>/session.yaml                      # optional: subject: {height_m: 1.72}, notes
+<session>/session.yaml                      # optional: subject: {height_m: 1.72}, skip_frames, notes
 ```
+
+``skip_frames: {cam1: 2}`` drops a camera's first frames, so that frame k of the session is frame
+k + 2 of that camera's video: cameras started by hand, out of step (``gaitcap.sync_check`` finds
+them), are brought into step without re-encoding their videos.
 """
 
 from __future__ import annotations
@@ -13,6 +17,7 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Annotated
 
 from pydantic import Field
 
@@ -36,10 +41,16 @@ class SubjectInfo(Strict):
     mass_kg: float | None = Field(default=None, gt=0, lt=400)
 
 
+#: the most frames a camera's video may be told to skip (``skip_frames``): 10 s at 25 fps
+MAX_SKIP_FRAMES = 250
+
+
 class SessionInfo(Strict):
     """Schema of ``session.yaml``."""
 
     subject: SubjectInfo = Field(default_factory=SubjectInfo)
+    skip_frames: dict[str, Annotated[int, Field(ge=0, le=MAX_SKIP_FRAMES, strict=True)]] = Field(
+        default_factory=dict, description="camera -> frames dropped at the start of its video (cameras out of step)")
     notes: str = ""
 
 
@@ -57,6 +68,12 @@ class Session:
     def camera_names(self) -> list[str]:
         return self.rig.names
 
+    @property
+    def offsets(self) -> dict[str, int]:
+        """Camera -> the frames of its video skipped at the start (``skip_frames``; 0 for most): frame k of
+        the session is frame k + offset of that camera's video."""
+        return {cam: self.info.skip_frames.get(cam, 0) for cam in self.rig.names}
+
     @classmethod
     def open(cls, root: str | Path) -> Session:
         """Open ``root``: read the calibration, find one video per camera, read session.yaml."""
@@ -68,6 +85,10 @@ class Session:
         backgrounds = find_per_camera(root / BACKGROUND_DIR, rig.names, IMAGE_EXTENSIONS, required=False)
         info_path = root / SESSION_FILE
         info = load_yaml_model(SessionInfo, info_path) if info_path.exists() else SessionInfo()
+        unknown = sorted(set(info.skip_frames) - set(rig.names))
+        if unknown:
+            raise InputError(f"{info_path}: skip_frames names {', '.join(map(repr, unknown))}, not a camera of "
+                             f"calibration.toml (its cameras: {', '.join(rig.names)})")  # fmt: skip
         return cls(root=root, rig=rig, videos=videos, backgrounds=backgrounds, info=info)
 
 

@@ -34,7 +34,7 @@ from gaitcap.calibration.quality import check_recorded_errors, check_rig_geometr
 from gaitcap.camera import CameraRig
 from gaitcap.errors import CalibrationError, InputError
 from gaitcap.io.calibration_toml import read_calibration_metadata
-from gaitcap.session import CALIBRATION_FILE, VIDEO_EXTENSIONS, VIDEOS_DIR, Session
+from gaitcap.session import CALIBRATION_FILE, SESSION_FILE, VIDEO_EXTENSIONS, VIDEOS_DIR, Session
 from gaitcap.tracking.init import height_on_vertical, silhouette_centroid, silhouette_row_centre, triangulate
 from gaitcap.tracking.observation import Observation, TrackingView
 from gaitcap.video import VideoInfo, VideoReader, differing_rates, probe_video
@@ -149,11 +149,22 @@ def _check_fps(videos: dict[str, CameraVideo], allow_mismatch: bool, notes: list
     return first
 
 
-def _check_counts(videos: dict[str, CameraVideo], notes: list[str]) -> int:
-    counts = {cam: v.n_frames for cam, v in videos.items()}
+def _check_counts(videos: dict[str, CameraVideo], notes: list[str], offsets: dict[str, int], info: Path) -> int:
+    """The frames common to all cameras, each camera's first ``offsets`` frames skipped (``info``: the
+    session.yaml that says so)."""
+    too_many = [cam for cam, v in videos.items() if offsets.get(cam, 0) >= v.n_frames]
+    if too_many:
+        raise InputError(f"{info}: skip_frames leaves no frame of " + ", ".join(
+            f"camera {c!r} ({offsets[c]} skipped of the {videos[c].n_frames} of {videos[c].info.path.name})"
+            for c in too_many))  # fmt: skip
+    counts = {cam: v.n_frames - offsets.get(cam, 0) for cam, v in videos.items()}
     common = min(counts.values())
+    skipped = {c: n for c, n in offsets.items() if n}
+    if skipped:
+        log.info("skip_frames (%s): %s", info.name, ", ".join(f"{c} starts at its frame {n}" for c, n in skipped.items()))
     if len(set(counts.values())) > 1:
-        note = (f"videos of different lengths ({', '.join(f'{c} {n}' for c, n in counts.items())} frames); "
+        after = " after skip_frames" if skipped else ""
+        note = (f"videos of different lengths{after} ({', '.join(f'{c} {n}' for c, n in counts.items())} frames); "
                 f"using the {common} frames common to all cameras")  # fmt: skip
         log.warning("%s", note)
         notes.append(note)
@@ -198,7 +209,7 @@ def check_session_videos(session: Session, allow_fps_mismatch: bool = False) -> 
         info = probe_video(session.videos[cam.name])
         videos[cam.name] = CameraVideo(cam.name, info, count_frames(info.path, info.frame_count))
     fps = _check_fps(videos, allow_fps_mismatch, notes)
-    n_frames = _check_counts(videos, notes)
+    n_frames = _check_counts(videos, notes, session.offsets, session.root / SESSION_FILE)
     rig = _check_sizes(session.rig, videos, notes)
     log.info("%d cameras, %d common frames at %g fps", len(videos), n_frames, fps)
     return SessionVideos(videos=videos, n_frames=n_frames, fps=fps, rig=rig, notes=tuple(notes))

@@ -202,9 +202,11 @@ def out_of_step_listing(pairs: Sequence[PairOffset], fps: float) -> str:
 
 
 def sync_note(pairs: Sequence[PairOffset], cameras: Sequence[str], fps: float,
-              videos: Mapping[str, Path] | None = None) -> str | None:  # fmt: skip
+              videos: Mapping[str, Path] | None = None, skipped: Mapping[str, int] | None = None) -> str | None:  # fmt: skip
     """One sentence for track.json and the log when some pair is out of step (:func:`out_of_step`),
-    naming the cameras, the offset in frames and milliseconds and how to trim the videos; else None."""
+    naming the cameras, the offset in frames and milliseconds, the ``skip_frames`` of session.yaml that
+    would bring them into step (``skipped``: the session's own, which the offsets were measured after)
+    and how to trim the videos instead; else None."""
     found = out_of_step_listing(pairs, fps)
     if not found:
         return None
@@ -217,8 +219,21 @@ def sync_note(pairs: Sequence[PairOffset], cameras: Sequence[str], fps: float,
             return f"videos/{videos[c].name}" if videos and c in videos else f"videos/{c}.mp4"
         cmds = "; ".join(f"ffmpeg -i {video(c)} -vf \"trim=start_frame={k},setpts=PTS-STARTPTS\" -an {c}_synced.mp4"
                          for c, k in trims.items())  # fmt: skip
-        fix = (f": trim the first {', '.join(f'{k} frame{_s(k)} of {c}' for c, k in trims.items())}, e.g. {cmds}, "
-               "and put the result in place of the original (moved out of videos/), then track again")
+        skip = corrected_skips(trims, skipped or {}, cameras)
+        setting = "{" + ", ".join(f"{c}: {k}" for c, k in skip.items()) + "}"
+        fix = (f": set skip_frames: {setting} in session.yaml (frames dropped at the start of a camera's video, "
+               f"without re-encoding it) and track again, or trim the first "
+               f"{', '.join(f'{k} frame{_s(k)} of {c}' for c, k in trims.items())}, e.g. {cmds}, "
+               "and put the result in place of the original (moved out of videos/)")
     return (f"the cameras' videos look out of step ({found}; from when the head rises and falls in each "
             f"camera's silhouettes): gaitcap takes frame k of every video as one instant, and views out of step "
             f"by a frame put the joints centimetres off{fix}")
+
+
+def corrected_skips(trims: Mapping[str, int], skipped: Mapping[str, int], cameras: Sequence[str]) -> dict[str, int]:
+    """session.yaml's ``skip_frames`` that would bring the cameras into step: the session's own
+    (``skipped``) plus the frames each camera is to lose (``trims``, measured after them), less what
+    every camera would skip alike; the cameras left at 0 are left out."""
+    total = {c: int(skipped.get(c, 0)) + int(trims.get(c, 0)) for c in cameras}
+    least = min(total.values(), default=0)
+    return {c: k - least for c, k in total.items() if k > least}

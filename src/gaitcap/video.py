@@ -281,7 +281,8 @@ def _rescale(frame: np.ndarray, scale: float) -> np.ndarray:
 
 
 def iter_synchronised(
-    paths: Mapping[str, str | Path], start: int = 0, stop: int | None = None
+    paths: Mapping[str, str | Path], start: int = 0, stop: int | None = None,
+    offsets: Mapping[str, int] | None = None,
 ) -> Iterator[tuple[int, dict[str, np.ndarray]]]:
     """Iterate over several synchronised videos together, one frame of each per step.
 
@@ -289,13 +290,17 @@ def iter_synchronised(
     end of the shortest video; a warning names the cameras whose videos are longer.
 
     Args:
-        paths: camera name -> video file (all cameras start at the same instant).
+        paths: camera name -> video file (all cameras start at the same instant, but for ``offsets``).
         start, stop: frame range, as for :class:`VideoReader`.
+        offsets: camera -> frames skipped at the start of its video (``session.yaml``'s ``skip_frames``):
+            step ``index`` holds frame ``index + offset`` of that camera's video (missing: 0).
     """
     if not paths:
         raise InputError("no video to read (empty camera list)")
+    shift = {cam: int((offsets or {}).get(cam, 0)) for cam in paths}
     with ExitStack() as stack:
-        readers = {cam: stack.enter_context(VideoReader(p, start, stop)) for cam, p in paths.items()}
+        readers = {cam: stack.enter_context(VideoReader(p, start + shift[cam], None if stop is None else stop + shift[cam]))
+                   for cam, p in paths.items()}  # fmt: skip
         index = start
         while True:
             frames = {cam: r.read() for cam, r in readers.items()}

@@ -214,6 +214,13 @@ def thumbnail(frame: np.ndarray, camera: Camera, model: BodyModel | None, q: np.
     return buf.tobytes()
 
 
+def _session_frames(video: Path, indices: list[int], skip: int) -> dict[int, np.ndarray]:
+    """Frames ``indices`` of the session from a camera's ``video`` whose first ``skip`` frames the session
+    skips (``skip_frames``), keyed by the session's index."""
+    read = read_frames(video, [i + skip for i in indices])
+    return {i - skip: image for i, image in read.items()}
+
+
 def contact_sheet(fit: FitRecord, frames: list[SheetFrame], session: Path | None = None) -> ContactSheet:
     """The contact sheet of ``frames``, or an empty one whose ``omitted`` says why (the session's
     videos or calibration cannot be read)."""
@@ -224,7 +231,7 @@ def contact_sheet(fit: FitRecord, frames: list[SheetFrame], session: Path | None
     rec = fit.record
     wanted = [f.index for f in frames]
     try:
-        videos = {cam: read_frames(ses.videos[cam], wanted) for cam in ses.rig.names}
+        videos = {cam: _session_frames(ses.videos[cam], wanted, ses.offsets[cam]) for cam in ses.rig.names}
     except GaitcapError as e:
         return ContactSheet(omitted=f"The contact sheet is omitted: the videos cannot be read ({e}).")
     rows = []

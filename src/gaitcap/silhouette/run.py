@@ -44,12 +44,14 @@ CSV_NAME = "silhouettes_quality.csv"
 
 @dataclass(frozen=True)
 class Source:
-    """One camera's input: its video, optional empty-scene plate and optional calibration."""
+    """One camera's input: its video, optional empty-scene plate and optional calibration; ``skip``:
+    the frames dropped at the start of its video (``session.yaml``'s ``skip_frames``)."""
 
     camera: str
     video: Path
     plate: Path | None = None
     calibration: Camera | None = None
+    skip: int = 0
 
 
 @dataclass
@@ -67,7 +69,8 @@ def sources_from_session(root: str | Path) -> list[Source]:
     """One :class:`Source` per camera of a session folder (plates from ``background/``, calibrations
     from ``calibration.toml``)."""
     session = Session.open(root)
-    return [Source(cam.name, session.videos[cam.name], session.backgrounds.get(cam.name), cam) for cam in session.rig]
+    return [Source(cam.name, session.videos[cam.name], session.backgrounds.get(cam.name), cam, session.offsets[cam.name])
+            for cam in session.rig]  # fmt: skip
 
 
 def sources_from_videos(paths: Sequence[str | Path]) -> list[Source]:
@@ -211,7 +214,8 @@ def run_silhouettes(
             joint = JointExtractor([c.extractor for c in group],
                                    [c.source.calibration for c in group] if calibrated else None)  # fmt: skip
             videos = {c.source.camera: c.source.video for c in group}
-            for index, images in iter_synchronised(videos, 0, max_frames):
+            skips = {c.source.camera: c.source.skip for c in group}
+            for index, images in iter_synchronised(videos, 0, max_frames, skips):
                 results = joint.process([images[c.source.camera] for c in group])
                 for c, frame, (mask, q) in zip(group, (images[c.source.camera] for c in group), results):
                     c.record(index, frame, mask, q, writer, table)
