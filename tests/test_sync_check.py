@@ -98,26 +98,20 @@ def test_start_delays_leave_out_cameras_no_judged_pair_reaches():
     assert start_delays(pairs, ["a", "b", "c"]) == {"a": 0, "b": 2}
 
 
-def test_track_notes_a_camera_started_two_frames_late_and_skip_frames_brings_it_into_step(embedded_session, tmp_path):
-    """A session whose second camera's video starts 2 frames late is tracked with a warning, a note in
-    track.json naming the cameras, the offset, the skip_frames to set and the trim, and a doubtful
-    verdict (before: nothing said it); with the skip_frames the note advises, in session.yaml, the same
-    videos are tracked in step: no note, no such reason (before: no way short of re-encoding)."""
-    import json
-    import re
+@pytest.fixture(scope="module")
+def late_session(embedded_session, tmp_path_factory):
+    """A copy of the embedded session whose second camera's video starts 2 frames late (its first 2
+    frames dropped), and the frames of the first camera's video."""
     import shutil
 
-    import yaml
-    from quick_config import quick_tracking
-
     from gaitcap.io.video_write import AtomicVideoWriter
-    from gaitcap.pipeline import run_track
     from gaitcap.video import VideoReader
 
     src = embedded_session.session
-    ses = tmp_path / "late"
+    ses = tmp_path_factory.mktemp("late") / "late"
     shutil.copytree(src, ses, ignore=shutil.ignore_patterns("videos"))
     (ses / "videos").mkdir()
+    n = {}
     for video in sorted((src / "videos").iterdir()):
         drop = 2 if video.stem == "cam2" else 0
         with VideoReader(video) as reader:
@@ -126,7 +120,40 @@ def test_track_notes_a_camera_started_two_frames_late_and_skip_frames_brings_it_
         with AtomicVideoWriter(ses / "videos" / video.name, fps, size) as writer:
             for frame in frames[drop:]:
                 writer.write(frame)
-    config = quick_tracking(tmp_path, backward={"enabled": False})
+        n[video.stem] = len(frames)
+    return ses, n["cam1"]
+
+
+def _copy(ses, folder, skip_frames=None):
+    """``ses`` copied into ``folder``, with session.yaml's ``skip_frames`` when given."""
+    import shutil
+
+    import yaml
+
+    out = folder / ses.name
+    shutil.copytree(ses, out)
+    if skip_frames is not None:
+        info = yaml.safe_load((out / "session.yaml").read_text()) if (out / "session.yaml").exists() else {}
+        (out / "session.yaml").write_text(yaml.safe_dump({**(info or {}), "skip_frames": skip_frames}))
+    return out
+
+
+def test_a_camera_started_two_frames_late_is_noted_with_the_skip_frames_that_bring_it_into_step(late_session, tmp_path):
+    """With frame_sync.retrack off, a session whose second camera's video starts 2 frames late is tracked
+    with a warning, a note in track.json naming the cameras, the offset, the skip_frames to set and the
+    trim, and a doubtful verdict (before: nothing said it); with the skip_frames the note advises, in
+    session.yaml, the same videos are tracked in step: no note, no such reason (before: no way short of
+    re-encoding)."""
+    import json
+    import re
+
+    import yaml
+    from quick_config import quick_tracking
+
+    from gaitcap.pipeline import run_track
+
+    ses, n_frames = late_session
+    config = quick_tracking(tmp_path, backward={"enabled": False}, frame_sync={"retrack": False})
     summary = run_track(ses, tmp_path / "out", config=config, progress=False, seed=0)
     notes = json.loads((tmp_path / "out" / "track.json").read_text())["verdict_notes"]
     assert notes == summary.verdict_notes
@@ -139,12 +166,76 @@ def test_track_notes_a_camera_started_two_frames_late_and_skip_frames_brings_it_
 
     advised = re.search(r"set skip_frames: (\{[^}]*\}) in session\.yaml", sync[0])
     assert advised is not None and yaml.safe_load(advised.group(1)) == {"cam1": 2}
-    info = yaml.safe_load((ses / "session.yaml").read_text()) if (ses / "session.yaml").exists() else {}
-    (ses / "session.yaml").write_text(yaml.safe_dump({**(info or {}), "skip_frames": yaml.safe_load(advised.group(1))}))
-    synced = run_track(ses, tmp_path / "synced", config=config, progress=False, seed=0)
+    synced = run_track(_copy(ses, tmp_path, yaml.safe_load(advised.group(1))), tmp_path / "synced", config=config,
+                       progress=False, seed=0)  # fmt: skip
     assert not [n for n in synced.verdict_notes if "out of step" in n], synced.verdict_notes
     assert not [r for r in synced.verdict_reasons if "out of step" in r]
-    assert synced.n_frames == summary.n_frames == len(frames) - 2  # cam1's frames 2.. with cam2's 0..
+    assert synced.n_frames == summary.n_frames == n_frames - 2  # cam1's frames 2.. with cam2's 0..
+
+
+def test_a_session_out_of_step_is_tracked_again_in_step(late_session, tmp_path):
+    """frame_sync.retrack (the default): the same session is tracked again with the skip_frames found,
+    once, and that run is written, its note saying so and nothing out of step; its masks (--save-masks)
+    are the second run's; the session folder is not changed. The same as the run of a session.yaml with
+    those skip_frames, but for the note."""
+    import json
+
+    import h5py
+    from quick_config import quick_tracking
+
+    from gaitcap.pipeline import run_track
+
+    ses, n_frames = late_session
+    config = quick_tracking(tmp_path, backward={"enabled": False})
+    before = (ses / "session.yaml").read_bytes() if (ses / "session.yaml").exists() else None
+    summary = run_track(ses, tmp_path / "out", config=config, progress=False, seed=0, save_masks=True)
+    assert ((ses / "session.yaml").read_bytes() if (ses / "session.yaml").exists() else None) == before
+    assert summary.verdict != "doubtful" or not [r for r in summary.verdict_reasons if "out of step" in r]
+    first = summary.verdict_notes[0]
+    assert first.startswith("tracked twice: the cameras' videos looked out of step (cam2's video starts 2.")
+    assert "skip_frames: {cam1: 2}" in first
+    assert not [n for n in summary.verdict_notes if n.startswith("the cameras' videos look out of step")]
+    assert json.loads((tmp_path / "out" / "track.json").read_text())["verdict_notes"] == summary.verdict_notes
+    assert summary.n_frames == n_frames - 2
+    assert sorted(p.name for p in (tmp_path / "out").iterdir() if p.name.startswith(".")) == []  # no temporary left
+    with h5py.File(tmp_path / "out" / "silhouettes.h5") as f:
+        assert {len(f["masks"][c]) for c in f["masks"]} == {n_frames - 2}
+
+    given = run_track(_copy(ses, tmp_path, {"cam1": 2}), tmp_path / "given", config=config, progress=False, seed=0)
+    with h5py.File(tmp_path / "out" / "trajectories.h5") as a, h5py.File(tmp_path / "given" / "trajectories.h5") as b:
+        assert a["points"].shape == b["points"].shape
+        assert float(abs(a["points"][()] - b["points"][()]).max()) < 1e-9
+    assert given.verdict_notes == summary.verdict_notes[1:]
+
+
+def test_the_first_run_is_kept_when_tracking_in_step_fails(late_session, tmp_path, monkeypatch):
+    """Tracking again with the skip_frames found fails (here its videos are refused): the first run is
+    written, its verdict doubtful, its notes kept and one more saying what failed, its own masks saved."""
+    import h5py
+    from quick_config import quick_tracking
+
+    import gaitcap.pipeline as pipeline_module
+    from gaitcap.errors import InputError
+    from gaitcap.pipeline import run_track
+
+    real = pipeline_module.check_session_videos
+
+    def refusing_skips(session, *args, **kwargs):
+        if any(session.offsets.values()):
+            raise InputError("refused for the test")
+        return real(session, *args, **kwargs)
+
+    monkeypatch.setattr(pipeline_module, "check_session_videos", refusing_skips)
+    ses, n_frames = late_session
+    config = quick_tracking(tmp_path, backward={"enabled": False})
+    kept = run_track(ses, tmp_path / "out", config=config, progress=False, seed=0, save_masks=True)
+    assert kept.verdict == "doubtful"
+    assert any(n.startswith("the cameras' videos look out of step (cam2's video starts 2.") for n in kept.verdict_notes)
+    assert kept.verdict_notes[-1] == "tracking again with skip_frames: {cam1: 2} failed (refused for the test): this is the first run"
+    assert kept.n_frames == n_frames - 2  # the first run: cam1's frames 0.. with cam2's (which began 2 later)
+    with h5py.File(tmp_path / "out" / "silhouettes.h5") as f:
+        assert {len(f["masks"][c]) for c in f["masks"]} == {n_frames - 2}
+    assert sorted(p.name for p in (tmp_path / "out").iterdir() if p.name.startswith(".")) == []
 
 
 def test_a_run_keeps_enough_frames_for_the_check_at_every_common_rate():

@@ -22,7 +22,7 @@ import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import ExitStack, contextmanager, nullcontext
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import partial
 from itertools import islice
 from pathlib import Path
@@ -53,7 +53,8 @@ from gaitcap.session_check import SessionVideos, check_session_videos, check_sil
 from gaitcap.silhouette.config import SilhouetteConfig
 from gaitcap.silhouette.joint import JointExtractor, floor_check
 from gaitcap.silhouette.run import Source, camera_attrs, file_attrs, prepare_extractor, quality_row
-from gaitcap.sync_check import MAX_FRAMES, head_top, out_of_step_listing, pair_offsets, sync_note
+from gaitcap.sync_check import (MAX_FRAMES, advised_skips, head_top, out_of_step_listing, pair_offsets,
+                                skip_setting, sync_note)  # fmt: skip
 from gaitcap.timeseries import finite_runs
 from gaitcap.track_summary import (EVAL_FILE, GAIT_DIR, JOINTS_CSV, JOINTS_TRC, TRACK_JSON, TRAJECTORIES_H5, TrackSummary,
                                    format_verdict, is_finished, options_record, run_configs, write_track_json)  # fmt: skip
@@ -186,18 +187,37 @@ def run_track(
     ses = Session.open(session)
     videos = check_session_videos(ses)  # the calibration's geometry included
     _check_out(out, force)
-    rig = videos.rig
+    views = tracking_views(videos.rig, cfg.scale)
+    likelihood = SilhouetteLikelihood(views, cfg.beta)
+    stages["setup"] = time.perf_counter() - t_start
+    track = partial(_track_videos, session, out, cfg, sil_cfg, views, likelihood, save_masks, height_m, max_frames,
+                    progress, on_frame, t_start, stages, reused, options)  # fmt: skip
+    try:
+        return track(ses, videos, sync_retrack=cfg.frame_sync.retrack)
+    except OutOfStep as late:
+        return _track_in_step(track, ses, late)
+
+
+def _track_videos(session: Path, out: Path, cfg: TrackingConfig, sil_cfg: SilhouetteConfig, views, likelihood,
+                  save_masks: bool, height_m: float | None, max_frames: int | None, progress: bool, on_frame,
+                  t_start: float, stages: Stages, reused: ReusedBody | None, options: dict, ses: Session,
+                  videos: SessionVideos, sync_retrack: bool = False, prepared: bool = False,
+                  notes: tuple[str, ...] = ()) -> TrackSummary:  # fmt: skip
+    """:func:`run_track` on the checked ``videos`` of ``ses``: the run, and again with doubt where its legs
+    lie off the masks (``lost_legs``). ``sync_retrack``: raise :class:`OutOfStep` instead of writing a run
+    whose cameras look out of step; ``prepared``, ``notes``: see :func:`_attempt`."""
     n_frames = videos.n_frames if max_frames is None else min(videos.n_frames, max_frames)
     if n_frames < videos.n_frames:
         log.info("tracking the first %d of the %d common frames (--max-frames)", n_frames, videos.n_frames)
-    views = tracking_views(rig, cfg.scale)
-    likelihood = SilhouetteLikelihood(views, cfg.beta)
     saver = MaskSaver(out / SILHOUETTES_FILE, file_attrs(sil_cfg)) if save_masks else None
-    stages["setup"] = time.perf_counter() - t_start
     attempt = partial(_attempt, session, out, ses, videos, views, likelihood, save_masks, height_m, n_frames, progress,
                       on_frame, t_start, stages, reused, options=options)  # fmt: skip
     try:
-        summary = attempt(cfg, sil_cfg, saver, lost_legs=cfg.lost_legs.retrack and not cfg.soft_silhouettes)
+        summary = attempt(cfg, sil_cfg, saver, lost_legs=cfg.lost_legs.retrack and not cfg.soft_silhouettes,
+                          sync_retrack=sync_retrack, prepared=prepared, notes=notes)  # fmt: skip
+    except OutOfStep as late:
+        late.saver = saver  # the first run's masks, kept with it if tracking in step fails
+        raise
     except LegsLost as lost:
         if saver is not None:  # the masks, all read: the run tracked again extracts the same ones
             saver.finish()
@@ -207,9 +227,9 @@ def run_track(
         try:
             summary = attempt(cfg.model_copy(update={"soft_silhouettes": True}),
                               sil_cfg.model_copy(update={"foreground": doubt}), None, lost_legs=False, prepared=True,
-                              notes=(f"tracked twice: the first run's legs lay off a camera's masks ({lost.listing}); "
-                                     "this run counted the faint pixels outside the masks as doubtful (tracking.yaml "
-                                     "lost_legs)",))  # fmt: skip
+                              notes=(*notes, f"tracked twice: the first run's legs lay off a camera's masks "
+                                     f"({lost.listing}); this run counted the faint pixels outside the masks as "
+                                     "doubtful (tracking.yaml lost_legs)"))  # fmt: skip
         except TrackingError as e:  # the first run stands: its outputs are written now
             log.warning("%s: tracking with the doubtful pixels failed (%s): the first run is kept", session, e)
             return _finish_run(lost.run, notes=(
@@ -222,6 +242,47 @@ def run_track(
         return summary
     if saver is not None:
         saver.finish()
+    return summary
+
+
+class OutOfStep(Exception):
+    """A run's cameras look out of step (:mod:`gaitcap.sync_check`): raised before anything of that run
+    is written, so that it is tracked again with ``skips`` as session.yaml's ``skip_frames``
+    (``frame_sync``); ``run`` holds the run tracked, ``notes`` its notes (the sync's among them),
+    ``listing`` the cameras out of step in words, ``saver`` its masks (``--save-masks``)."""
+
+    def __init__(self, skips: dict[str, int], listing: str, run: TrackedRun, notes: tuple[str, ...]) -> None:
+        self.skips, self.listing, self.run, self.notes = skips, listing, run, notes
+        self.saver: MaskSaver | None = None
+        super().__init__(listing)
+
+
+def _track_in_step(track: Callable[..., TrackSummary], ses: Session, late: OutOfStep) -> TrackSummary:
+    """The session tracked again (``track``: :func:`_track_videos` bound to the run's arguments) with the
+    frames ``late.skips`` skipped, once; the first run kept, with its notes, if that fails."""
+    setting = skip_setting(late.skips)
+    log.warning("%s: the cameras' videos look out of step (%s): tracking again with skip_frames: %s (frame_sync)",
+                ses.root, late.listing, setting)  # fmt: skip
+    in_step = replace(ses, info=ses.info.model_copy(update={"skip_frames": late.skips}))
+    note = (f"tracked twice: the cameras' videos looked out of step ({late.listing}); this run skipped the first "
+            f"frames of the videos that began earlier, skip_frames: {setting} (tracking.yaml frame_sync; set it in "
+            f"session.yaml to track so at once), so frame k of the run is frame k + n of such a camera's video")
+    try:
+        summary = track(in_step, check_session_videos(in_step), prepared=True, notes=(note,))
+    except (TrackingError, InputError) as e:  # the first run stands: its outputs are written now
+        log.warning("%s: tracking with skip_frames %s failed (%s): the first run is kept", ses.root, setting, e)
+        if late.saver is not None:
+            late.saver.finish()
+        return _finish_run(late.run, notes=(*late.notes, f"tracking again with skip_frames: {setting} failed ({e}): "
+                                                         "this is the first run"))  # fmt: skip
+    except BaseException as e:
+        late.run.writer.abort(e)
+        if late.saver is not None:
+            late.saver.done(e)
+        raise
+    late.run.writer.discard()
+    if late.saver is not None:  # the first run's masks, in the other frames: removed
+        late.saver.done(OutOfStep(late.skips, late.listing, late.run, late.notes))
     return summary
 
 
@@ -241,12 +302,13 @@ def _attempt(session: Path, out: Path, ses: Session, videos, views, likelihood, 
              height_m: float | None, n_frames: int, progress: bool, on_frame, t_start: float, stages: Stages,
              reused, cfg: TrackingConfig, sil_cfg: SilhouetteConfig, saver: MaskSaver | None, lost_legs: bool,
              notes: tuple[str, ...] = (), prepared: bool = False,
-             options: dict | None = None) -> TrackSummary:  # fmt: skip
+             options: dict | None = None, sync_retrack: bool = False) -> TrackSummary:  # fmt: skip
     """One run of :func:`run_track` with these configurations, from the videos to the outputs (the
     stages' times add up over the runs). ``lost_legs``: raise :class:`LegsLost` instead of writing a
     run whose legs lie off the masks; ``notes``: prepended to the verdict's notes; ``prepared``: the
     output folder was prepared by an earlier run of this session (whose temporary file is kept);
-    ``options``: the command's options, for track.json (:func:`gaitcap.track_summary.run_options`)."""
+    ``options``: the command's options, for track.json (:func:`gaitcap.track_summary.run_options`);
+    ``sync_retrack``: raise :class:`OutOfStep` instead of writing a run whose cameras look out of step."""
     # the videos are read and the silhouettes extracted in a worker thread, a few frames ahead; the
     # first frames (initialisation, shape calibration) are read ahead without waiting for the
     # tracker; once they are in the head, the queue shrinks back to PREFETCH_FRAMES
@@ -269,7 +331,7 @@ def _attempt(session: Path, out: Path, ses: Session, videos, views, likelihood, 
             saver.open()
         return _track_session(session, out, ses, videos, cfg, views, likelihood, head, stream, height_m, n_frames,
                               progress, on_frame, t_start, stages, reused, lost_legs, notes,
-                              warn=not prepared, options=options or {}, tops=tops)  # fmt: skip
+                              warn=not prepared, options=options or {}, tops=tops, sync_retrack=sync_retrack)  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -499,7 +561,7 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
                    progress: bool, on_frame, t_start: float, stages: Stages,
                    reused: ReusedBody | None = None, lost_legs: bool = False,
                    notes: tuple[str, ...] = (), warn: bool = True, options: dict | None = None,
-                   tops: list[list[float]] | None = None) -> TrackSummary:  # fmt: skip
+                   tops: list[list[float]] | None = None, sync_retrack: bool = False) -> TrackSummary:  # fmt: skip
     """:func:`run_track` once the output folder is ready: ``head`` the buffered first frames, the
     others read from ``stream``; ``reused``: the body to track (no shape calibration); ``lost_legs``,
     ``notes``, ``options``: see :func:`_attempt`; ``warn``: log the warnings about the subject's
@@ -561,29 +623,35 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
     except BaseException as e:
         writer.abort(e)
         raise
-    out_of_step = ""
+    out_of_step, skips = "", None
     if tops and (unsynced := _sync_note(tops, videos, ses.offsets)):
-        out_of_step, note = unsynced
+        out_of_step, note, skips = unsynced
         say("%s: %s", session, note)
         notes = (*notes, note)
     run = TrackedRun(session, out, videos, cfg, filt.model, writer, tracked, support, height, height_source,
                      shape_note, tuple(body_problems), timing, stages, t_start, tuple(backward_notes),
                      dict(options or {}), out_of_step)  # fmt: skip
+    if sync_retrack and skips is not None:
+        raise OutOfStep(skips, out_of_step, run, notes)  # nothing written yet: tracked again in step by run_track
     if lost_legs and support is not None and (low := unsupported_legs(support, cfg.verdict)):
         raise LegsLost(low, run, notes)  # nothing written yet: the run is finished or discarded by run_track
     return _finish_run(run, notes)
 
 
-def _sync_note(tops: list[list[float]], videos: SessionVideos, skipped: dict[str, int]) -> tuple[str, str] | None:
+def _sync_note(tops: list[list[float]], videos: SessionVideos,
+               skipped: dict[str, int]) -> tuple[str, str, dict[str, int] | None] | None:  # fmt: skip
     """Cameras whose videos look out of step (:mod:`gaitcap.sync_check`): (the pairs in words, for the
-    verdict's reason; the note, with how to trim the videos), or None."""
+    verdict's reason; the note, with how to trim the videos; the ``skip_frames`` that would bring them into
+    step, ``skipped`` the session's own added in, or None), or None."""
     cams = list(videos.rig.names)
     pairs = pair_offsets(np.array(tops, float).reshape(len(tops), len(cams)), cams, videos.fps)
     for p in pairs:
         log.debug("frame sync %s-%s: lag %.2f frames, correlation %.2f%s", p.first, p.second, p.lag, p.correlation,
                   "" if p.judged else " (not judged)")  # fmt: skip
     note = sync_note(pairs, cams, videos.fps, {c: v.path for c, v in videos.videos.items()}, skipped)
-    return None if note is None else (out_of_step_listing(pairs, videos.fps), note)
+    if note is None:
+        return None
+    return out_of_step_listing(pairs, videos.fps), note, advised_skips(pairs, cams, videos.fps, skipped)
 
 
 @dataclass(frozen=True)

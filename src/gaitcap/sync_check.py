@@ -210,17 +210,14 @@ def sync_note(pairs: Sequence[PairOffset], cameras: Sequence[str], fps: float,
     found = out_of_step_listing(pairs, fps)
     if not found:
         return None
-    delays = start_delays(pairs, cameras)
-    latest = max(delays.values(), default=0)
-    trims = {c: latest - d for c, d in delays.items() if latest - d > 0}
+    trims = _trims(pairs, cameras)
     fix = ""
     if trims:
         def video(c: str) -> str:
             return f"videos/{videos[c].name}" if videos and c in videos else f"videos/{c}.mp4"
         cmds = "; ".join(f"ffmpeg -i {video(c)} -vf \"trim=start_frame={k},setpts=PTS-STARTPTS\" -an {c}_synced.mp4"
                          for c, k in trims.items())  # fmt: skip
-        skip = corrected_skips(trims, skipped or {}, cameras)
-        setting = "{" + ", ".join(f"{c}: {k}" for c, k in skip.items()) + "}"
+        setting = skip_setting(corrected_skips(trims, skipped or {}, cameras))
         fix = (f": set skip_frames: {setting} in session.yaml (frames dropped at the start of a camera's video, "
                f"without re-encoding it) and track again, or trim the first "
                f"{', '.join(f'{k} frame{_s(k)} of {c}' for c, k in trims.items())}, e.g. {cmds}, "
@@ -228,6 +225,30 @@ def sync_note(pairs: Sequence[PairOffset], cameras: Sequence[str], fps: float,
     return (f"the cameras' videos look out of step ({found}; from when the head rises and falls in each "
             f"camera's silhouettes): gaitcap takes frame k of every video as one instant, and views out of step "
             f"by a frame put the joints centimetres off{fix}")
+
+
+def _trims(pairs: Sequence[PairOffset], cameras: Sequence[str]) -> dict[str, int]:
+    """The whole frames each camera is to lose at its start to be in step with the latest one
+    (:func:`start_delays`); the cameras with none are left out."""
+    delays = start_delays(pairs, cameras)
+    latest = max(delays.values(), default=0)
+    return {c: latest - d for c, d in delays.items() if latest - d > 0}
+
+
+def advised_skips(pairs: Sequence[PairOffset], cameras: Sequence[str], fps: float,
+                  skipped: Mapping[str, int] | None = None) -> dict[str, int] | None:  # fmt: skip
+    """session.yaml's ``skip_frames`` that would bring out-of-step cameras (:func:`out_of_step`) into
+    step, the session's own (``skipped``) added in (:func:`corrected_skips`); None when no pair is out of
+    step or the judged pairs give no camera a whole frame to lose."""
+    if not out_of_step(pairs, fps):
+        return None
+    trims = _trims(pairs, cameras)
+    return corrected_skips(trims, skipped or {}, cameras) if trims else None
+
+
+def skip_setting(skips: Mapping[str, int]) -> str:
+    """``skip_frames`` as written in session.yaml: "{cam1: 2}"."""
+    return "{" + ", ".join(f"{c}: {k}" for c, k in skips.items()) + "}"
 
 
 def corrected_skips(trims: Mapping[str, int], skipped: Mapping[str, int], cameras: Sequence[str]) -> dict[str, int]:

@@ -298,6 +298,13 @@ class LostLegsConfig(Strict):
     doubt_min: float = Field(default=0.3, ge=0, lt=1)
 
 
+class FrameSyncConfig(Strict):
+    """Cameras whose videos look out of step (gaitcap.sync_check): tracked again with the frames found
+    skipped at the start of the late-starting cameras' videos (session.yaml's ``skip_frames``)."""
+
+    retrack: bool = True
+
+
 class TrackingConfig(Strict):
     tracker: TrackerName = "factored-ipf"
     scale: float = Field(default=0.5, gt=0.05, le=1)
@@ -317,6 +324,7 @@ class TrackingConfig(Strict):
     shape: ShapeConfig = Field(default_factory=ShapeConfig)
     backward: BackwardConfig = Field(default_factory=BackwardConfig)
     lost_legs: LostLegsConfig = Field(default_factory=LostLegsConfig)
+    frame_sync: FrameSyncConfig = Field(default_factory=FrameSyncConfig)
     threads: int | None = Field(default=None, ge=1)
     seed: int = Field(default=0, ge=0)  # numpy's seed sequences take no negative number
 
