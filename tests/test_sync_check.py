@@ -201,6 +201,15 @@ def test_a_session_out_of_step_is_tracked_again_in_step(late_session, tmp_path):
     with h5py.File(tmp_path / "out" / "silhouettes.h5") as f:
         assert {len(f["masks"][c]) for c in f["masks"]} == {n_frames - 2}
 
+    from gaitcap.report.fit import load_fit_record
+    from gaitcap.report.sheet import open_session
+
+    # the report draws the model over the frames the run tracked (cam1's from its frame 2), though the
+    # session folder's session.yaml has no skip_frames (before: cam1's frame k under the run's frame k)
+    tracked_session, why = open_session(load_fit_record(tmp_path / "out" / "trajectories.h5"))
+    assert tracked_session is not None, why
+    assert tracked_session.offsets == {"cam1": 2, "cam2": 0}
+
     given = run_track(_copy(ses, tmp_path, {"cam1": 2}), tmp_path / "given", config=config, progress=False, seed=0)
     with h5py.File(tmp_path / "out" / "trajectories.h5") as a, h5py.File(tmp_path / "given" / "trajectories.h5") as b:
         assert a["points"].shape == b["points"].shape

@@ -594,7 +594,8 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
                                                                                stages)  # fmt: skip
     attrs = {"config": yaml.safe_dump(cfg.model_dump(), sort_keys=False), "tracker": cfg.tracker,
              "height_m": float(height), "height_source": height_source, "session": str(session.resolve()),
-             "shape": shape_note, **proportions_attrs(filt.model)}  # fmt: skip
+             "shape": shape_note, "skip_frames": yaml.safe_dump(ses.offsets, default_flow_style=True).strip(),
+             **proportions_attrs(filt.model)}  # fmt: skip
     writer = TrackWriter(out / TRAJECTORIES_H5, model.point_names, model.dof_names, videos.fps, attrs,
                          tuple("rad" if r else "m" for r in model.is_rotation))  # fmt: skip
     timing = FrameTiming()

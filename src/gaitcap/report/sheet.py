@@ -19,6 +19,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+import yaml
 
 from gaitcap.body.model import BodyModel
 from gaitcap.body.recorded import recorded_model
@@ -70,6 +71,18 @@ def side_of(name: str) -> str:
     return "left" if name.endswith("_l") else "right" if name.endswith("_r") else "centre"
 
 
+def _as_tracked(session: Session, fit: FitRecord) -> Session:
+    """``session`` with the frames the run skipped at the start of each camera's video (the
+    ``skip_frames`` attribute of its trajectories.h5: session.yaml's, or those a run tracked again in
+    step found, ``frame_sync``), not session.yaml's as it reads now; runs that do not record them keep
+    session.yaml's."""
+    recorded = fit.record.attrs.get("skip_frames")
+    if recorded is None:
+        return session
+    skips = yaml.safe_load(str(recorded)) or {}
+    return replace(session, info=session.info.model_copy(update={"skip_frames": {str(c): int(n) for c, n in skips.items()}}))
+
+
 def open_session(fit: FitRecord, override: Path | None = None) -> tuple[Session | None, str]:
     """The run's session (``override``, else the folder ``track.json`` or ``trajectories.h5``
     records, a relative one tried from the working folder and from the run's folder), or None and a
@@ -84,7 +97,7 @@ def open_session(fit: FitRecord, override: Path | None = None) -> tuple[Session 
             tried.append(str(folder))
             if folder.is_dir():
                 try:
-                    session = Session.open(folder)
+                    session = _as_tracked(Session.open(folder), fit)
                 except GaitcapError as e:
                     return None, f"the session cannot be read ({e})"
                 if override is not None:
