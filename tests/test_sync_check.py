@@ -4,6 +4,8 @@ synchronised or rhythmless series say nothing."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -245,6 +247,30 @@ def test_the_first_run_is_kept_when_tracking_in_step_fails(late_session, tmp_pat
     with h5py.File(tmp_path / "out" / "silhouettes.h5") as f:
         assert {len(f["masks"][c]) for c in f["masks"]} == {n_frames - 2}
     assert sorted(p.name for p in (tmp_path / "out").iterdir() if p.name.startswith(".")) == []
+
+
+def test_gaitcap_silhouettes_says_when_the_cameras_look_out_of_step(late_session, tmp_path):
+    """``gaitcap silhouettes SESSION`` runs the same check on its masks, taken to the silhouettes the
+    tracker sees: a warning naming the cameras and the skip_frames to set (before: nothing until a
+    whole tracking run); with those skip_frames in session.yaml, none."""
+    import os
+    import subprocess
+    import sys
+
+    ses, _ = late_session
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(__file__).parents[1] / "src"), os.environ.get("PYTHONPATH", "")])}
+
+    def silhouettes(session, out):
+        return subprocess.run([sys.executable, "-m", "gaitcap", "silhouettes", str(session), "-o", str(out)],
+                              capture_output=True, text=True, env=env, timeout=600)  # fmt: skip
+
+    late = silhouettes(ses, tmp_path / "masks_late")
+    assert late.returncode == 0, late.stderr
+    said = [line for line in late.stderr.splitlines() if "out of step" in line]
+    assert len(said) == 1 and "cam2's video starts 2." in said[0] and "set skip_frames: {cam1: 2}" in said[0], late.stderr
+    synced = silhouettes(_copy(ses, tmp_path, {"cam1": 2}), tmp_path / "masks_synced")
+    assert synced.returncode == 0, synced.stderr
+    assert "out of step" not in synced.stderr
 
 
 def test_a_run_keeps_enough_frames_for_the_check_at_every_common_rate():

@@ -258,3 +258,35 @@ def corrected_skips(trims: Mapping[str, int], skipped: Mapping[str, int], camera
     total = {c: int(skipped.get(c, 0)) + int(trims.get(c, 0)) for c in cameras}
     least = min(total.values(), default=0)
     return {c: k - least for c, k in total.items() if k > least}
+
+
+class SyncRecorder:
+    """The check of a session's frame sync from its full-resolution masks (``gaitcap silhouettes``):
+    each frame's masks are taken to the silhouettes ``gaitcap track`` sees (the shipped tracking scale,
+    undistorted), where the check's thresholds were measured, and their :func:`head_top` kept for the
+    first :data:`MAX_FRAMES` frames."""
+
+    def __init__(self, cameras: Sequence, scale: float | None = None) -> None:
+        """``cameras``: the calibrated cameras (:class:`gaitcap.camera.Camera`), in the masks' order;
+        ``scale``: the silhouettes' scale (None: the shipped tracking.yaml's)."""
+        from gaitcap.camera import CameraRig
+        from gaitcap.tracking.config import load_tracking_config
+        from gaitcap.tracking.observation import tracking_views
+
+        scale = load_tracking_config().scale if scale is None else scale
+        self.cameras = [c.name for c in cameras]
+        self._views = tracking_views(CameraRig(tuple(cameras)), scale)
+        self.tops: list[list[float]] = []
+
+    def add(self, index: int, masks: Sequence[np.ndarray]) -> None:
+        """Frame ``index``'s (H, W) masks, one per camera (``run_silhouettes``' ``on_masks``)."""
+        if len(self.tops) < MAX_FRAMES:
+            self.tops.append([head_top(v.prepare(m)) for v, m in zip(self._views, masks, strict=True)])
+
+    def note(self, fps: float, videos: Mapping[str, Path] | None = None,
+             skipped: Mapping[str, int] | None = None) -> str | None:  # fmt: skip
+        """:func:`sync_note` of the frames added, or None (in step, or not judged)."""
+        if not self.tops:
+            return None
+        pairs = pair_offsets(np.array(self.tops, float), self.cameras, fps)
+        return sync_note(pairs, self.cameras, fps, videos, skipped)

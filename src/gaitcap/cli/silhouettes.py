@@ -10,6 +10,8 @@ import click
 from gaitcap.cli.options import force_option, handle_errors
 from gaitcap.silhouette.config import SilhouetteConfig
 from gaitcap.silhouette.run import run_silhouettes, sources_from_session, sources_from_videos
+from gaitcap.sync_check import SyncRecorder
+from gaitcap.video import probe_video
 
 log = logging.getLogger("gaitcap.cli.silhouettes")
 
@@ -59,7 +61,12 @@ def command(
     if no_shadow:
         config.shadow.enabled = False
     sources = sources_from_session(session) if session is not None else sources_from_videos(videos)
-    summaries = run_silhouettes(sources, out, config, png=png, overlay=overlay, force=force, max_frames=max_frames)
+    sync = SyncRecorder([s.calibration for s in sources]) if all(s.calibration for s in sources) else None
+    summaries = run_silhouettes(sources, out, config, png=png, overlay=overlay, force=force, max_frames=max_frames,
+                                on_masks=None if sync is None else sync.add)  # fmt: skip
+    if sync is not None and (note := sync.note(probe_video(sources[0].video).fps, {s.camera: s.video for s in sources},
+                                                {s.camera: s.skip for s in sources})):  # fmt: skip
+        log.warning("%s", note)
     for s in summaries:  # an unusable background was warned about when fitted: named again, not repeated
         flags = ", ".join(f"{k} {v}" for k, v in s.flag_counts.items() if v) or "none"
         usable = "" if s.background.usable else " (unusable: the masks are unreliable, see the warning above)"

@@ -168,6 +168,7 @@ def run_silhouettes(
     force: bool = False,
     max_frames: int | None = None,
     progress: Callable[[str, int], None] | None = None,
+    on_masks: Callable[[int, list[np.ndarray]], None] | None = None,
 ) -> list[CameraSummary]:
     """Extract silhouettes of every source, streaming the frames.
 
@@ -184,6 +185,9 @@ def run_silhouettes(
         force: overwrite existing outputs.
         max_frames: stop each camera after this many frames (None: whole video).
         progress: called as ``progress(camera, frame_index)`` after each frame.
+        on_masks: when every source is calibrated, called as ``on_masks(frame_index, masks)`` after each
+            frame with its (H, W) uint8 masks of every camera, in the sources' order (the frame sync's
+            check, :class:`gaitcap.sync_check.SyncRecorder`).
 
     Returns:
         One :class:`CameraSummary` per camera. Unusable backgrounds are logged as warnings and
@@ -221,6 +225,8 @@ def run_silhouettes(
                     c.record(index, frame, mask, q, writer, table)
                     if progress is not None:
                         progress(c.source.camera, index)
+                if on_masks is not None and calibrated:
+                    on_masks(index, [mask for mask, _ in results])
         return [c.summary() for c in prepared]  # raises, writing nothing, when a video had no frame
 
 
