@@ -282,7 +282,7 @@ def _track_in_step(track: Callable[..., TrackSummary], ses: Session, late: OutOf
         raise
     late.run.writer.discard()
     if late.saver is not None:  # the first run's masks, in the other frames: removed
-        late.saver.done(OutOfStep(late.skips, late.listing, late.run, late.notes))
+        late.saver.done(late)
     return summary
 
 
