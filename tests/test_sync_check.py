@@ -249,6 +249,73 @@ def test_the_first_run_is_kept_when_tracking_in_step_fails(late_session, tmp_pat
     assert sorted(p.name for p in (tmp_path / "out").iterdir() if p.name.startswith(".")) == []
 
 
+def _misread_once(monkeypatch, skips, lag):
+    """The frame sync check of the session's first run reads ``skips`` and ``lag`` (a misread, as the
+    check may make); the runs after it are checked for real."""
+    import gaitcap.pipeline as pipeline_module
+
+    real, calls = pipeline_module._sync_note, []
+
+    def first_misread(tops, videos, skipped):
+        calls.append(dict(skipped))
+        if len(calls) == 1:
+            return "cam2's video starts 1.0 frames after cam1's (misread)", "the cameras' videos look out of step", skips, lag
+        return real(tops, videos, skipped)
+
+    monkeypatch.setattr(pipeline_module, "_sync_note", first_misread)
+    return calls
+
+
+def test_a_skip_that_leaves_the_videos_as_far_out_of_step_keeps_the_first_run(embedded_session, tmp_path, monkeypatch):
+    """Cameras in step whose check misread an offset: tracked again with the skip it advised, the videos
+    are out of step by as much or more (the skip made them so), so the first run is written, with a note
+    saying why (before: the worse run, two frames out of step, was kept)."""
+    import h5py
+    from quick_config import quick_tracking
+
+    from gaitcap.pipeline import run_track
+
+    calls = _misread_once(monkeypatch, {"cam1": 2}, 1.0)
+    config = quick_tracking(tmp_path, backward={"enabled": False})
+    kept = run_track(embedded_session.session, tmp_path / "out", config=config, progress=False, seed=0, save_masks=True)
+    assert calls == [{"cam1": 0, "cam2": 0}, {"cam1": 2, "cam2": 0}]  # the second run checked, after its skip
+    assert kept.verdict_notes[-1].startswith("tracking again with skip_frames: {cam1: 2} left the videos as far out "
+                                             "of step (cam2's video starts 2.")  # fmt: skip
+    assert "before cam1's" in kept.verdict_notes[-1]  # the skip took cam1 two frames past cam2
+    assert kept.n_frames == 56  # the first run, no frame skipped
+    with h5py.File(tmp_path / "out" / "trajectories.h5") as f:
+        assert f.attrs["skip_frames"] == "{cam1: 0, cam2: 0}"
+    with h5py.File(tmp_path / "out" / "silhouettes.h5") as f:
+        assert {len(f["masks"][c]) for c in f["masks"]} == {56}
+    assert sorted(p.name for p in (tmp_path / "out").iterdir() if p.name.startswith(".")) == []
+
+
+def test_a_skip_that_leaves_the_videos_less_out_of_step_is_kept(late_session, tmp_path, monkeypatch):
+    """An offset read short (one frame of two): the run tracked with that skip is still out of step, by
+    less, and is kept, its notes saying it was tracked twice and how far its videos still are apart."""
+    from quick_config import quick_tracking
+
+    from gaitcap.pipeline import run_track
+
+    ses, n_frames = late_session
+    _misread_once(monkeypatch, {"cam1": 1}, 2.0)
+    config = quick_tracking(tmp_path, backward={"enabled": False})
+    kept = run_track(ses, tmp_path / "out", config=config, progress=False, seed=0)
+    twice = [n for n in kept.verdict_notes if n.startswith("tracked twice: the cameras' videos looked out of step")]
+    assert len(twice) == 1 and "skip_frames: {cam1: 1}" in twice[0]
+    rest = [n for n in kept.verdict_notes if n.startswith("the cameras' videos look out of step (cam2's video starts 1.")]
+    assert len(rest) == 1 and "set skip_frames: {cam1: 2} in session.yaml" in rest[0]  # the session's skip added in
+    assert kept.verdict == "doubtful"
+    with h5py_file(tmp_path / "out" / "trajectories.h5") as f:
+        assert f.attrs["skip_frames"] == "{cam1: 1, cam2: 0}"
+
+
+def h5py_file(path):
+    import h5py
+
+    return h5py.File(path)
+
+
 def test_gaitcap_silhouettes_says_when_the_cameras_look_out_of_step(late_session, tmp_path):
     """``gaitcap silhouettes SESSION`` runs the same check on its masks, taken to the silhouettes the
     tracker sees: a warning naming the cameras and the skip_frames to set (before: nothing until a

@@ -53,8 +53,8 @@ from gaitcap.session_check import SessionVideos, check_session_videos, check_sil
 from gaitcap.silhouette.config import SilhouetteConfig
 from gaitcap.silhouette.joint import JointExtractor, floor_check
 from gaitcap.silhouette.run import Source, camera_attrs, file_attrs, prepare_extractor, quality_row
-from gaitcap.sync_check import (MAX_FRAMES, advised_skips, head_top, out_of_step_listing, pair_offsets,
-                                skip_setting, sync_note)  # fmt: skip
+from gaitcap.sync_check import (MAX_FRAMES, advised_skips, head_top, out_of_step, out_of_step_listing,
+                                pair_offsets, skip_setting, sync_note)  # fmt: skip
 from gaitcap.timeseries import finite_runs
 from gaitcap.track_summary import (EVAL_FILE, GAIT_DIR, JOINTS_CSV, JOINTS_TRC, TRACK_JSON, TRAJECTORIES_H5, TrackSummary,
                                    format_verdict, is_finished, options_record, run_configs, write_track_json)  # fmt: skip
@@ -249,17 +249,36 @@ class OutOfStep(Exception):
     """A run's cameras look out of step (:mod:`gaitcap.sync_check`): raised before anything of that run
     is written, so that it is tracked again with ``skips`` as session.yaml's ``skip_frames``
     (``frame_sync``); ``run`` holds the run tracked, ``notes`` its notes (the sync's among them),
-    ``listing`` the cameras out of step in words, ``saver`` its masks (``--save-masks``)."""
+    ``listing`` the cameras out of step in words, ``lag`` the largest of their offsets (frames, absolute),
+    ``saver`` its masks (``--save-masks``)."""
 
-    def __init__(self, skips: dict[str, int], listing: str, run: TrackedRun, notes: tuple[str, ...]) -> None:
-        self.skips, self.listing, self.run, self.notes = skips, listing, run, notes
-        self.saver: MaskSaver | None = None
+    def __init__(self, skips: dict[str, int], listing: str, run: TrackedRun, notes: tuple[str, ...],
+                 lag: float) -> None:  # fmt: skip
+        self.skips, self.listing, self.run, self.notes, self.lag = skips, listing, run, notes, lag
+        self.saver: MaskSaver | None = None  # the run's masks (--save-masks), set by _track_videos
         super().__init__(listing)
+
+    def keep(self, notes: tuple[str, ...] = ()) -> TrackSummary:
+        """Write this run (its masks too), with ``notes`` after its own."""
+        if self.saver is not None:
+            self.saver.finish()
+        return _finish_run(self.run, (*self.notes, *notes))
+
+    def drop(self, error: BaseException | None = None) -> None:
+        """Discard this run and its masks (``error``: what stopped the session, else this)."""
+        if error is None:
+            self.run.writer.discard()
+        else:
+            self.run.writer.abort(error)
+        if self.saver is not None:
+            self.saver.done(error or self)
 
 
 def _track_in_step(track: Callable[..., TrackSummary], ses: Session, late: OutOfStep) -> TrackSummary:
     """The session tracked again (``track``: :func:`_track_videos` bound to the run's arguments) with the
-    frames ``late.skips`` skipped, once; the first run kept, with its notes, if that fails."""
+    frames ``late.skips`` skipped, once. That run is kept unless it looks out of step by as much or more
+    (the first run's offset was misread: skipping made it worse) or fails: then the first run is kept, with
+    its notes and one saying why."""
     setting = skip_setting(late.skips)
     log.warning("%s: the cameras' videos look out of step (%s): tracking again with skip_frames: %s (frame_sync)",
                 ses.root, late.listing, setting)  # fmt: skip
@@ -268,21 +287,23 @@ def _track_in_step(track: Callable[..., TrackSummary], ses: Session, late: OutOf
             f"frames of the videos that began earlier, skip_frames: {setting} (tracking.yaml frame_sync; set it in "
             f"session.yaml to track so at once), so frame k of the run is frame k + n of such a camera's video")
     try:
-        summary = track(in_step, check_session_videos(in_step), prepared=True, notes=(note,))
+        summary = track(in_step, check_session_videos(in_step), prepared=True, notes=(note,), sync_retrack=True)
+    except OutOfStep as again:  # still out of step: the run less out of step is kept
+        if again.lag < late.lag:
+            late.drop()
+            return again.keep()
+        again.drop()
+        log.warning("%s: with skip_frames %s the videos look out of step by as much (%s): the first run is kept",
+                    ses.root, setting, again.listing)  # fmt: skip
+        return late.keep((f"tracking again with skip_frames: {setting} left the videos as far out of step "
+                          f"({again.listing}): this is the first run",))  # fmt: skip
     except (TrackingError, InputError) as e:  # the first run stands: its outputs are written now
         log.warning("%s: tracking with skip_frames %s failed (%s): the first run is kept", ses.root, setting, e)
-        if late.saver is not None:
-            late.saver.finish()
-        return _finish_run(late.run, notes=(*late.notes, f"tracking again with skip_frames: {setting} failed ({e}): "
-                                                         "this is the first run"))  # fmt: skip
+        return late.keep((f"tracking again with skip_frames: {setting} failed ({e}): this is the first run",))
     except BaseException as e:
-        late.run.writer.abort(e)
-        if late.saver is not None:
-            late.saver.done(e)
+        late.drop(e)
         raise
-    late.run.writer.discard()
-    if late.saver is not None:  # the first run's masks, in the other frames: removed
-        late.saver.done(late)
+    late.drop()
     return summary
 
 
@@ -624,26 +645,26 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
     except BaseException as e:
         writer.abort(e)
         raise
-    out_of_step, skips = "", None
+    out_of_step, skips, lag = "", None, 0.0
     if tops and (unsynced := _sync_note(tops, videos, ses.offsets)):
-        out_of_step, note, skips = unsynced
+        out_of_step, note, skips, lag = unsynced
         say("%s: %s", session, note)
         notes = (*notes, note)
     run = TrackedRun(session, out, videos, cfg, filt.model, writer, tracked, support, height, height_source,
                      shape_note, tuple(body_problems), timing, stages, t_start, tuple(backward_notes),
                      dict(options or {}), out_of_step)  # fmt: skip
     if sync_retrack and skips is not None:
-        raise OutOfStep(skips, out_of_step, run, notes)  # nothing written yet: tracked again in step by run_track
+        raise OutOfStep(skips, out_of_step, run, notes, lag)  # nothing written yet: tracked again in step by run_track
     if lost_legs and support is not None and (low := unsupported_legs(support, cfg.verdict)):
         raise LegsLost(low, run, notes)  # nothing written yet: the run is finished or discarded by run_track
     return _finish_run(run, notes)
 
 
 def _sync_note(tops: list[list[float]], videos: SessionVideos,
-               skipped: dict[str, int]) -> tuple[str, str, dict[str, int] | None] | None:  # fmt: skip
+               skipped: dict[str, int]) -> tuple[str, str, dict[str, int] | None, float] | None:  # fmt: skip
     """Cameras whose videos look out of step (:mod:`gaitcap.sync_check`): (the pairs in words, for the
     verdict's reason; the note, with how to trim the videos; the ``skip_frames`` that would bring them into
-    step, ``skipped`` the session's own added in, or None), or None."""
+    step, ``skipped`` the session's own added in, or None; the largest offset, frames), or None."""
     cams = list(videos.rig.names)
     pairs = pair_offsets(np.array(tops, float).reshape(len(tops), len(cams)), cams, videos.fps)
     for p in pairs:
@@ -652,7 +673,8 @@ def _sync_note(tops: list[list[float]], videos: SessionVideos,
     note = sync_note(pairs, cams, videos.fps, {c: v.path for c, v in videos.videos.items()}, skipped)
     if note is None:
         return None
-    return out_of_step_listing(pairs, videos.fps), note, advised_skips(pairs, cams, videos.fps, skipped)
+    lag = max(abs(p.lag) for p in out_of_step(pairs, videos.fps))
+    return out_of_step_listing(pairs, videos.fps), note, advised_skips(pairs, cams, videos.fps, skipped), lag
 
 
 @dataclass(frozen=True)
