@@ -212,6 +212,14 @@ def test_a_session_out_of_step_is_tracked_again_in_step(late_session, tmp_path):
     assert tracked_session is not None, why
     assert tracked_session.offsets == {"cam1": 2, "cam2": 0}
 
+    # gaitcap eval says the run's frames start two frames into cam1's video (the truth is timed by its frames)
+    from gaitcap.evaluation.report import read_truth_reference
+    from gaitcap.evaluation.run import evaluate_output
+
+    ev = evaluate_output(tmp_path / "out", read_truth_reference(ses / "truth.h5"), ses / "truth.h5")
+    assert [n for n in ev.notes if n.startswith("OUT skipped the first frames of some cameras' videos (skip_frames: "
+                                                 "{cam1: 2})")]  # fmt: skip
+
     given = run_track(_copy(ses, tmp_path, {"cam1": 2}), tmp_path / "given", config=config, progress=False, seed=0)
     with h5py.File(tmp_path / "out" / "trajectories.h5") as a, h5py.File(tmp_path / "given" / "trajectories.h5") as b:
         assert a["points"].shape == b["points"].shape

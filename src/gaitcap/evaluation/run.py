@@ -30,6 +30,9 @@ def evaluate_output(out: Path, ref: TruthReference, truth: Path | None = None) -
     elif ref.masks is not None:
         ev.notes.append("silhouettes not compared: OUT holds no silhouettes.h5 (track with --save-masks)")
     trajectories = tracked_path(out)
+    if skipped := skipped_frames_note(trajectories):
+        ev.notes.append(skipped)
+        log.warning("%s", skipped)
     found = run_record(trajectories)  # the run's track.json, read once
     if warning := unfinished(trajectories, found):
         ev.notes.append(warning)
@@ -54,6 +57,27 @@ def evaluate_output(out: Path, ref: TruthReference, truth: Path | None = None) -
     if verdict is not None:
         ev.verdict, ev.verdict_reasons = verdict.verdict, list(verdict.reasons)
     return ev
+
+
+def skipped_frames_note(trajectories: Path) -> str | None:
+    """A note when the run skipped frames at the start of some camera's video (trajectories.h5's
+    ``skip_frames`` attribute: session.yaml's, or those a run tracked again in step found): its frame k
+    is not frame k of those videos, while the reference is compared from its own first frame."""
+    import h5py
+    import yaml
+
+    try:
+        with h5py.File(trajectories, "r") as f:
+            recorded = f.attrs.get("skip_frames")
+    except OSError:
+        return None
+    skips = {str(c): int(n) for c, n in (yaml.safe_load(str(recorded)) or {}).items() if n} if recorded else {}
+    if not skips:
+        return None
+    listed = ", ".join(f"{c}: {n}" for c, n in skips.items())
+    return (f"OUT skipped the first frames of some cameras' videos (skip_frames: {{{listed}}}): its frame k is frame "
+            f"k + n of such a camera's video, and the reference is compared from its own first frame; a reference "
+            f"timed by those videos' frames is n frames ahead of OUT")
 
 
 def reference_run_notes(reference: Path, ev: Evaluation) -> list[str]:
