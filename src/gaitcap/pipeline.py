@@ -43,7 +43,8 @@ from gaitcap.io.atomic import (check_free_space, check_output_folder, remove_rep
 from gaitcap.io.silhouettes_h5 import SILHOUETTES_FILE, SilhouetteWriter
 from gaitcap.io.spool import FrameSpool
 from gaitcap.io.track_h5 import (QUALITY_NOT_INITIALISED, QUALITY_OK, QUALITY_OUT_OF_VIEW, QUALITY_POOR_FIT,
-                                 TrackWriter, proportions_attrs, read_track_record, tracked_frames)  # fmt: skip
+                                 TrackWriter, proportions_attrs, read_track_record, skip_frames_attr,
+                                 tracked_frames)  # fmt: skip
 from gaitcap.io.trc import write_trc
 from gaitcap.prefetch import Head, Prefetched
 from gaitcap.quality import (assess, facing_in_doubt, legs_in_doubt, no_oblique_view, pivots, unsupported_legs,
@@ -615,7 +616,7 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
                                                                                stages)  # fmt: skip
     attrs = {"config": yaml.safe_dump(cfg.model_dump(), sort_keys=False), "tracker": cfg.tracker,
              "height_m": float(height), "height_source": height_source, "session": str(session.resolve()),
-             "shape": shape_note, "skip_frames": yaml.safe_dump(ses.offsets, default_flow_style=True).strip(),
+             "shape": shape_note, "skip_frames": skip_frames_attr(ses.offsets),
              **proportions_attrs(filt.model)}  # fmt: skip
     writer = TrackWriter(out / TRAJECTORIES_H5, model.point_names, model.dof_names, videos.fps, attrs,
                          tuple("rad" if r else "m" for r in model.is_rotation))  # fmt: skip

@@ -8,14 +8,13 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-import h5py
-
 from gaitcap.errors import InputError
 from gaitcap.evaluation.compare import CHECKED_ANGLES, Evaluation
 from gaitcap.gait.angles import ANGLE_NAMES
 from gaitcap.gait.parameters import OVERALL_KEYS
 from gaitcap.io.atomic import refuse_existing, write_text_atomic
 from gaitcap.io.silhouettes_h5 import SILHOUETTES_FILE
+from gaitcap.io.track_h5 import read_root_attrs
 from gaitcap.io.trajectories_h5 import read_trajectory
 from gaitcap.io.truth_folder import JOINTS_FILE, is_truth_folder, read_truth_folder
 from gaitcap.synth.truth import read_truth
@@ -101,14 +100,7 @@ def recorded_session(trajectories: str | Path, record: dict | None) -> str | Non
     """The session folder a tracking run tracked: its trajectories.h5's ``session`` attribute (the absolute path),
     else its track.json's ``session`` (``record``: the path as the command line gave it, relative to wherever
     ``gaitcap track`` ran, so not to be resolved from another working folder); None when neither says."""
-    path = Path(trajectories)
-    try:
-        with h5py.File(path, "r") as f:
-            value = f.attrs.get("session")
-    except OSError:
-        value = None
-    if isinstance(value, bytes):
-        value = value.decode("utf-8", "replace")
+    value = read_root_attrs(trajectories, "session").get("session")
     if isinstance(value, str) and value and Path(value).is_absolute():
         return value
     return (record or {}).get("session") or None

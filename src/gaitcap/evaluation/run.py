@@ -12,6 +12,7 @@ from gaitcap.evaluation.compare import Evaluation, compare_lengths, evaluate
 from gaitcap.evaluation.report import (TruthReference, other_run_session, other_session, out_masks, read_tracked,
                                        recorded_session, tracked_path)  # fmt: skip
 from gaitcap.evaluation.silhouettes import silhouette_iou
+from gaitcap.io.track_h5 import read_root_attrs, skip_frames_of
 from gaitcap.track_summary import format_verdict, read_verdict, run_record, unfinished
 
 log = logging.getLogger(__name__)
@@ -63,15 +64,7 @@ def skipped_frames_note(trajectories: Path) -> str | None:
     """A note when the run skipped frames at the start of some camera's video (trajectories.h5's
     ``skip_frames`` attribute: session.yaml's, or those a run tracked again in step found): its frame k
     is not frame k of those videos, while the reference is compared from its own first frame."""
-    import h5py
-    import yaml
-
-    try:
-        with h5py.File(trajectories, "r") as f:
-            recorded = f.attrs.get("skip_frames")
-    except OSError:
-        return None
-    skips = {str(c): int(n) for c, n in (yaml.safe_load(str(recorded)) or {}).items() if n} if recorded else {}
+    skips = {c: n for c, n in (skip_frames_of(read_root_attrs(trajectories, "skip_frames")) or {}).items() if n}
     if not skips:
         return None
     listed = ", ".join(f"{c}: {n}" for c, n in skips.items())

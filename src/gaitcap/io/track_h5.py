@@ -15,7 +15,8 @@ spread of the tracker's particles; ``/quality`` (T,) uint8 (0 ok,
 ``tracker``, ``height_m``, ``height_source``, ``session`` (the session folder, absolute), ``shape``
 (a note), ``body_scales`` and ``body_shifts`` (JSON ``{segment: [x, y, z]}``: the proportions of the
 tracked body model, so that its capsules can be drawn again; absent in runs before they were
-recorded), ``filter``.
+recorded), ``filter``, ``skip_frames`` (YAML ``{camera: n}``: the frames skipped at the start of each camera's
+video, :func:`skip_frames_attr`; absent in runs before they were recorded).
 
 :func:`read_track_record` reads what the tracker recorded per frame (the report draws and plots it).
 """
@@ -24,12 +25,14 @@ from __future__ import annotations
 
 import contextlib
 import json
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import h5py
 import numpy as np
+import yaml
 
 from gaitcap import __version__
 from gaitcap.errors import InputError, OutputError
@@ -197,6 +200,32 @@ _RECORD_DATASETS = ("points_unfiltered", "uncertainty", "poses", "fit", "quality
 
 def _str(v: Any) -> Any:
     return v.decode() if isinstance(v, bytes) else v
+
+
+def skip_frames_attr(offsets: Mapping[str, int]) -> str:
+    """The root attribute ``skip_frames`` of a run's ``offsets`` (camera -> frames skipped at the start of
+    its video, every camera): YAML, ``{cam1: 2, cam2: 0}``."""
+    return yaml.safe_dump(dict(offsets), default_flow_style=True).strip()
+
+
+def skip_frames_of(attrs: Mapping[str, Any]) -> dict[str, int] | None:
+    """The ``skip_frames`` of a file's root attributes (:func:`skip_frames_attr`), None when the run
+    did not record them."""
+    recorded = attrs.get("skip_frames")
+    if recorded is None:
+        return None
+    return {str(c): int(n) for c, n in (yaml.safe_load(str(_str(recorded))) or {}).items()}
+
+
+def read_root_attrs(path: str | Path, *names: str) -> dict[str, Any]:
+    """The root attributes ``names`` of an HDF5 file that it holds (bytes decoded); empty when it cannot
+    be read (the callers' notes are optional)."""
+    try:
+        with h5py.File(Path(path), "r") as f:
+            values = {n: f.attrs[n] for n in names if n in f.attrs}
+    except OSError:
+        return {}
+    return {n: v.decode("utf-8", "replace") if isinstance(v, bytes) else v for n, v in values.items()}
 
 
 def read_track_record(path: str | Path) -> TrackRecord | None:

@@ -19,13 +19,13 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-import yaml
 
 from gaitcap.body.model import BodyModel
 from gaitcap.body.recorded import recorded_model
 from gaitcap.body.shape import ProjectedCapsules, draw_capsule, project_capsules
 from gaitcap.camera import Camera
 from gaitcap.errors import GaitcapError
+from gaitcap.io.track_h5 import skip_frames_of
 from gaitcap.report.fit import FitRecord, SheetFrame
 from gaitcap.session import Session
 from gaitcap.video import read_frames
@@ -76,11 +76,8 @@ def _as_tracked(session: Session, fit: FitRecord) -> Session:
     ``skip_frames`` attribute of its trajectories.h5: session.yaml's, or those a run tracked again in
     step found, ``frame_sync``), not session.yaml's as it reads now; runs that do not record them keep
     session.yaml's."""
-    recorded = fit.record.attrs.get("skip_frames")
-    if recorded is None:
-        return session
-    skips = yaml.safe_load(str(recorded)) or {}
-    return replace(session, info=session.info.model_copy(update={"skip_frames": {str(c): int(n) for c, n in skips.items()}}))
+    skips = skip_frames_of(fit.record.attrs)
+    return session if skips is None else replace(session, info=session.info.model_copy(update={"skip_frames": skips}))
 
 
 def open_session(fit: FitRecord, override: Path | None = None) -> tuple[Session | None, str]:
