@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gaitcap.sync_check import PairOffset, head_top, out_of_step, pair_offset, pair_offsets, start_delays, sync_note
+from gaitcap.sync_check import PairOffset, SyncFinding, head_top, out_of_step, pair_offset, pair_offsets, start_delays, sync_note
 
 FPS = 25.0
 
@@ -267,7 +267,8 @@ def _misread_once(monkeypatch, skips, lag):
     def first_misread(tops, videos, skipped):
         calls.append(dict(skipped))
         if len(calls) == 1:
-            return "cam2's video starts 1.0 frames after cam1's (misread)", "the cameras' videos look out of step", skips, lag
+            return SyncFinding("cam2's video starts 1.0 frames after cam1's (misread)", "the cameras' videos look out of step",
+                               skips, lag)  # fmt: skip
         return real(tops, videos, skipped)
 
     monkeypatch.setattr(pipeline_module, "_sync_note", first_misread)

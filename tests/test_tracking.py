@@ -1159,6 +1159,7 @@ def test_a_run_whose_legs_lie_off_the_masks_is_tracked_again_with_doubt(embedded
     assert not list(out.glob(".*.part*"))
 
     import gaitcap.pipeline as pipeline_module
+    from gaitcap.sync_check import SyncFinding
 
     real = pipeline_module._track_session
     runs = []
@@ -1170,7 +1171,7 @@ def test_a_run_whose_legs_lie_off_the_masks_is_tracked_again_with_doubt(embedded
         return real(*args, **kwargs)
 
     monkeypatch.setattr(pipeline_module, "_track_session", failing_with_doubt)
-    monkeypatch.setattr(pipeline_module, "_sync_note", lambda tops, videos, skipped: (  # no skip_frames to track again with
+    monkeypatch.setattr(pipeline_module, "_sync_note", lambda tops, videos, skipped: SyncFinding(  # no skip_frames to track again with
         "cam2 2 frames late", "cam2's video starts 2.0 frames after", None, 2.0))
     kept = run_track(embedded_session.session, out, config=config, progress=False, max_frames=5, force=True)
     monkeypatch.undo()

@@ -54,8 +54,7 @@ from gaitcap.session_check import SessionVideos, check_session_videos, check_sil
 from gaitcap.silhouette.config import SilhouetteConfig
 from gaitcap.silhouette.joint import JointExtractor, floor_check
 from gaitcap.silhouette.run import Source, camera_attrs, file_attrs, prepare_extractor, quality_row
-from gaitcap.sync_check import (MAX_FRAMES, advised_skips, head_top, out_of_step, out_of_step_listing,
-                                pair_offsets, skip_setting, sync_note)  # fmt: skip
+from gaitcap.sync_check import MAX_FRAMES, SyncFinding, find_out_of_step, head_top, skip_setting
 from gaitcap.timeseries import finite_runs
 from gaitcap.track_summary import (EVAL_FILE, GAIT_DIR, JOINTS_CSV, JOINTS_TRC, TRACK_JSON, TRAJECTORIES_H5, TrackSummary,
                                    format_verdict, is_finished, options_record, run_configs, write_track_json)  # fmt: skip
@@ -646,36 +645,25 @@ def _track_session(session: Path, out: Path, ses: Session, videos, cfg: Tracking
     except BaseException as e:
         writer.abort(e)
         raise
-    out_of_step, skips, lag = "", None, 0.0
-    if tops and (unsynced := _sync_note(tops, videos, ses.offsets)):
-        out_of_step, note, skips, lag = unsynced
-        say("%s: %s", session, note)
-        notes = (*notes, note)
+    found = _sync_note(tops, videos, ses.offsets) if tops else None
+    if found is not None:
+        say("%s: %s", session, found.note)
+        notes = (*notes, found.note)
     run = TrackedRun(session, out, videos, cfg, filt.model, writer, tracked, support, height, height_source,
                      shape_note, tuple(body_problems), timing, stages, t_start, tuple(backward_notes),
-                     dict(options or {}), out_of_step)  # fmt: skip
-    if sync_retrack and skips is not None:
-        raise OutOfStep(skips, out_of_step, run, notes, lag)  # nothing written yet: tracked again in step by run_track
+                     dict(options or {}), "" if found is None else found.listing)  # fmt: skip
+    if sync_retrack and found is not None and found.skips is not None:  # nothing written yet: tracked again in step
+        raise OutOfStep(found.skips, found.listing, run, notes, found.lag)  # by run_track
     if lost_legs and support is not None and (low := unsupported_legs(support, cfg.verdict)):
         raise LegsLost(low, run, notes)  # nothing written yet: the run is finished or discarded by run_track
     return _finish_run(run, notes)
 
 
-def _sync_note(tops: list[list[float]], videos: SessionVideos,
-               skipped: dict[str, int]) -> tuple[str, str, dict[str, int] | None, float] | None:  # fmt: skip
-    """Cameras whose videos look out of step (:mod:`gaitcap.sync_check`): (the pairs in words, for the
-    verdict's reason; the note, with how to trim the videos; the ``skip_frames`` that would bring them into
-    step, ``skipped`` the session's own added in, or None; the largest offset, frames), or None."""
-    cams = list(videos.rig.names)
-    pairs = pair_offsets(np.array(tops, float).reshape(len(tops), len(cams)), cams, videos.fps)
-    for p in pairs:
-        log.debug("frame sync %s-%s: lag %.2f frames, correlation %.2f%s", p.first, p.second, p.lag, p.correlation,
-                  "" if p.judged else " (not judged)")  # fmt: skip
-    note = sync_note(pairs, cams, videos.fps, {c: v.path for c, v in videos.videos.items()}, skipped)
-    if note is None:
-        return None
-    lag = max(abs(p.lag) for p in out_of_step(pairs, videos.fps))
-    return out_of_step_listing(pairs, videos.fps), note, advised_skips(pairs, cams, videos.fps, skipped), lag
+def _sync_note(tops: list[list[float]], videos: SessionVideos, skipped: dict[str, int]) -> SyncFinding | None:
+    """Cameras whose videos look out of step (:func:`gaitcap.sync_check.find_out_of_step`), ``skipped`` the
+    session's own skip_frames, or None."""
+    return find_out_of_step(tops, list(videos.rig.names), videos.fps, {c: v.path for c, v in videos.videos.items()},
+                            skipped)  # fmt: skip
 
 
 @dataclass(frozen=True)

@@ -33,6 +33,7 @@ walk (4 of the 59 sessions read about a frame out of step when synchronised).
 
 from __future__ import annotations
 
+import logging
 import math
 import warnings
 from collections.abc import Mapping, Sequence
@@ -40,6 +41,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+log = logging.getLogger(__name__)
 
 #: the top of a silhouette is its first row holding this many pixels' worth (a stray pixel is not it)
 MIN_ROW_MASS = 2.0
@@ -260,6 +263,39 @@ def corrected_skips(trims: Mapping[str, int], skipped: Mapping[str, int], camera
     return {c: k - least for c, k in total.items() if k > least}
 
 
+@dataclass(frozen=True)
+class SyncFinding:
+    """Cameras out of step (:func:`find_out_of_step`).
+
+    Attributes:
+        listing: the pairs out of step in words (:func:`out_of_step_listing`), for a verdict's reason.
+        note: :func:`sync_note`, with the skip_frames to set and how to trim the videos.
+        skips: the ``skip_frames`` that would bring them into step (:func:`advised_skips`), or None.
+        lag: the largest offset of the pairs out of step, frames (absolute).
+    """
+
+    listing: str
+    note: str
+    skips: dict[str, int] | None
+    lag: float
+
+
+def find_out_of_step(tops: np.ndarray | Sequence[Sequence[float]], cameras: Sequence[str], fps: float,
+                     videos: Mapping[str, Path] | None = None,
+                     skipped: Mapping[str, int] | None = None) -> SyncFinding | None:  # fmt: skip
+    """The check of a session's :func:`head_top` series ``tops`` (T, C): the cameras out of step, or None
+    (in step, or no pair judged); ``videos``, ``skipped``: see :func:`sync_note`."""
+    pairs = pair_offsets(np.asarray(tops, float).reshape(len(tops), len(cameras)), cameras, fps)
+    for p in pairs:
+        log.debug("frame sync %s-%s: lag %.2f frames, correlation %.2f%s", p.first, p.second, p.lag, p.correlation,
+                  "" if p.judged else " (not judged)")  # fmt: skip
+    note = sync_note(pairs, cameras, fps, videos, skipped)
+    if note is None:
+        return None
+    lag = max(abs(p.lag) for p in out_of_step(pairs, fps))
+    return SyncFinding(out_of_step_listing(pairs, fps), note, advised_skips(pairs, cameras, fps, skipped), lag)
+
+
 class SyncRecorder:
     """The check of a session's frame sync from its full-resolution masks (``gaitcap silhouettes``):
     each frame's masks are taken to the silhouettes ``gaitcap track`` sees (the shipped tracking scale,
@@ -286,7 +322,5 @@ class SyncRecorder:
     def note(self, fps: float, videos: Mapping[str, Path] | None = None,
              skipped: Mapping[str, int] | None = None) -> str | None:  # fmt: skip
         """:func:`sync_note` of the frames added, or None (in step, or not judged)."""
-        if not self.tops:
-            return None
-        pairs = pair_offsets(np.array(self.tops, float), self.cameras, fps)
-        return sync_note(pairs, self.cameras, fps, videos, skipped)
+        found = find_out_of_step(self.tops, self.cameras, fps, videos, skipped) if self.tops else None
+        return None if found is None else found.note
